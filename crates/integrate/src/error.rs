@@ -1,0 +1,136 @@
+use std::fmt;
+
+use crate::Solution;
+
+/// A failure reported by an [`crate::OdeSystem`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemError {
+    /// What went wrong, for people.
+    pub message: String,
+}
+
+impl SystemError {
+    /// A system error with this message.
+    pub fn new(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for SystemError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for SystemError {}
+
+/// Why an integration did not reach `t_end`.
+///
+/// In every variant that has one, `t` is the last time reached, equal to
+/// `Failure::partial.t_last`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum IntegrateError {
+    /// Options or initial data rejected before the first step.
+    InvalidInput(String),
+    /// The step size fell below what the floating-point resolution of `t` allows.
+    StepSizeTooSmall {
+        /// Last time reached.
+        t: f64,
+        /// The step size that was too small.
+        h: f64,
+    },
+    /// More than `Options::max_steps` steps (accepted plus rejected) were needed.
+    TooManySteps {
+        /// Last time reached.
+        t: f64,
+        /// The budget `Options::max_steps`.
+        max_steps: usize,
+    },
+    /// The wall-clock budget `Options::max_wall_time_s` was used up.
+    TimeBudgetExceeded {
+        /// Last time reached.
+        t: f64,
+        /// The budget `Options::max_wall_time_s`.
+        seconds: f64,
+    },
+    /// The state or its derivative stopped being finite.
+    NonFinite {
+        /// Last time reached (the last finite state).
+        t: f64,
+    },
+    /// The system could not evaluate `f` at an accepted state, or kept
+    /// failing on trial stages down to the smallest step.
+    System {
+        /// Last time reached.
+        t: f64,
+        /// The system's last error.
+        source: SystemError,
+    },
+    /// [`crate::OdeSystem::guard`] reached zero at `t`.
+    Stopped {
+        /// The located time at which the guard is zero (or just past zero).
+        t: f64,
+        /// [`crate::OdeSystem::guard_reason`] at that time.
+        reason: String,
+    },
+}
+
+impl IntegrateError {
+    /// Time at which the error happened, if it happened during the run.
+    pub fn time(&self) -> Option<f64> {
+        match *self {
+            IntegrateError::InvalidInput(_) => None,
+            IntegrateError::StepSizeTooSmall { t, .. }
+            | IntegrateError::TooManySteps { t, .. }
+            | IntegrateError::TimeBudgetExceeded { t, .. }
+            | IntegrateError::NonFinite { t }
+            | IntegrateError::System { t, .. }
+            | IntegrateError::Stopped { t, .. } => Some(t),
+        }
+    }
+}
+
+impl fmt::Display for IntegrateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            IntegrateError::InvalidInput(m) => write!(f, "invalid integrator input: {m}"),
+            IntegrateError::StepSizeTooSmall { t, h } => {
+                write!(
+                    f,
+                    "at t = {t}: step size {h:e} too small (the problem may be stiff or singular here)"
+                )
+            }
+            IntegrateError::TooManySteps { t, max_steps } => {
+                write!(f, "at t = {t}: step budget of {max_steps} steps used up")
+            }
+            IntegrateError::TimeBudgetExceeded { t, seconds } => {
+                write!(f, "at t = {t}: wall-time budget of {seconds} s used up")
+            }
+            IntegrateError::NonFinite { t } => write!(f, "at t = {t}: state is not finite"),
+            IntegrateError::System { t, source } => write!(f, "at t = {t}: {source}"),
+            IntegrateError::Stopped { t, reason } => write!(f, "at t = {t}: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for IntegrateError {}
+
+/// An integration that did not reach `t_end`: the error and everything
+/// computed before it (samples up to the failure time, counters).
+#[derive(Debug, Clone)]
+pub struct Failure {
+    /// What happened.
+    pub error: IntegrateError,
+    /// Samples, continuous extension and counters up to the error time.
+    pub partial: Solution,
+}
+
+impl fmt::Display for Failure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.error.fmt(f)
+    }
+}
+
+impl std::error::Error for Failure {}

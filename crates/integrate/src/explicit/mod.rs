@@ -1,0 +1,657 @@
+//! Explicit Runge–Kutta methods: RK4 (fixed step), DOPRI5 and DOP853
+//! (adaptive, or fixed step when `Options::fixed_step` is set).
+//!
+//! One driver ([`run`]) serves the three methods; a method ([`Scheme`])
+//! only computes the stages of a trial step, its error estimate, the
+//! derivative at the new point, the stiffness quotient and the coefficients
+//! of its step polynomial. The method modules ([`rk4`], [`dopri5`],
+//! [`dop853`]) document order, reference, defaults and counters.
+//!
+//! # The step loop
+//!
+//! 1. `f(t0, y0)` is evaluated once; afterwards the derivative at the end of
+//!    each accepted step is the first stage of the next (FSAL). An error of
+//!    `f` at an accepted state is fatal: [`IntegrateError::System`].
+//! 2. Budgets before each trial step: `max_steps` (accepted + rejected) →
+//!    `TooManySteps`; `max_wall_time_s`, checked every 8 trial steps →
+//!    `TimeBudgetExceeded`; `|h| < 16 ε max(|t|, 10⁻⁶ |t_end − t0|)` →
+//!    `StepSizeTooSmall`.
+//! 3. Adaptive methods reject a step whose error estimate exceeds 1 (Hairer's
+//!    controller), whose error estimate or new state is not finite (`h /= 4`),
+//!    or at one of whose later stages `f` failed (`h /= 4`; if that takes `h`
+//!    below the minimum the run ends with `System` and the last error).
+//!    With a fixed step every step is accepted, and a failing or non-finite
+//!    stage ends the run (`System`, `NonFinite`).
+//! 4. After an accepted step: the step polynomial is stored (if
+//!    `Options::dense`), [`OdeSystem::after_step`] may project the state
+//!    (then `f` is evaluated again there), the guard is evaluated, and
+//!    output samples inside the step are taken from the polynomial.
+//! 5. A guard that changes from `> 0` to `<= 0` across a step is located on
+//!    the step polynomial (Illinois iteration to `~1e-14` relative in `t`);
+//!    the run stops there with [`IntegrateError::Stopped`], `t_last` being
+//!    the first located time at which the guard is `<= 0`.
+//!
+//! Every error reports the last time reached (`error.time() ==
+//! Some(partial.t_last)`), with the samples, counters and dense output up to
+//! that time. Stage vectors are allocated once per run; the step loop only
+//! allocates by pushing samples and step polynomials.
+
+mod control;
+mod dop853;
+mod dopri5;
+mod rk4;
+mod tableau;
+
+use std::mem::swap;
+use std::time::Instant;
+
+use crate::dense::eval_nested;
+use crate::{
+    Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, SystemError,
+};
+use control::{ControlParams, Controller, Rhs, StiffnessTest, Tol, all_finite, hinit};
+
+/// The accepted state a step starts from: `t`, `y` and `f(t, y)`.
+#[derive(Clone, Copy)]
+struct Start<'a> {
+    t: f64,
+    y: &'a [f64],
+    f: &'a [f64],
+}
+
+/// A computed step `[t, t + h]`, as the continuous extension needs it.
+#[derive(Clone, Copy)]
+struct StepData<'a> {
+    t: f64,
+    h: f64,
+    y: &'a [f64],
+    f0: &'a [f64],
+    y_new: &'a [f64],
+    f_new: &'a [f64],
+}
+
+/// One explicit Runge–Kutta method: stages, error estimate, dense output.
+trait Scheme {
+    /// Number of coefficient vectors of the step polynomial.
+    const NCOEF: usize;
+    /// Step-size control; `None` for a method that needs a fixed step.
+    const CONTROL: Option<ControlParams>;
+
+    /// Allocates the stage vectors for dimension `dim`.
+    fn new(dim: usize) -> Self;
+
+    /// Computes a trial step of size `h` from `from` (ending at `t_new`) into
+    /// `y_new`; returns the scaled error estimate if `tol` is given, else 0.
+    fn step<S: OdeSystem + ?Sized>(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        from: Start<'_>,
+        h: f64,
+        t_new: f64,
+        y_new: &mut [f64],
+        tol: Option<Tol>,
+    ) -> Result<f64, SystemError>;
+
+    /// Writes `f(t_new, y_new)` of the last trial step into `f_new`.
+    fn f_new<S: OdeSystem + ?Sized>(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        t_new: f64,
+        y_new: &[f64],
+        f_new: &mut [f64],
+    ) -> Result<(), SystemError>;
+
+    /// Estimate `|h|·ρ` of the dominant eigenvalue times the step, if the method has one.
+    fn stiffness(&self, h: f64, y_new: &[f64], f_new: &[f64]) -> Option<f64>;
+
+    /// Writes the `NCOEF × dim` coefficients of the step polynomial.
+    fn dense<S: OdeSystem + ?Sized>(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        step: StepData<'_>,
+        coef: &mut [f64],
+    ) -> Result<(), SystemError>;
+}
+
+/// Writes the cubic Hermite part (coefficients 1–4 of the nested form):
+/// `y_n`, `y_{n+1} − y_n`, `h f_n − c2`, `c2 − h f_{n+1} − c3`.
+fn hermite(coef: &mut [f64], s: StepData<'_>) {
+    let dim = s.y.len();
+    for i in 0..dim {
+        let ydiff = s.y_new[i] - s.y[i];
+        let bspl = s.h * s.f0[i] - ydiff;
+        coef[i] = s.y[i];
+        coef[dim + i] = ydiff;
+        coef[2 * dim + i] = bspl;
+        coef[3 * dim + i] = ydiff - s.h * s.f_new[i] - bspl;
+    }
+}
+
+pub(crate) fn solve<S: OdeSystem + ?Sized>(
+    method: Method,
+    sys: &mut S,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Solution, Failure> {
+    match method {
+        Method::Rk4 => run::<rk4::Rk4, S>(method, sys, t0, y0, t_end, opts),
+        Method::Dopri5 => run::<dopri5::Dopri5, S>(method, sys, t0, y0, t_end, opts),
+        Method::Dop853 => run::<dop853::Dop853, S>(method, sys, t0, y0, t_end, opts),
+    }
+}
+
+/// Outcome of a trial step.
+enum Attempt {
+    /// Stages computed; the error estimate (0 with a fixed step). If it is
+    /// at most 1, `y_new`, `f_new` and (if asked for) the polynomial are set.
+    Done(f64),
+    /// `f` failed on a stage.
+    Rhs(SystemError),
+    /// A stage, the error estimate or the new state is not finite.
+    NonFinite,
+}
+
+/// Buffers of the step loop, allocated once per run.
+struct Work<M> {
+    scheme: M,
+    y_new: Vec<f64>,
+    f_new: Vec<f64>,
+    /// Coefficients of the current step polynomial.
+    coef: Vec<f64>,
+}
+
+impl<M: Scheme> Work<M> {
+    #[allow(clippy::too_many_arguments)]
+    fn attempt<S: OdeSystem + ?Sized>(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        from: Start<'_>,
+        h: f64,
+        t_new: f64,
+        tol: Option<Tol>,
+        need_dense: bool,
+    ) -> Attempt {
+        let err = match self.scheme.step(rhs, from, h, t_new, &mut self.y_new, tol) {
+            Ok(err) => err,
+            Err(e) => return Attempt::Rhs(e),
+        };
+        if !err.is_finite() {
+            return Attempt::NonFinite;
+        }
+        if err > 1.0 {
+            return Attempt::Done(err);
+        }
+        if !all_finite(&self.y_new) {
+            return Attempt::NonFinite;
+        }
+        if let Err(e) = self.scheme.f_new(rhs, t_new, &self.y_new, &mut self.f_new) {
+            return Attempt::Rhs(e);
+        }
+        if !all_finite(&self.f_new) {
+            return Attempt::NonFinite;
+        }
+        if need_dense {
+            let step = StepData {
+                t: from.t,
+                h,
+                y: from.y,
+                f0: from.f,
+                y_new: &self.y_new,
+                f_new: &self.f_new,
+            };
+            if let Err(e) = self.scheme.dense(rhs, step, &mut self.coef) {
+                return Attempt::Rhs(e);
+            }
+            if !all_finite(&self.coef) {
+                return Attempt::NonFinite;
+            }
+        }
+        Attempt::Done(err)
+    }
+}
+
+/// Samples, step polynomials and counters collected during a run.
+struct Record {
+    method: Method,
+    dim: usize,
+    ncoef: usize,
+    /// Requested output times, `t_end` appended if missing.
+    grid: Vec<f64>,
+    /// Index of the next grid time to sample.
+    next: usize,
+    t: Vec<f64>,
+    y: Vec<f64>,
+    dense: Option<Dense>,
+    stats: Stats,
+    start: Instant,
+}
+
+impl Record {
+    fn next_time(&self) -> Option<f64> {
+        self.grid.get(self.next).copied()
+    }
+
+    /// Samples every pending grid time `<= t_lim`: `y_lim` at `t_lim` itself,
+    /// the step polynomial `(coef, t_n, h_n)` before it.
+    fn emit(
+        &mut self,
+        t_lim: f64,
+        y_lim: &[f64],
+        poly: Option<(&[f64], f64, f64)>,
+        buf: &mut [f64],
+    ) {
+        while let Some(tau) = self.next_time() {
+            if tau > t_lim {
+                break;
+            }
+            match poly {
+                Some((coef, tn, h)) if tau < t_lim => {
+                    eval_nested(coef, self.dim, self.ncoef, (tau - tn) / h, buf);
+                    self.y.extend_from_slice(buf);
+                }
+                _ => {
+                    // Only `tau == t_lim` can get here: the driver computes
+                    // the polynomial whenever a grid time lies inside a step.
+                    debug_assert!(tau == t_lim);
+                    self.y.extend_from_slice(y_lim);
+                }
+            }
+            self.t.push(tau);
+            self.next += 1;
+        }
+    }
+
+    fn finish(mut self, t_last: f64, y_last: &[f64], rhs_evals: usize) -> Solution {
+        self.stats.rhs_evals = rhs_evals;
+        self.stats.wall_time_s = self.start.elapsed().as_secs_f64();
+        Solution {
+            method: self.method,
+            dim: self.dim,
+            t: self.t,
+            y: self.y,
+            dense: self.dense,
+            t_last,
+            y_last: y_last.to_vec(),
+            stats: self.stats,
+        }
+    }
+
+    fn fail(self, error: IntegrateError, t_last: f64, y_last: &[f64], rhs_evals: usize) -> Failure {
+        Failure {
+            error,
+            partial: self.finish(t_last, y_last, rhs_evals),
+        }
+    }
+}
+
+/// Checks the initial data and options; the message says what is wrong.
+fn validate(
+    needs_fixed_step: bool,
+    dim: usize,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<(), String> {
+    let positive = |x: f64| x > 0.0 && x.is_finite();
+    if dim == 0 {
+        return Err("the system has dimension 0".into());
+    }
+    if y0.len() != dim {
+        return Err(format!(
+            "y0 has length {} but the system has dimension {dim}",
+            y0.len()
+        ));
+    }
+    if !t0.is_finite() || !t_end.is_finite() {
+        return Err(format!("t0 = {t0} and t_end = {t_end} must be finite"));
+    }
+    if t_end < t0 {
+        return Err(format!(
+            "t_end = {t_end} < t0 = {t0}: backward integration is not supported"
+        ));
+    }
+    if !all_finite(y0) {
+        return Err("y0 is not finite".into());
+    }
+    if !positive(opts.rtol) || !positive(opts.atol) {
+        return Err(format!(
+            "rtol = {} and atol = {} must be positive and finite",
+            opts.rtol, opts.atol
+        ));
+    }
+    match opts.fixed_step {
+        None if needs_fixed_step => return Err("this method needs Options::fixed_step".into()),
+        Some(h) if !positive(h) => {
+            return Err(format!("fixed_step = {h} must be positive and finite"));
+        }
+        _ => {}
+    }
+    for (name, v) in [("h_init", opts.h_init), ("h_max", opts.h_max)] {
+        if let Some(h) = v {
+            if !positive(h) {
+                return Err(format!("{name} = {h} must be positive and finite"));
+            }
+        }
+    }
+    if let Some(s) = opts.max_wall_time_s {
+        if s.is_nan() || s < 0.0 {
+            return Err(format!("max_wall_time_s = {s} must be >= 0"));
+        }
+    }
+    let mut prev = f64::NEG_INFINITY;
+    for &tau in &opts.output {
+        if !(tau >= t0 && tau <= t_end) {
+            return Err(format!("output time {tau} lies outside [{t0}, {t_end}]"));
+        }
+        if tau <= prev {
+            return Err(format!("output times must increase ({prev} then {tau})"));
+        }
+        prev = tau;
+    }
+    Ok(())
+}
+
+/// Number of steps of length `h` (the last one possibly shorter) covering `span`.
+fn fixed_step_count(span: f64, h: f64) -> usize {
+    // The factor absorbs the rounding of span/h when h divides the span.
+    ((span / h) * (1.0 - 1e-12)).ceil().max(1.0) as usize
+}
+
+/// Illinois iteration for a zero of `g(s)` on `[0, 1]` with `g(0) = ga > 0 >= g(1) = gb`.
+/// Returns `s` with `g(s) <= 0` (or NaN) within `tol` of the last `s` with `g > 0`.
+fn locate_root(mut g: impl FnMut(f64) -> f64, mut ga: f64, mut gb: f64, tol: f64) -> f64 {
+    let (mut a, mut b) = (0.0_f64, 1.0_f64);
+    // Which end moved last: +1 for a, -1 for b.
+    let mut side = 0;
+    for _ in 0..200 {
+        if b - a <= tol || gb == 0.0 {
+            break;
+        }
+        let mut s = b - gb * (b - a) / (gb - ga);
+        if !(s > a && s < b) {
+            s = 0.5 * (a + b);
+        }
+        let gs = g(s);
+        if gs > 0.0 {
+            a = s;
+            ga = gs;
+            if side == 1 {
+                gb *= 0.5;
+            }
+            side = 1;
+        } else {
+            b = s;
+            gb = gs;
+            if side == -1 {
+                ga *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    b
+}
+
+/// The step loop shared by all methods (see the module documentation).
+fn run<M: Scheme, S: OdeSystem + ?Sized>(
+    method: Method,
+    sys: &mut S,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Solution, Failure> {
+    let start = Instant::now();
+    let dim = sys.dim();
+    let mut rec = Record {
+        method,
+        dim,
+        ncoef: M::NCOEF,
+        grid: Vec::new(),
+        next: 0,
+        t: Vec::new(),
+        y: Vec::new(),
+        dense: opts.dense.then(|| Dense::new(dim, M::NCOEF)),
+        stats: Stats::default(),
+        start,
+    };
+    if let Err(msg) = validate(M::CONTROL.is_none(), dim, t0, y0, t_end, opts) {
+        return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
+    }
+    rec.grid.extend_from_slice(&opts.output);
+    if rec.grid.last() != Some(&t_end) {
+        rec.grid.push(t_end);
+    }
+
+    let mut rhs = Rhs { sys, evals: 0 };
+    let mut t = t0;
+    let mut y = y0.to_vec();
+    let mut f = vec![0.0; dim];
+    let mut buf = vec![0.0; dim];
+    let mut w = Work {
+        scheme: M::new(dim),
+        y_new: vec![0.0; dim],
+        f_new: vec![0.0; dim],
+        coef: vec![0.0; M::NCOEF * dim],
+    };
+
+    rec.emit(t0, &y, None, &mut buf);
+    let mut g_prev = rhs.sys.guard(t0, &y);
+    let guard_active = g_prev.is_some();
+    if g_prev.is_some_and(|g| g <= 0.0) {
+        let reason = rhs.sys.guard_reason(t0, &y);
+        return Err(rec.fail(IntegrateError::Stopped { t: t0, reason }, t0, &y, 0));
+    }
+    if t_end == t0 {
+        return Ok(rec.finish(t, &y, 0));
+    }
+    if let Err(source) = rhs.eval(t, &y, &mut f) {
+        let ev = rhs.evals;
+        return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+    }
+    if !all_finite(&f) {
+        let ev = rhs.evals;
+        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+    }
+
+    let span = t_end - t0;
+    let t_scale = 1e-6 * span;
+    let h_min = |t: f64| 16.0 * f64::EPSILON * t.abs().max(t_scale);
+    let hmax = opts.h_max.unwrap_or(span);
+    let tol = Tol {
+        rtol: opts.rtol,
+        atol: opts.atol,
+    };
+    // Fixed step: (h, number of steps); adaptive: controller and stiffness test.
+    let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
+    let mut ctrl = None;
+    let mut stiff = M::CONTROL.map(|p| StiffnessTest::new(p.stiff_bound));
+    let mut h = match (fixed, M::CONTROL) {
+        (Some((h, _)), _) => h,
+        (None, Some(p)) => {
+            ctrl = Some(Controller::new(p));
+            match opts.h_init {
+                Some(h) => h.min(hmax),
+                None => hinit(
+                    &mut rhs,
+                    t,
+                    &y,
+                    &f,
+                    p.hinit_order,
+                    hmax,
+                    tol,
+                    &mut w.y_new,
+                    &mut w.f_new,
+                ),
+            }
+        }
+        (None, None) => unreachable!("validated: this method needs a fixed step"),
+    };
+    let mut reject = false;
+    let mut last = false;
+
+    loop {
+        let trials = rec.stats.steps + rec.stats.rejected_steps;
+        if trials >= opts.max_steps {
+            let e = IntegrateError::TooManySteps {
+                t,
+                max_steps: opts.max_steps,
+            };
+            let ev = rhs.evals;
+            return Err(rec.fail(e, t, &y, ev));
+        }
+        if let Some(limit) = opts.max_wall_time_s {
+            if trials % 8 == 0 && start.elapsed().as_secs_f64() > limit {
+                let e = IntegrateError::TimeBudgetExceeded { t, seconds: limit };
+                let ev = rhs.evals;
+                return Err(rec.fail(e, t, &y, ev));
+            }
+        }
+        let t_new = match fixed {
+            Some((hf, n)) => {
+                let k = rec.stats.steps + 1;
+                last = k >= n;
+                let t_new = if last { t_end } else { t0 + k as f64 * hf };
+                h = t_new - t;
+                t_new
+            }
+            None => {
+                if h.abs() < h_min(t) {
+                    let ev = rhs.evals;
+                    return Err(rec.fail(IntegrateError::StepSizeTooSmall { t, h }, t, &y, ev));
+                }
+                if t + 1.01 * h - t_end > 0.0 {
+                    h = t_end - t;
+                    last = true;
+                }
+                if last { t_end } else { t + h }
+            }
+        };
+
+        let need_dense =
+            opts.dense || guard_active || rec.next_time().is_some_and(|tau| tau < t_new);
+        let from = Start { t, y: &y, f: &f };
+        let trial_tol = ctrl.is_some().then_some(tol);
+        let err = match w.attempt(&mut rhs, from, h, t_new, trial_tol, need_dense) {
+            Attempt::Done(err) => err,
+            Attempt::Rhs(source) => {
+                if ctrl.is_none() || h.abs() / 4.0 < h_min(t) {
+                    let ev = rhs.evals;
+                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+                }
+                rec.stats.rejected_steps += 1;
+                (h, reject, last) = (h / 4.0, true, false);
+                continue;
+            }
+            Attempt::NonFinite => {
+                if ctrl.is_none() {
+                    let ev = rhs.evals;
+                    return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+                }
+                rec.stats.rejected_steps += 1;
+                (h, reject, last) = (h / 4.0, true, false);
+                continue;
+            }
+        };
+        let mut h_next = h;
+        if let Some(c) = ctrl.as_mut() {
+            if err > 1.0 {
+                rec.stats.rejected_steps += 1;
+                (h, reject, last) = (c.rejected(h, err), true, false);
+                continue;
+            }
+            h_next = c.accepted(h, err);
+        }
+
+        // The step is accepted.
+        rec.stats.steps += 1;
+        if let Some(st) = stiff.as_mut() {
+            if st.due(rec.stats.steps) {
+                let ratio = w.scheme.stiffness(h, &w.y_new, &w.f_new);
+                if let Some(h_rho) = st.update(ratio) {
+                    rec.stats.stiffness_detected.get_or_insert((t, h_rho));
+                }
+            }
+        }
+        if need_dense {
+            if let Some(d) = rec.dense.as_mut() {
+                d.push(t, h, &w.coef);
+            }
+        }
+        let t_old = t;
+        t = t_new;
+        swap(&mut y, &mut w.y_new);
+        swap(&mut f, &mut w.f_new);
+        let poly = need_dense.then_some((&w.coef[..], t_old, h));
+
+        match rhs.sys.after_step(t, &mut y) {
+            Ok(false) => {}
+            Ok(true) => {
+                let res = rhs.eval(t, &y, &mut f);
+                let error = match res {
+                    Err(source) => Some(IntegrateError::System { t, source }),
+                    Ok(()) if !all_finite(&y) || !all_finite(&f) => {
+                        Some(IntegrateError::NonFinite { t })
+                    }
+                    Ok(()) => None,
+                };
+                if let Some(e) = error {
+                    rec.emit(t, &y, poly, &mut buf);
+                    let ev = rhs.evals;
+                    return Err(rec.fail(e, t, &y, ev));
+                }
+            }
+            Err(source) => {
+                rec.emit(t, &y, poly, &mut buf);
+                let ev = rhs.evals;
+                return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+            }
+        }
+
+        if let Some(gp) = g_prev {
+            if let Some(gn) = rhs.sys.guard(t, &y) {
+                if gp > 0.0 && gn <= 0.0 {
+                    // `w.y_new` (the previous state, already in `coef`) is free.
+                    let coef = &w.coef;
+                    let sys = &mut *rhs.sys;
+                    let g = |s: f64| {
+                        eval_nested(coef, dim, M::NCOEF, s, &mut buf);
+                        sys.guard(t_old + s * h, &buf).unwrap_or(f64::NAN)
+                    };
+                    let tol_t = (1e-14 * t_old.abs().max(t.abs())).max(4.0 * f64::EPSILON * h);
+                    let s = locate_root(g, gp, gn, tol_t / h);
+                    let y_root = &mut w.y_new;
+                    let t_root = if s >= 1.0 {
+                        y_root.copy_from_slice(&y);
+                        t
+                    } else {
+                        eval_nested(&w.coef, dim, M::NCOEF, s, y_root);
+                        t_old + s * h
+                    };
+                    let reason = rhs.sys.guard_reason(t_root, y_root);
+                    rec.emit(t_root, y_root, poly, &mut buf);
+                    let e = IntegrateError::Stopped { t: t_root, reason };
+                    let ev = rhs.evals;
+                    return Err(rec.fail(e, t_root, y_root, ev));
+                }
+                g_prev = Some(gn);
+            }
+        }
+
+        rec.emit(t, &y, poly, &mut buf);
+        if last {
+            let ev = rhs.evals;
+            return Ok(rec.finish(t, &y, ev));
+        }
+        if ctrl.is_some() {
+            h_next = h_next.min(hmax);
+            if reject {
+                h_next = h_next.min(h);
+            }
+            reject = false;
+            h = h_next;
+        }
+    }
+}

@@ -1,0 +1,69 @@
+//! Integrators for initial value problems `y' = f(t, y)`, `y(t0) = y0`.
+//!
+//! This crate knows no mechanics. A problem is anything implementing
+//! [`OdeSystem`]; a run returns a [`Solution`] (samples on a requested output
+//! grid, optional continuous extension, work counters) or a [`Failure`]
+//! carrying the error, the time at which it happened and the partial
+//! solution up to that time.
+//!
+//! | method | order | error estimate | dense output order | reference |
+//! |---|---|---|---|---|
+//! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | Kutta 1901 |
+//! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
+//! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
+//!
+//! Step-size control, initial step selection and stiffness detection follow
+//! Hairer's DOPRI5/DOP853 codes.
+
+// A `Failure` carries its partial `Solution` by design, and `Ok` carries a
+// `Solution` of the same size: boxing the error would save nothing.
+#![allow(clippy::result_large_err)]
+#![warn(missing_docs)]
+
+mod dense;
+mod error;
+mod explicit;
+mod options;
+mod solution;
+mod system;
+
+pub use dense::Dense;
+pub use error::{Failure, IntegrateError, SystemError};
+pub use options::{Method, Options};
+pub use solution::{Solution, Stats};
+pub use system::OdeSystem;
+
+/// Integrates `sys` from `(t0, y0)` to `t_end` with `method` and `opts`.
+///
+/// Samples are taken at `opts.output` (times in `[t0, t_end]`, increasing),
+/// always from the continuous extension, never by shortening steps; a
+/// sample at `t0` is `y0` itself and `t_end` is appended if not listed.
+/// Integration is forward only (`t_end >= t0`).
+///
+/// - [`Method::Rk4`] needs `opts.fixed_step`; [`Method::Dopri5`] and
+///   [`Method::Dop853`] control the step size with `opts.rtol`/`opts.atol`
+///   as Hairer's codes do, or take `opts.fixed_step` if it is set (every
+///   step accepted; this is how convergence orders are measured). The last
+///   step is shortened to land on `t_end` exactly.
+/// - After each accepted step [`OdeSystem::after_step`] may project the
+///   state, and [`OdeSystem::guard`] is watched: a sign change from `> 0` to
+///   `<= 0` is located on the step polynomial and ends the run with
+///   [`IntegrateError::Stopped`] there.
+/// - `f` failing at a trial stage of an adaptive method rejects the step
+///   (`h /= 4`); failing at an accepted state, or at any stage with a fixed
+///   step, ends the run with [`IntegrateError::System`].
+///
+/// Every error comes as a [`Failure`] whose `partial` solution holds the
+/// samples, continuous extension and counters up to the error time, which
+/// is also `partial.t_last`. See the documentation of the methods in
+/// `src/explicit/` for orders, defaults and counters.
+pub fn solve<S: OdeSystem + ?Sized>(
+    method: Method,
+    sys: &mut S,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Solution, Failure> {
+    explicit::solve(method, sys, t0, y0, t_end, opts)
+}

@@ -1,0 +1,84 @@
+/// The integration method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Classical Runge–Kutta of order 4, fixed step `Options::fixed_step`.
+    Rk4,
+    /// Dormand–Prince 5(4), adaptive (or fixed step if `Options::fixed_step` is set).
+    Dopri5,
+    /// Dormand–Prince 8(5,3), adaptive (or fixed step if `Options::fixed_step` is set).
+    Dop853,
+}
+
+impl Method {
+    /// Every method, in order of increasing order.
+    pub const ALL: [Method; 3] = [Method::Rk4, Method::Dopri5, Method::Dop853];
+
+    /// The name used on command lines and in result files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Rk4 => "rk4",
+            Method::Dopri5 => "dopri5",
+            Method::Dop853 => "dop853",
+        }
+    }
+
+    /// The method called `name` (see [`Method::name`]).
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// Classical order of the method.
+    pub fn order(self) -> u32 {
+        match self {
+            Method::Rk4 => 4,
+            Method::Dopri5 => 5,
+            Method::Dop853 => 8,
+        }
+    }
+
+    /// Whether the method needs `Options::fixed_step`.
+    pub fn needs_fixed_step(self) -> bool {
+        matches!(self, Method::Rk4)
+    }
+}
+
+/// Integrator settings. `Options::default()` is a reasonable start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// Relative tolerance of the local error estimate.
+    pub rtol: f64,
+    /// Absolute tolerance of the local error estimate.
+    pub atol: f64,
+    /// Fixed step size: required for RK4; for the embedded methods it turns
+    /// step-size control off (used to measure convergence orders).
+    pub fixed_step: Option<f64>,
+    /// Initial step size; `None` chooses it as Hairer's `HINIT`.
+    pub h_init: Option<f64>,
+    /// Largest step size; `None` means `|t_end - t0|`.
+    pub h_max: Option<f64>,
+    /// Budget on accepted plus rejected steps.
+    pub max_steps: usize,
+    /// Budget on wall-clock time in seconds (`None`: unlimited).
+    pub max_wall_time_s: Option<f64>,
+    /// Times at which to sample the solution (increasing, within the span).
+    /// The final time is always sampled as the last row if not listed.
+    pub output: Vec<f64>,
+    /// Keep the continuous extension of every step ([`crate::Dense`]).
+    pub dense: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            rtol: 1e-6,
+            atol: 1e-6,
+            fixed_step: None,
+            h_init: None,
+            h_max: None,
+            max_steps: 10_000_000,
+            max_wall_time_s: None,
+            output: Vec::new(),
+            dense: true,
+        }
+    }
+}

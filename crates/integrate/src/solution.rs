@@ -1,0 +1,51 @@
+use crate::{Dense, Method};
+
+/// Work counters of one run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stats {
+    /// Accepted steps.
+    pub steps: usize,
+    /// Rejected steps (error test failed, or a trial stage could not be evaluated).
+    pub rejected_steps: usize,
+    /// Evaluations of `f`.
+    pub rhs_evals: usize,
+    /// Jacobian evaluations (zero for explicit methods).
+    pub jacobian_evals: usize,
+    /// LU factorisations (zero for explicit methods).
+    pub lu_decompositions: usize,
+    /// Newton iterations that failed to converge (zero for explicit methods).
+    pub newton_failures: usize,
+    /// Wall-clock time of the run in seconds.
+    pub wall_time_s: f64,
+    /// First time at which the stiffness test (Hairer) fired, with the
+    /// estimate `h·|λ|` of the dominant eigenvalue times the step.
+    pub stiffness_detected: Option<(f64, f64)>,
+}
+
+/// Result of a run: samples on the output grid, optional continuous extension, counters.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    /// The method that computed it.
+    pub method: Method,
+    /// Dimension of the state.
+    pub dim: usize,
+    /// Output times reached, increasing.
+    pub t: Vec<f64>,
+    /// Samples, row-major: `y[i * dim + j]` is component `j` at `t[i]`.
+    pub y: Vec<f64>,
+    /// Continuous extension over `[t0, t_last]` if `Options::dense` was set.
+    pub dense: Option<Dense>,
+    /// Last time reached (`t_end` on success).
+    pub t_last: f64,
+    /// State at `t_last`.
+    pub y_last: Vec<f64>,
+    /// Work counters.
+    pub stats: Stats,
+}
+
+impl Solution {
+    /// Sample `i` as a slice.
+    pub fn row(&self, i: usize) -> &[f64] {
+        &self.y[i * self.dim..(i + 1) * self.dim]
+    }
+}

@@ -1,0 +1,496 @@
+//! Failures, budgets, guards and projections: every run that does not reach
+//! `t_end` returns the error and the partial solution up to the error time.
+
+mod common;
+
+use std::f64::consts::{FRAC_PI_2, PI};
+
+use common::{Kepler, Oscillator, dist};
+use nonholo_integrate::{Failure, IntegrateError, Method, OdeSystem, Options, SystemError, solve};
+
+/// Options for `method`: a fixed step `h` for RK4, tolerance `tol` otherwise.
+fn opts_for(method: Method, h: f64, tol: f64) -> Options {
+    Options {
+        fixed_step: method.needs_fixed_step().then_some(h),
+        rtol: tol,
+        atol: tol,
+        ..Options::default()
+    }
+}
+
+/// Checks the invariants every failure shares and returns it.
+fn failure(r: Result<nonholo_integrate::Solution, Failure>) -> Failure {
+    let f = r.expect_err("the run must fail");
+    let p = &f.partial;
+    if let Some(t) = f.error.time() {
+        assert_eq!(t, p.t_last, "error time is the last time reached: {f}");
+        assert!(p.t.iter().all(|&tau| tau <= t));
+    }
+    assert_eq!(p.y.len(), p.t.len() * p.dim);
+    assert_eq!(p.y_last.len(), p.dim);
+    f
+}
+
+/// `y' = −1`, `y(0) = 1`; `f` is not defined for `y < 0` (reached at t = 1).
+struct Domain;
+
+impl OdeSystem for Domain {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        if y[0] < 0.0 {
+            return Err(SystemError::new(format!("negative state {}", y[0])));
+        }
+        dy[0] = -1.0;
+        Ok(())
+    }
+}
+
+#[test]
+fn rhs_failure_at_a_state_reports_its_time() {
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.125, 1e-8);
+        opts.output = vec![0.5, 0.9, 1.5];
+        let f = failure(solve(method, &mut Domain, 0.0, &[1.0], 2.0, &opts));
+        let IntegrateError::System { t, source } = &f.error else {
+            panic!("{method:?}: expected a System error, got {f}");
+        };
+        assert!(source.message.starts_with("negative state"));
+        if method == Method::Rk4 {
+            // Exact steps land on t = 1 (y = 0); the next step's stage 2 fails.
+            assert_eq!(*t, 1.0);
+        } else {
+            // Trial stages beyond y = 0 are rejected (h /= 4) until h is
+            // below 16 ε t: the run ends next to the boundary.
+            assert!((t - 1.0).abs() < 1e-10, "{method:?}: t = {t}");
+            assert!(f.partial.stats.rejected_steps > 10);
+        }
+        assert_eq!(f.partial.t, [0.5, 0.9]);
+        assert!((f.partial.row(1)[0] - 0.1).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn rhs_failure_at_the_initial_state() {
+    for method in Method::ALL {
+        let opts = opts_for(method, 0.1, 1e-6);
+        let f = failure(solve(method, &mut Domain, 0.0, &[-1.0], 1.0, &opts));
+        assert!(
+            matches!(f.error, IntegrateError::System { t: 0.0, .. }),
+            "{f}"
+        );
+        assert_eq!(f.partial.stats.rhs_evals, 1);
+        assert_eq!(f.partial.stats.steps, 0);
+    }
+}
+
+/// The oscillator watched by `guard = y1 = cos t`.
+struct Watched {
+    guard_calls: usize,
+}
+
+impl OdeSystem for Watched {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        Oscillator.rhs(t, y, dy)
+    }
+    fn guard(&mut self, _t: f64, y: &[f64]) -> Option<f64> {
+        self.guard_calls += 1;
+        Some(y[0])
+    }
+    fn guard_reason(&mut self, t: f64, _y: &[f64]) -> String {
+        format!("y1 reached zero at t = {t}")
+    }
+}
+
+#[test]
+fn guard_crossing_is_located_on_the_continuous_extension() {
+    // cos t = 0 at π/2. The located time is accurate to the interpolation
+    // error over |y1'| = 1: ~1e-12 at these settings, asserted to 1e-10.
+    for method in Method::ALL {
+        for dense in [true, false] {
+            // RK4's global error at π/2 is ~t h⁴/120 = 8e-12 for h = 0.005.
+            let mut opts = opts_for(method, 0.005, 1e-12);
+            opts.dense = dense;
+            opts.output = vec![0.5, 1.0, 1.5, 2.0, 2.5];
+            let mut sys = Watched { guard_calls: 0 };
+            let f = failure(solve(method, &mut sys, 0.0, &[1.0, 0.0], 3.0, &opts));
+            let IntegrateError::Stopped { t, reason } = &f.error else {
+                panic!("{method:?}: expected Stopped, got {f}");
+            };
+            eprintln!(
+                "{method:?} dense={dense}: root {t}, error {:.1e}",
+                t - FRAC_PI_2
+            );
+            assert!((t - FRAC_PI_2).abs() < 1e-10, "{method:?}: t = {t}");
+            assert!(reason.starts_with("y1 reached zero"));
+            let p = &f.partial;
+            assert!(p.y_last[0] <= 0.0 && p.y_last[0].abs() < 1e-10);
+            assert!((p.y_last[1] + 1.0).abs() < 1e-10);
+            // Samples up to the root only.
+            assert_eq!(p.t, [0.5, 1.0, 1.5]);
+            assert!(dist(p.row(2), &Oscillator::exact(1.5)) < 1e-9);
+            assert_eq!(p.dense.is_some(), dense);
+            if let Some(d) = &p.dense {
+                let (_, b) = d.span().unwrap();
+                assert!(b >= *t, "the step containing the root is kept");
+            }
+        }
+    }
+}
+
+#[test]
+fn guard_nonpositive_at_t0_stops_at_once() {
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.01, 1e-6);
+        opts.output = vec![0.0, 1.0];
+        let mut sys = Watched { guard_calls: 0 };
+        let f = failure(solve(method, &mut sys, 0.0, &[0.0, 1.0], 3.0, &opts));
+        assert!(
+            matches!(f.error, IntegrateError::Stopped { t: 0.0, .. }),
+            "{f}"
+        );
+        assert_eq!(f.partial.t, [0.0]);
+        assert_eq!((f.partial.stats.steps, f.partial.stats.rhs_evals), (0, 0));
+        assert_eq!(sys.guard_calls, 1);
+    }
+}
+
+/// `y' = y²`, `y(0) = 1`: `y = 1/(1 − t)` blows up at t = 1.
+struct BlowUp;
+
+impl OdeSystem for BlowUp {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = y[0] * y[0];
+        Ok(())
+    }
+}
+
+#[test]
+fn blow_up_ends_with_a_small_step_or_a_non_finite_state() {
+    for method in [Method::Dopri5, Method::Dop853] {
+        let opts = opts_for(method, 0.0, 1e-8);
+        let f = failure(solve(method, &mut BlowUp, 0.0, &[1.0], 2.0, &opts));
+        assert!(
+            matches!(
+                f.error,
+                IntegrateError::StepSizeTooSmall { .. } | IntegrateError::NonFinite { .. }
+            ),
+            "{method:?}: {f}"
+        );
+        let t = f.error.time().unwrap();
+        eprintln!("{method:?}: {f}");
+        assert!((t - 1.0).abs() < 1e-3, "{method:?}: t = {t}");
+    }
+    // With a fixed step the numerical solution outlives the singularity a
+    // little and then overflows.
+    let opts = opts_for(Method::Rk4, 1e-3, 1e-6);
+    let f = failure(solve(Method::Rk4, &mut BlowUp, 0.0, &[1.0], 2.0, &opts));
+    eprintln!("Rk4: {f}");
+    assert!(matches!(f.error, IntegrateError::NonFinite { .. }), "{f}");
+    let t = f.error.time().unwrap();
+    assert!(t > 0.99 && t < 1.1, "t = {t}");
+}
+
+#[test]
+fn step_budget() {
+    let k = Kepler { e: 0.5 };
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.01, 1e-10);
+        opts.max_steps = 10;
+        let f = failure(solve(
+            method,
+            &mut Kepler { e: 0.5 },
+            0.0,
+            &k.y0(),
+            2.0 * PI,
+            &opts,
+        ));
+        assert!(
+            matches!(f.error, IntegrateError::TooManySteps { max_steps: 10, .. }),
+            "{f}"
+        );
+        let st = &f.partial.stats;
+        assert_eq!(st.steps + st.rejected_steps, 10);
+        assert_eq!(f.partial.dense.as_ref().unwrap().len(), st.steps);
+        assert!(dist(&f.partial.y_last, &k.exact(f.partial.t_last)) < 1e-6);
+    }
+}
+
+#[test]
+fn wall_time_budget() {
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.01, 1e-6);
+        opts.max_wall_time_s = Some(0.0);
+        let f = failure(solve(method, &mut Oscillator, 0.0, &[1.0, 0.0], 1.0, &opts));
+        assert!(
+            matches!(f.error, IntegrateError::TimeBudgetExceeded { t: 0.0, seconds } if seconds == 0.0),
+            "{f}"
+        );
+        assert!(f.partial.stats.wall_time_s > 0.0);
+    }
+}
+
+/// Rotation on the unit circle, projected back onto it after every step.
+struct Circle {
+    project: bool,
+    calls: usize,
+}
+
+impl OdeSystem for Circle {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = -y[1];
+        dy[1] = y[0];
+        Ok(())
+    }
+    fn after_step(&mut self, _t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.calls += 1;
+        if !self.project {
+            return Ok(false);
+        }
+        let r = y[0].hypot(y[1]);
+        y[0] /= r;
+        y[1] /= r;
+        Ok(true)
+    }
+}
+
+#[test]
+fn after_step_projection_is_applied_and_counted() {
+    for method in Method::ALL {
+        let opts = opts_for(method, 0.1, 1e-5);
+        let run = |project| {
+            let mut sys = Circle { project, calls: 0 };
+            let s = solve(method, &mut sys, 0.0, &[1.0, 0.0], 50.0, &opts).unwrap();
+            assert_eq!(sys.calls, s.stats.steps);
+            s
+        };
+        let (free, projected) = (run(false), run(true));
+        let radius = |y: &[f64]| y[0].hypot(y[1]);
+        assert!(
+            (radius(&free.y_last) - 1.0).abs() > 1e-9,
+            "{method:?}: drift expected"
+        );
+        assert!((radius(&projected.y_last) - 1.0).abs() < 4.0 * f64::EPSILON);
+        // One extra evaluation of f per projected step (the FSAL value is stale).
+        let st = &projected.stats;
+        let st_free = &free.stats;
+        if method == Method::Rk4 {
+            assert_eq!(st.rhs_evals, st_free.rhs_evals + st.steps);
+        } else {
+            let per_trial = if method == Method::Dopri5 { 6 } else { 11 };
+            let per_accept = if method == Method::Dopri5 { 1 } else { 5 };
+            let trials = st.steps + st.rejected_steps;
+            assert_eq!(st.rhs_evals, 2 + per_trial * trials + per_accept * st.steps);
+        }
+    }
+}
+
+/// `after_step` that refuses a state.
+struct Refuses;
+
+impl OdeSystem for Refuses {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        Oscillator.rhs(t, y, dy)
+    }
+    fn after_step(&mut self, t: f64, _y: &mut [f64]) -> Result<bool, SystemError> {
+        if t > 1.0 {
+            Err(SystemError::new("constraint violated"))
+        } else {
+            Ok(false)
+        }
+    }
+}
+
+#[test]
+fn after_step_error_ends_the_run() {
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.3, 1e-6);
+        opts.output = vec![0.5, 1.0, 1.05, 3.0];
+        let f = failure(solve(method, &mut Refuses, 0.0, &[1.0, 0.0], 3.0, &opts));
+        let IntegrateError::System { t, source } = &f.error else {
+            panic!("{f}");
+        };
+        assert!(*t > 1.0 && source.message == "constraint violated");
+        assert_eq!(f.partial.dense.as_ref().unwrap().span().unwrap().1, *t);
+        // Samples up to the failure time, from the step polynomial.
+        let n = f.partial.t.len();
+        assert!(n >= 2 && f.partial.t[..2] == [0.5, 1.0]);
+        assert!(f.partial.t.iter().all(|&tau| tau <= *t));
+    }
+}
+
+/// `f` turns NaN for t > 0.5.
+struct GoesNan;
+
+impl OdeSystem for GoesNan {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn rhs(&mut self, t: f64, _y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = if t > 0.5 { f64::NAN } else { 1.0 };
+        Ok(())
+    }
+}
+
+#[test]
+fn non_finite_values() {
+    // Fixed step: fatal at once.
+    for method in Method::ALL {
+        let opts = Options {
+            fixed_step: Some(0.125),
+            ..Options::default()
+        };
+        let f = failure(solve(method, &mut GoesNan, 0.0, &[0.0], 1.0, &opts));
+        assert!(
+            matches!(f.error, IntegrateError::NonFinite { t: 0.5 }),
+            "{method:?}: {f}"
+        );
+        assert!((f.partial.y_last[0] - 0.5).abs() < 1e-15);
+    }
+    // Adaptive: non-finite trial steps are rejected until h is too small.
+    for method in [Method::Dopri5, Method::Dop853] {
+        let opts = opts_for(method, 0.0, 1e-8);
+        let f = failure(solve(method, &mut GoesNan, 0.0, &[0.0], 1.0, &opts));
+        assert!(
+            matches!(f.error, IntegrateError::StepSizeTooSmall { t, .. } if (t - 0.5).abs() < 1e-12),
+            "{method:?}: {f}"
+        );
+    }
+}
+
+#[test]
+fn invalid_input_is_rejected_before_any_evaluation() {
+    let ok = Options::default();
+    let y0 = [1.0, 0.0];
+    let bad: Vec<(Method, Options, &[f64], f64)> = vec![
+        (Method::Rk4, ok.clone(), &y0, 1.0), // RK4 without fixed step
+        (
+            Method::Dopri5,
+            Options {
+                fixed_step: Some(-0.1),
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dopri5,
+            Options {
+                rtol: 0.0,
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dopri5,
+            Options {
+                atol: f64::NAN,
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dopri5,
+            Options {
+                h_init: Some(0.0),
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dop853,
+            Options {
+                h_max: Some(f64::INFINITY),
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dop853,
+            Options {
+                output: vec![0.5, 0.2],
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dop853,
+            Options {
+                output: vec![0.5, 0.5],
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dop853,
+            Options {
+                output: vec![1.5],
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dop853,
+            Options {
+                output: vec![-0.1],
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (
+            Method::Dopri5,
+            Options {
+                max_wall_time_s: Some(-1.0),
+                ..ok.clone()
+            },
+            &y0,
+            1.0,
+        ),
+        (Method::Dopri5, ok.clone(), &[1.0], 1.0), // wrong length
+        (Method::Dopri5, ok.clone(), &[f64::INFINITY, 0.0], 1.0), // not finite
+        (Method::Dopri5, ok.clone(), &y0, -1.0),   // backward
+        (Method::Dopri5, ok.clone(), &y0, f64::NAN),
+    ];
+    for (method, opts, y0, t_end) in bad {
+        let f = solve(method, &mut Oscillator, 0.0, y0, t_end, &opts).unwrap_err();
+        assert!(matches!(f.error, IntegrateError::InvalidInput(_)), "{f}");
+        assert_eq!(f.error.time(), None);
+        assert_eq!(f.partial.stats.rhs_evals, 0);
+        assert!(f.partial.t.is_empty());
+    }
+}
+
+#[test]
+fn empty_span_returns_the_initial_state() {
+    for method in Method::ALL {
+        let mut opts = opts_for(method, 0.1, 1e-6);
+        opts.output = vec![2.0];
+        let s = solve(method, &mut Oscillator, 2.0, &[1.0, 0.0], 2.0, &opts).unwrap();
+        assert_eq!(
+            (s.t.as_slice(), s.y_last.as_slice()),
+            (&[2.0][..], &[1.0, 0.0][..])
+        );
+        assert_eq!(s.stats.rhs_evals, 0);
+    }
+}

@@ -1,0 +1,273 @@
+//! The mechanical pieces of the spec by automatic differentiation.
+//!
+//! For a scalar field `ℓ(t, q, q̇)` (a Lagrangian, possibly augmented by
+//! multipliers):
+//!
+//! * `M = ∂²ℓ/∂q̇²`,
+//! * `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t`, so that the Euler–Lagrange
+//!   expression is `d/dt ∂ℓ/∂q̇ − ∂ℓ/∂q = M q̈ − Q`,
+//! * the energy `E = q̇·∂ℓ/∂q̇ − ℓ`;
+//!
+//! for a vector field `v(t, q, q̇)` (constraints):
+//!
+//! * `∂v/∂q̇` (the `G` of the spec), `∂v/∂q` (the `F` of holonomic constraints),
+//! * total time derivatives along the motion with `q̈ = 0`: `v̇₀ = (∂v/∂q) q̇ + ∂v/∂t`
+//!   and, for `v = f(q, t)`, `f̈₀ = (d/dt F) q̇ + d/dt ∂f/∂t`.
+//!
+//! Each quantity is read off scalar dual numbers: `Dual64` for first
+//! derivatives, `HyperDual64` for mixed second derivatives and `Dual2_64`
+//! for second derivatives along a time jet `(q + q̇τ, t + τ)`. Scalar
+//! directional passes avoid the heap (vector duals of runtime size allocate)
+//! and were the fastest option measured for these small systems
+//! (`../shared/deps.md`; see `docs/performance.md` for the figures here).
+//! [`Jet`] owns the seed buffers, so no evaluation allocates.
+
+use nalgebra::DMatrixViewMut;
+use num_dual::{Dual2_64, Dual64, HyperDual64};
+
+use crate::scene::{Scalar, ScalarField, VectorField};
+
+/// Seed buffers for one dual number type.
+#[derive(Debug, Clone)]
+struct Seeds<D> {
+    q: Vec<D>,
+    qd: Vec<D>,
+    out: Vec<D>,
+}
+
+impl<D: Scalar> Seeds<D> {
+    fn new(n: usize, m: usize) -> Self {
+        Seeds {
+            q: vec![D::from(0.0); n],
+            qd: vec![D::from(0.0); n],
+            out: vec![D::from(0.0); m],
+        }
+    }
+
+    /// Sets every seed to the constant `(q, q̇)`.
+    #[inline]
+    fn constant(&mut self, q: &[f64], qd: &[f64]) {
+        for (s, &x) in self.q.iter_mut().zip(q) {
+            *s = D::from(x);
+        }
+        for (s, &x) in self.qd.iter_mut().zip(qd) {
+            *s = D::from(x);
+        }
+    }
+}
+
+/// Workspace for the derivatives of fields on `n` coordinates with vector
+/// fields of at most `m` components.
+#[derive(Debug, Clone)]
+pub struct Jet {
+    n: usize,
+    d: Seeds<Dual64>,
+    hd: Seeds<HyperDual64>,
+    d2: Seeds<Dual2_64>,
+}
+
+impl Jet {
+    pub fn new(n: usize, m: usize) -> Self {
+        Jet {
+            n,
+            d: Seeds::new(n, m),
+            hd: Seeds::new(n, m),
+            d2: Seeds::new(n, m),
+        }
+    }
+
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// `M = ∂²ℓ/∂q̇²` into `mass` (n×n) and `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t`
+    /// into `force` (length n).
+    ///
+    /// Cost: `n(n+3)/2` hyper-dual and `n` dual evaluations of `ℓ`.
+    pub fn mass_and_force<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        mass: &mut DMatrixViewMut<f64>,
+        force: &mut [f64],
+    ) {
+        self.mass(f, t, q, qd, mass);
+        self.force(f, t, q, qd, force);
+    }
+
+    /// `M = ∂²ℓ/∂q̇²` into `mass` (n×n): `n(n+1)/2` hyper-dual evaluations.
+    pub fn mass<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        mass: &mut DMatrixViewMut<f64>,
+    ) {
+        let n = self.n;
+        debug_assert_eq!(f.n(), n);
+        let hd = &mut self.hd;
+        let t_const = HyperDual64::from_re(t);
+        for i in 0..n {
+            for j in i..n {
+                hd.constant(q, qd);
+                if i == j {
+                    hd.qd[i] = HyperDual64::new(qd[i], 1.0, 1.0, 0.0);
+                } else {
+                    hd.qd[i].eps1 = 1.0;
+                    hd.qd[j].eps2 = 1.0;
+                }
+                let v = f.eval(t_const, &hd.q, &hd.qd);
+                mass[(i, j)] = v.eps1eps2;
+                mass[(j, i)] = v.eps1eps2;
+            }
+        }
+    }
+
+    /// `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t` into `force`: `n` hyper-dual and
+    /// `n` dual evaluations.
+    pub fn force<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        force: &mut [f64],
+    ) {
+        let n = self.n;
+        let hd = &mut self.hd;
+        // d/dt (∂ℓ/∂q̇_i) along (q̇, q̈ = 0, 1): eps1 picks ∂/∂q̇_i, eps2 is the time jet.
+        let t_jet = HyperDual64::new(t, 0.0, 1.0, 0.0);
+        for (i, fi) in force.iter_mut().enumerate().take(n) {
+            hd.constant(q, qd);
+            for (s, &v) in hd.q.iter_mut().zip(qd) {
+                s.eps2 = v;
+            }
+            hd.qd[i].eps1 = 1.0;
+            let v = f.eval(t_jet, &hd.q, &hd.qd);
+            *fi = -v.eps1eps2;
+        }
+        let d = &mut self.d;
+        let t_const = Dual64::from_re(t);
+        for (i, fi) in force.iter_mut().enumerate().take(n) {
+            d.constant(q, qd);
+            d.q[i].eps = 1.0;
+            *fi += f.eval(t_const, &d.q, &d.qd).eps;
+        }
+    }
+
+    /// The energy `E = q̇·∂ℓ/∂q̇ − ℓ` (one dual evaluation).
+    pub fn energy<F: ScalarField>(&mut self, f: &F, t: f64, q: &[f64], qd: &[f64]) -> f64 {
+        let d = &mut self.d;
+        d.constant(q, qd);
+        for (s, &v) in d.qd.iter_mut().zip(qd) {
+            s.eps = v;
+        }
+        let v = f.eval(Dual64::from_re(t), &d.q, &d.qd);
+        v.eps - v.re
+    }
+
+    /// The momenta `p = ∂ℓ/∂q̇` into `p` (n dual evaluations).
+    pub fn momentum<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        p: &mut [f64],
+    ) {
+        let d = &mut self.d;
+        for (i, pi) in p.iter_mut().enumerate().take(self.n) {
+            d.constant(q, qd);
+            d.qd[i].eps = 1.0;
+            *pi = f.eval(Dual64::from_re(t), &d.q, &d.qd).eps;
+        }
+    }
+
+    /// For a vector field `v`: its value, `∂v/∂q̇` into `jac` (m×n) and
+    /// `v̇₀ = (∂v/∂q) q̇ + ∂v/∂t` into `rate0` (n + 1 dual evaluations).
+    pub fn velocity_jacobian<V: VectorField>(
+        &mut self,
+        v: &V,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        value: &mut [f64],
+        jac: &mut DMatrixViewMut<f64>,
+        rate0: &mut [f64],
+    ) {
+        let m = v.m();
+        let d = &mut self.d;
+        let t_const = Dual64::from_re(t);
+        for j in 0..self.n {
+            d.constant(q, qd);
+            d.qd[j].eps = 1.0;
+            v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
+            for i in 0..m {
+                jac[(i, j)] = d.out[i].eps;
+            }
+        }
+        d.constant(q, qd);
+        for (s, &x) in d.q.iter_mut().zip(qd) {
+            s.eps = x;
+        }
+        v.eval(Dual64::new(t, 1.0), &d.q, &d.qd, &mut d.out[..m]);
+        for i in 0..m {
+            value[i] = d.out[i].re;
+            rate0[i] = d.out[i].eps;
+        }
+    }
+
+    /// For a field that depends on `(q, t)` only (holonomic constraints `f`):
+    /// its value, `F = ∂f/∂q` into `jac` (m×n), `ḟ = F q̇ + ∂f/∂t` into `rate`
+    /// and `f̈₀ = (d/dt F) q̇ + d/dt ∂f/∂t` (the part of `f̈` without `q̈`) into
+    /// `accel0` (n dual and one second-order dual evaluation).
+    pub fn position_jacobian<V: VectorField>(
+        &mut self,
+        v: &V,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        value: &mut [f64],
+        jac: &mut DMatrixViewMut<f64>,
+        rate: &mut [f64],
+        accel0: &mut [f64],
+    ) {
+        let m = v.m();
+        let d = &mut self.d;
+        let t_const = Dual64::from_re(t);
+        for j in 0..self.n {
+            d.constant(q, qd);
+            d.q[j].eps = 1.0;
+            v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
+            for i in 0..m {
+                jac[(i, j)] = d.out[i].eps;
+            }
+        }
+        let d2 = &mut self.d2;
+        d2.constant(q, qd);
+        for (s, &x) in d2.q.iter_mut().zip(qd) {
+            s.v1 = x;
+        }
+        v.eval(Dual2_64::new(t, 1.0, 0.0), &d2.q, &d2.qd, &mut d2.out[..m]);
+        for i in 0..m {
+            value[i] = d2.out[i].re;
+            rate[i] = d2.out[i].v1;
+            accel0[i] = d2.out[i].v2;
+        }
+    }
+
+    /// Value of a vector field at `(t, q, q̇)`.
+    pub fn value<V: VectorField>(
+        &mut self,
+        v: &V,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        value: &mut [f64],
+    ) {
+        v.eval(t, q, qd, &mut value[..v.m()]);
+    }
+}

@@ -1,0 +1,92 @@
+//! Initial data against the constraints: accept, refuse with the residual,
+//! or project onto the constraint manifold when asked.
+
+use crate::Error;
+use crate::init::Initial;
+use crate::project::{Projection, Projector};
+use crate::scene::Scene;
+
+/// Largest accepted constraint residual of initial data, relative to
+/// `max(1, |q|∞, |q̇|∞)`. Initial data typed by hand to a few digits are
+/// rejected; data computed from the scene's convenience values pass.
+pub const INIT_TOL: f64 = 1e-9;
+
+/// Residual reached by projection, relative to `max(1, |q|∞)` for `f` and
+/// `max(1, |q̇|∞)` for `g`, `ḟ`.
+pub const PROJECT_TOL: f64 = 1e-14;
+
+/// What `--project-init` did to the initial data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitProjection {
+    pub q_before: Vec<f64>,
+    pub qd_before: Vec<f64>,
+    pub projection: Projection,
+}
+
+fn scale(q: &[f64], qd: &[f64]) -> f64 {
+    q.iter().chain(qd).fold(1.0f64, |m, v| m.max(v.abs()))
+}
+
+/// Checks `init` against the scene's constraints. With `project`, moves `q0`
+/// onto `f = 0` and `q̇0` onto `g = 0, ḟ = 0` (nearest in the kinetic-energy
+/// metric) and returns what changed; without it, inconsistent data are an
+/// error that prints the residual of every constraint.
+pub fn check_or_project<S: Scene>(
+    scene: &S,
+    init: &mut Initial,
+    project: bool,
+) -> Result<Option<InitProjection>, Error> {
+    let info = scene.info();
+    if info.s() == 0 && info.k() == 0 {
+        return Ok(None);
+    }
+    let mut p = Projector::new(scene);
+    let sc = scale(&init.q, &init.qd);
+    if project {
+        let (q_before, qd_before) = (init.q.clone(), init.qd.clone());
+        let r = p
+            .project(scene, init.t0, &mut init.q, &mut init.qd, PROJECT_TOL)
+            .map_err(|e| Error::Numerical(format!("--project-init failed: {e}")))?;
+        return Ok(Some(InitProjection {
+            q_before,
+            qd_before,
+            projection: r,
+        }));
+    }
+    let (v, pos) = p.residuals(scene, init.t0, &init.q, &init.qd);
+    let tol = INIT_TOL * sc;
+    if pos > tol {
+        let list = info
+            .holonomic
+            .iter()
+            .zip(&p.cs.f)
+            .map(|(f, r)| format!("{f}: residual {r:.3e}"))
+            .collect::<Vec<_>>()
+            .join("; ");
+        return Err(Error::InconsistentInit(format!(
+            "the initial positions violate the holonomic constraints ({list}; tolerance {tol:.1e}); \
+             give consistent positions or pass --project-init to move them onto the constraints"
+        )));
+    }
+    if v > tol {
+        let mut list: Vec<String> = info
+            .nonholonomic
+            .iter()
+            .zip(&p.cs.g)
+            .map(|(g, r)| format!("{g}: residual {r:.3e}"))
+            .collect();
+        list.extend(
+            info.holonomic
+                .iter()
+                .zip(&p.cs.f_rate)
+                .map(|(f, r)| format!("d/dt of {f}: residual {r:.3e}")),
+        );
+        return Err(Error::InconsistentInit(format!(
+            "the initial velocities violate the constraints ({}; tolerance {tol:.1e}); \
+             give consistent velocities or pass --project-init to move q̇0 to the nearest \
+             consistent velocity",
+            list.join("; ")
+        )));
+    }
+    Ok(None)
+}

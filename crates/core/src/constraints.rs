@@ -1,0 +1,90 @@
+//! The constraint pieces of a scene at one state, by automatic differentiation.
+
+use nalgebra::DMatrix;
+
+use crate::ad::Jet;
+use crate::scene::{Holonomic, Nonholonomic, Scene};
+
+/// Nonholonomic `g` (s rows) and holonomic `f` (k rows) with the
+/// derivatives the formulations need, evaluated at one `(t, q, q̇)`.
+///
+/// `jac` stacks the velocity Jacobians of the velocity-level constraints
+/// `[g; ḟ]`: rows `0..s` hold `G = ∂g/∂q̇`, rows `s..s+k` hold `F = ∂f/∂q = ∂ḟ/∂q̇`.
+#[derive(Debug, Clone)]
+pub struct ConstraintState {
+    pub s: usize,
+    pub k: usize,
+    /// `g(q, q̇, t)`.
+    pub g: Vec<f64>,
+    /// `ġ` without its `q̈` term: `(∂g/∂q) q̇ + ∂g/∂t`.
+    pub g_rate0: Vec<f64>,
+    /// `f(q, t)`.
+    pub f: Vec<f64>,
+    /// `ḟ = F q̇ + ∂f/∂t`.
+    pub f_rate: Vec<f64>,
+    /// `f̈` without its `q̈` term: `(d/dt F) q̇ + d/dt ∂f/∂t`.
+    pub f_accel0: Vec<f64>,
+    /// `[G; F]`, `(s + k) × n`.
+    pub jac: DMatrix<f64>,
+}
+
+impl ConstraintState {
+    pub fn new(n: usize, s: usize, k: usize) -> Self {
+        ConstraintState {
+            s,
+            k,
+            g: vec![0.0; s],
+            g_rate0: vec![0.0; s],
+            f: vec![0.0; k],
+            f_rate: vec![0.0; k],
+            f_accel0: vec![0.0; k],
+            jac: DMatrix::zeros(s + k, n),
+        }
+    }
+
+    /// Number of velocity-level constraint rows `s + k`.
+    pub fn rows(&self) -> usize {
+        self.s + self.k
+    }
+
+    /// Evaluates every piece the scene has (nothing for absent ones).
+    pub fn evaluate<S: Scene>(&mut self, jet: &mut Jet, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+        let n = q.len();
+        if self.s > 0 {
+            jet.velocity_jacobian(
+                &Nonholonomic(scene),
+                t,
+                q,
+                qd,
+                &mut self.g,
+                &mut self.jac.view_mut((0, 0), (self.s, n)),
+                &mut self.g_rate0,
+            );
+        }
+        if self.k > 0 {
+            jet.position_jacobian(
+                &Holonomic(scene),
+                t,
+                q,
+                qd,
+                &mut self.f,
+                &mut self.jac.view_mut((self.s, 0), (self.k, n)),
+                &mut self.f_rate,
+                &mut self.f_accel0,
+            );
+        }
+    }
+
+    /// Largest velocity-level residual `max(|g|, |ḟ|)`.
+    pub fn velocity_residual(&self) -> f64 {
+        self.g
+            .iter()
+            .chain(&self.f_rate)
+            .fold(0.0, |m, v| m.max(v.abs()))
+    }
+
+    /// Largest position-level residual `|f|`.
+    pub fn position_residual(&self) -> f64 {
+        self.f.iter().fold(0.0, |m, v| m.max(v.abs()))
+    }
+}

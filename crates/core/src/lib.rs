@@ -1,0 +1,34 @@
+//! Core of `nonholo`: scenes, automatic differentiation of their pieces,
+//! models (formulations bound to scenes) and runs.
+//!
+//! * [`scene`]: what a scene is — coordinates, parameters, one Lagrangian
+//!   generic over a dual-number type, optional constraints, embedding map,
+//!   closed form and invariants.
+//! * [`ad`]: mass matrix, forces, constraint Jacobians and their time
+//!   derivatives by automatic differentiation.
+//! * [`constraints`], [`project`]: constraint pieces at a state; projection
+//!   onto the constraint manifold.
+//! * [`model`], [`run`]: the formulation-independent view used by the lab.
+
+pub mod ad;
+pub mod consistency;
+pub mod constraints;
+mod error;
+pub mod init;
+pub mod linalg;
+pub mod model;
+pub mod monitor;
+pub mod param;
+pub mod project;
+pub mod run;
+pub mod scene;
+
+pub use error::Error;
+pub use init::Initial;
+pub use model::{FormulationInfo, Model, Observation};
+pub use monitor::Diagnostics;
+pub use param::{Bound, Kind, ParamSpec, Params, Value};
+pub use run::{Run, RunConfig, simulate};
+pub use scene::{Named, Scalar, Scene, SceneInfo};
+
+pub use nonholo_integrate as integrate;

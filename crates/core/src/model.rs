@@ -1,0 +1,94 @@
+//! A formulation applied to a scene: an ODE system with a physical reading.
+//!
+//! Every formulation maps its state back to the same physical columns
+//! `(t, q, q̇)` plus its multipliers, so code that compares runs never
+//! special-cases a formulation.
+
+use nonholo_integrate::{OdeSystem, SystemError};
+
+use crate::Error;
+use crate::consistency::InitProjection;
+use crate::init::Initial;
+use crate::monitor::Diagnostics;
+use crate::param::{ParamSpec, Params};
+use crate::scene::{Named, SceneInfo};
+
+/// Static description of a formulation.
+#[derive(Debug, Clone, Copy)]
+pub struct FormulationInfo {
+    /// Name used on the command line (`chetaev`).
+    pub name: &'static str,
+    /// Letter in the spec (`B`).
+    pub letter: &'static str,
+    pub title: &'static str,
+    pub description: &'static str,
+    /// Options accepted through `--option name=value`.
+    pub options: &'static [ParamSpec],
+    /// Whether it applies to a scene, and if not, why.
+    pub applicable: fn(&SceneInfo) -> Result<(), String>,
+}
+
+/// The physical reading of a state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Observation {
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    /// Multipliers, named by [`Model::multiplier_names`].
+    pub multipliers: Vec<f64>,
+}
+
+impl Observation {
+    pub fn new(n: usize, multipliers: usize) -> Self {
+        Observation {
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            multipliers: vec![0.0; multipliers],
+        }
+    }
+}
+
+/// A formulation bound to a scene, ready to integrate.
+pub trait Model: OdeSystem + Send {
+    fn scene_info(&self) -> &'static SceneInfo;
+    fn formulation(&self) -> &'static FormulationInfo;
+    /// Resolved scene parameters.
+    fn scene_params(&self) -> &Params;
+    /// Resolved formulation options.
+    fn options(&self) -> &Params;
+    /// Names of the reported multipliers (`lambda`, or `lambda1`, ...; `nu...`
+    /// for holonomic constraints), empty if the formulation has none.
+    fn multiplier_names(&self) -> Vec<String>;
+    /// Names `--init` accepts beyond coordinates, velocities and the scene's
+    /// convenience values.
+    fn extra_init_names(&self) -> Vec<Named> {
+        Vec::new()
+    }
+    /// Checks that the initial data satisfy the constraints; with `project`,
+    /// moves them onto the constraints instead and reports the change.
+    fn make_consistent(
+        &mut self,
+        init: &mut Initial,
+        project: bool,
+    ) -> Result<Option<InitProjection>, Error>;
+    /// The state vector for consistent initial data; resets the diagnostics.
+    fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error>;
+    /// The physical reading of state `y` at `t`.
+    fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError>;
+    /// Diagnostics accumulated since [`Model::initial_state`].
+    fn diagnostics(&self) -> Diagnostics;
+}
+
+/// Multiplier names for `s` nonholonomic and `k` holonomic constraints:
+/// `lambda` (or `lambda1..s`) then `nu` (or `nu1..k`).
+pub fn multiplier_names(s: usize, k: usize) -> Vec<String> {
+    let numbered = |base: &str, count: usize| -> Vec<String> {
+        match count {
+            0 => Vec::new(),
+            1 => vec![base.to_string()],
+            _ => (1..=count).map(|i| format!("{base}{i}")).collect(),
+        }
+    };
+    let mut names = numbered("lambda", s);
+    names.extend(numbered("nu", k));
+    names
+}

@@ -1,0 +1,254 @@
+//! What a scene is: named coordinates and parameters, one Lagrangian, and
+//! only the optional pieces it has.
+//!
+//! Every function a scene writes is generic over a [`Scalar`] (a num-dual
+//! number type), written once, and differentiated by [`crate::ad`]. Mass
+//! matrix, forces, constraint Jacobians and their time derivatives are never
+//! written by hand.
+
+use num_dual::DualNum;
+
+use crate::Error;
+use crate::param::{ParamSpec, Params};
+
+/// The number types scene functions are evaluated with: `f64` and every
+/// (nested) num-dual type over `f64`.
+pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
+impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
+
+/// A named quantity: coordinate, convenience value or invariant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Named {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub description: &'static str,
+}
+
+impl Named {
+    pub const fn new(name: &'static str, unit: &'static str, description: &'static str) -> Self {
+        Named {
+            name,
+            unit,
+            description,
+        }
+    }
+}
+
+/// How the nonholonomic constraints depend on the velocities.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConstraintKind {
+    /// `g = A(q, t) q̇ + b(q, t)` (eq. 3 of the paper).
+    Linear,
+    /// General `g(q, q̇, t)`.
+    Nonlinear,
+}
+
+/// The embedding map `q_D = φ(q_I, q̇_I, t)` of the paper (eq. 14).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmbeddingInfo {
+    /// Indices of the independent coordinates `q_I` in `q`.
+    pub independent: &'static [usize],
+    /// Indices of the dependent coordinates `q_D` in `q`.
+    pub dependent: &'static [usize],
+    /// The map, as a formula.
+    pub formula: &'static str,
+    /// Where the map is singular.
+    pub singular_set: &'static str,
+}
+
+/// A closed-form solution the scene knows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosedFormInfo {
+    /// Formulation whose motion it is (`"chetaev"` for B).
+    pub formulation: &'static str,
+    /// Conditions under which it holds.
+    pub conditions: &'static str,
+}
+
+/// Static description of a scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SceneInfo {
+    /// Name used on the command line (`sleigh-incline`).
+    pub name: &'static str,
+    pub title: &'static str,
+    pub description: &'static str,
+    /// Generalised coordinates `q` (length `n`).
+    pub coordinates: &'static [Named],
+    pub params: &'static [ParamSpec],
+    /// Holonomic constraints `f(q, t) = 0`, as formulas (their number is `k`).
+    pub holonomic: &'static [&'static str],
+    /// Nonholonomic constraints `g(q, q̇, t) = 0`, as formulas (their number is `s`).
+    pub nonholonomic: &'static [&'static str],
+    pub constraint_kind: ConstraintKind,
+    /// Where the constraints themselves stop being differentiable, if anywhere.
+    pub constraint_singular_set: Option<&'static str>,
+    pub embedding: Option<EmbeddingInfo>,
+    /// Named convenience values that fix all velocities at once
+    /// (the sleigh's `u`, `omega`), see [`Scene::velocities_from`].
+    pub velocity_chart: &'static [Named],
+    /// Default positions `q0`.
+    pub default_q: &'static [f64],
+    /// Default convenience values (if the scene has a chart) or default `q̇0`.
+    pub default_velocity: &'static [f64],
+    pub closed_form: Option<ClosedFormInfo>,
+    /// Scene-specific invariants, see [`Scene::invariant`] (energy is always measured).
+    pub invariants: &'static [Named],
+}
+
+impl SceneInfo {
+    /// Number of generalised coordinates `n`.
+    pub fn n(&self) -> usize {
+        self.coordinates.len()
+    }
+
+    /// Number of holonomic constraints `k`.
+    pub fn k(&self) -> usize {
+        self.holonomic.len()
+    }
+
+    /// Number of nonholonomic constraints `s`.
+    pub fn s(&self) -> usize {
+        self.nonholonomic.len()
+    }
+
+    pub fn coordinate_index(&self, name: &str) -> Option<usize> {
+        self.coordinates.iter().position(|c| c.name == name)
+    }
+}
+
+/// A mechanical system: a Lagrangian `L(q, q̇, t)` and the optional pieces it has.
+///
+/// Only [`Scene::lagrangian`] is required. The optional functions are called
+/// only when [`SceneInfo`] declares the piece (non-empty `holonomic`,
+/// non-empty `nonholonomic`, `embedding.is_some()`, ...), so a scene without a
+/// piece never has anything computed for it.
+pub trait Scene: Send + Sync + 'static {
+    /// Static description (coordinates, parameters, which pieces exist).
+    const INFO: &'static SceneInfo;
+
+    /// [`Scene::INFO`] through an instance.
+    fn info(&self) -> &'static SceneInfo {
+        Self::INFO
+    }
+
+    /// Builds the scene from resolved parameters, checking relations between
+    /// them (each value is already in its own range).
+    fn from_params(params: &Params) -> Result<Self, Error>
+    where
+        Self: Sized;
+
+    /// The parameters the scene was built from.
+    fn params(&self) -> &Params;
+
+    /// `L(q, q̇, t)`.
+    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D;
+
+    /// `f(q, t)` into `out` (length `k`).
+    fn holonomic<D: Scalar>(&self, _t: D, _q: &[D], _out: &mut [D]) {}
+
+    /// `g(q, q̇, t)` into `out` (length `s`).
+    fn nonholonomic<D: Scalar>(&self, _t: D, _q: &[D], _qd: &[D], _out: &mut [D]) {}
+
+    /// A positive number that reaches zero on the singular set of the
+    /// nonholonomic constraints (where they stop being differentiable).
+    fn constraint_regularity(&self, _t: f64, _q: &[f64], _qd: &[f64]) -> Option<f64> {
+        None
+    }
+
+    /// The embedding map `q_D = φ(q_I, q̇_I, t)` into `q_dep` (length `s`).
+    fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], _qd_ind: &[D], _q_dep: &mut [D]) {}
+
+    /// A positive number that reaches zero on the singular set of the embedding map.
+    fn embedding_regularity(&self, _t: f64, _q_ind: &[f64], _qd_ind: &[f64]) -> Option<f64> {
+        None
+    }
+
+    /// Default positions `q0` (the static [`SceneInfo::default_q`] unless
+    /// they depend on the parameters).
+    fn default_q(&self) -> Vec<f64> {
+        self.info().default_q.to_vec()
+    }
+
+    /// Velocities `q̇` from positions `q` and the convenience values of
+    /// [`SceneInfo::velocity_chart`] (in chart order).
+    fn velocities_from(&self, _q: &[f64], _chart: &[f64], _qd: &mut [f64]) {}
+
+    /// The closed-form motion from `(q0, q̇0)` at `t0 = 0`, evaluated at `t`;
+    /// `Err` says why it does not apply to these parameters or initial data.
+    fn closed_form(
+        &self,
+        _q0: &[f64],
+        _qd0: &[f64],
+        _t: f64,
+        _q: &mut [f64],
+        _qd: &mut [f64],
+    ) -> Result<(), String> {
+        Err("this scene has no closed-form solution".to_string())
+    }
+
+    /// Value of invariant `i` of [`SceneInfo::invariants`].
+    fn invariant(&self, _i: usize, _t: f64, _q: &[f64], _qd: &[f64]) -> f64 {
+        f64::NAN
+    }
+}
+
+/// A scalar function `ℓ(t, q, q̇)` written once for every [`Scalar`]; what
+/// [`crate::ad`] differentiates (a Lagrangian, or one augmented by multipliers).
+pub trait ScalarField {
+    /// Number of coordinates `n`.
+    fn n(&self) -> usize;
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D;
+}
+
+/// A vector function `v(t, q, q̇) ∈ R^m` written once for every [`Scalar`].
+pub trait VectorField {
+    fn n(&self) -> usize;
+    /// Number of components `m`.
+    fn m(&self) -> usize;
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], out: &mut [D]);
+}
+
+/// The scene's Lagrangian as a [`ScalarField`].
+pub struct Lagrangian<'a, S>(pub &'a S);
+
+impl<S: Scene> ScalarField for Lagrangian<'_, S> {
+    fn n(&self) -> usize {
+        self.0.info().n()
+    }
+    #[inline]
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D {
+        self.0.lagrangian(t, q, qd)
+    }
+}
+
+/// The scene's nonholonomic constraints `g` as a [`VectorField`].
+pub struct Nonholonomic<'a, S>(pub &'a S);
+
+impl<S: Scene> VectorField for Nonholonomic<'_, S> {
+    fn n(&self) -> usize {
+        self.0.info().n()
+    }
+    fn m(&self) -> usize {
+        self.0.info().s()
+    }
+    #[inline]
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], out: &mut [D]) {
+        self.0.nonholonomic(t, q, qd, out)
+    }
+}
+
+/// The scene's holonomic constraints `f` as a [`VectorField`] (independent of `q̇`).
+pub struct Holonomic<'a, S>(pub &'a S);
+
+impl<S: Scene> VectorField for Holonomic<'_, S> {
+    fn n(&self) -> usize {
+        self.0.info().n()
+    }
+    fn m(&self) -> usize {
+        self.0.info().k()
+    }
+    #[inline]
+    fn eval<D: Scalar>(&self, t: D, q: &[D], _qd: &[D], out: &mut [D]) {
+        self.0.holonomic(t, q, out)
+    }
+}

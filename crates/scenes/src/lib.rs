@@ -1,0 +1,97 @@
+//! The scenes of the workbench and their registry.
+//!
+//! | name | coordinates | constraints | embedding (A) | closed form |
+//! |---|---|---|---|---|
+//! | `sleigh-incline` | x, y, φ | 1 linear nonholonomic | φ = atan2(ẏ, ẋ) | B, a = 0 |
+//! | `rolling-disk` | x, y, θ, ψ | 2 linear nonholonomic | — | B |
+//! | `appell-hamel` | x, y, z | 1 nonlinear nonholonomic | — | B |
+//! | `pendulum` | x, y | 1 holonomic | — | — |
+//!
+//! Code that must work with any scene receives it through [`SceneVisitor`],
+//! which is called with the concrete scene type so that everything
+//! downstream is monomorphised (no dynamic dispatch in right-hand sides).
+
+pub mod appell;
+pub mod disk;
+pub mod pendulum;
+pub mod sleigh;
+
+use nonholo_core::{Error, Params, Scene, SceneInfo};
+
+pub use appell::AppellHamel;
+pub use disk::RollingDisk;
+pub use pendulum::Pendulum;
+pub use sleigh::{Potential, Sleigh};
+
+/// Every scene, in listing order.
+pub const ALL: &[&SceneInfo] = &[&sleigh::INFO, &disk::INFO, &appell::INFO, &pendulum::INFO];
+
+/// Something to do with a scene of any type.
+pub trait SceneVisitor {
+    type Output;
+    fn visit<S: Scene>(self, scene: S) -> Self::Output;
+}
+
+/// A built scene of one of the registered types.
+#[derive(Debug, Clone)]
+pub enum AnyScene {
+    Sleigh(Sleigh),
+    RollingDisk(RollingDisk),
+    AppellHamel(AppellHamel),
+    Pendulum(Pendulum),
+}
+
+impl AnyScene {
+    pub fn info(&self) -> &'static SceneInfo {
+        match self {
+            AnyScene::Sleigh(s) => s.info(),
+            AnyScene::RollingDisk(s) => s.info(),
+            AnyScene::AppellHamel(s) => s.info(),
+            AnyScene::Pendulum(s) => s.info(),
+        }
+    }
+
+    pub fn params(&self) -> &Params {
+        match self {
+            AnyScene::Sleigh(s) => s.params(),
+            AnyScene::RollingDisk(s) => s.params(),
+            AnyScene::AppellHamel(s) => s.params(),
+            AnyScene::Pendulum(s) => s.params(),
+        }
+    }
+
+    /// Calls `v` with the concrete scene.
+    pub fn visit<V: SceneVisitor>(self, v: V) -> V::Output {
+        match self {
+            AnyScene::Sleigh(s) => v.visit(s),
+            AnyScene::RollingDisk(s) => v.visit(s),
+            AnyScene::AppellHamel(s) => v.visit(s),
+            AnyScene::Pendulum(s) => v.visit(s),
+        }
+    }
+}
+
+/// The description of scene `name`, or an error listing the valid names.
+pub fn info(name: &str) -> Result<&'static SceneInfo, Error> {
+    ALL.iter()
+        .find(|i| i.name == name)
+        .copied()
+        .ok_or_else(|| Error::UnknownName {
+            what: "scene".into(),
+            name: name.into(),
+            valid: ALL.iter().map(|i| i.name.to_string()).collect(),
+        })
+}
+
+/// Builds scene `name` from `name=value` parameter overrides.
+pub fn build(name: &str, params: &[(String, String)]) -> Result<AnyScene, Error> {
+    let info = info(name)?;
+    let p = Params::resolve(info.params, params, "parameter")?;
+    Ok(match info.name {
+        "sleigh-incline" => AnyScene::Sleigh(Sleigh::from_params(&p)?),
+        "rolling-disk" => AnyScene::RollingDisk(RollingDisk::from_params(&p)?),
+        "appell-hamel" => AnyScene::AppellHamel(AppellHamel::from_params(&p)?),
+        "pendulum" => AnyScene::Pendulum(Pendulum::from_params(&p)?),
+        other => unreachable!("scene `{other}` listed in ALL but not built"),
+    })
+}

@@ -1,0 +1,228 @@
+//! `sleigh-incline`: the Chaplygin sleigh on an inclined plane (the paper's
+//! example, after Neimark & Fufaev, *Dynamics of Nonholonomic Systems*, 1972).
+
+use std::f64::consts::FRAC_PI_2;
+
+use nonholo_core::Error;
+use nonholo_core::param::{Bound, ParamSpec, Params};
+use nonholo_core::scene::{
+    ClosedFormInfo, ConstraintKind, EmbeddingInfo, Named, Scalar, Scene, SceneInfo,
+};
+
+/// Which potential energy the Lagrangian carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Potential {
+    /// `−m g x sin α` at the blade only: the paper's eq. (22).
+    Paper,
+    /// Gravity acting at the centre of mass, `a` ahead of the blade:
+    /// eq. (22) plus `m g a sin α cos φ`.
+    Com,
+}
+
+/// The sleigh: blade contact point `(x, y)` on the plane (`x` down the
+/// slope), heading `φ` from the x axis, centre of mass `a` ahead of the blade.
+#[derive(Debug, Clone)]
+pub struct Sleigh {
+    params: Params,
+    pub m: f64,
+    pub j: f64,
+    pub a: f64,
+    pub g: f64,
+    pub alpha: f64,
+    pub potential: Potential,
+}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::real(
+        "m",
+        "kg",
+        1.0,
+        Bound::Exclusive(0.0),
+        Bound::Unbounded,
+        "mass of the sleigh",
+    ),
+    ParamSpec::real(
+        "J",
+        "m^2",
+        1.0,
+        Bound::Exclusive(0.0),
+        Bound::Unbounded,
+        "squared radius of gyration about the blade contact point (physically ρ² + a², so J > a²)",
+    ),
+    ParamSpec::real(
+        "a",
+        "m",
+        0.4,
+        Bound::Unbounded,
+        Bound::Unbounded,
+        "distance of the centre of mass ahead of the blade",
+    ),
+    ParamSpec::real(
+        "g",
+        "m/s^2",
+        9.81,
+        Bound::Inclusive(0.0),
+        Bound::Unbounded,
+        "gravitational acceleration",
+    ),
+    ParamSpec::real(
+        "alpha",
+        "rad",
+        0.3,
+        Bound::Inclusive(0.0),
+        Bound::Exclusive(FRAC_PI_2),
+        "slope of the plane",
+    ),
+    ParamSpec::choice(
+        "potential",
+        &["paper", "com"],
+        "paper: −m g x sin α as in eq. (22); com: gravity at the centre of mass, adds m g a sin α cos φ",
+    ),
+];
+
+pub const INFO: SceneInfo = SceneInfo {
+    name: "sleigh-incline",
+    title: "Chaplygin sleigh on an inclined plane",
+    description: "A sleigh on a plane of slope α with a knife-edge blade at (x, y), heading φ, \
+                  centre of mass a ahead of the blade; the blade cannot slide sideways. \
+                  The seed paper's example (eq. 20–26).",
+    coordinates: &[
+        Named::new("x", "m", "blade contact point, down the slope"),
+        Named::new("y", "m", "blade contact point, across the slope"),
+        Named::new("phi", "rad", "heading from the x axis"),
+    ],
+    params: PARAMS,
+    holonomic: &[],
+    nonholonomic: &["ẏ cos φ − ẋ sin φ = 0"],
+    constraint_kind: ConstraintKind::Linear,
+    constraint_singular_set: None,
+    embedding: Some(EmbeddingInfo {
+        independent: &[0, 1],
+        dependent: &[2],
+        formula: "φ = atan2(ẏ, ẋ) (eq. 21, in the form regular for ẋ < 0)",
+        singular_set: "zero speed ẋ² + ẏ² = 0, where the heading is undefined",
+    }),
+    velocity_chart: &[
+        Named::new(
+            "u",
+            "m/s",
+            "forward speed along the heading (ẋ = u cos φ, ẏ = u sin φ)",
+        ),
+        Named::new("omega", "rad/s", "turning rate φ̇"),
+    ],
+    default_q: &[0.0, 0.0, 0.2],
+    default_velocity: &[2.0, 0.7],
+    closed_form: Some(ClosedFormInfo {
+        formulation: "chetaev",
+        conditions: "a = 0 and ω0 ≠ 0 (either potential)",
+    }),
+    invariants: &[],
+};
+
+impl Scene for Sleigh {
+    const INFO: &'static SceneInfo = &INFO;
+
+    fn from_params(params: &Params) -> Result<Self, Error> {
+        let (j, a) = (params.real("J"), params.real("a"));
+        if j <= a * a {
+            return Err(Error::InconsistentParams(format!(
+                "J = {j} must exceed a² = {}: J is the squared radius of gyration about the blade, \
+                 ρ² + a², and the mass matrix has determinant m³(J − a²)",
+                a * a
+            )));
+        }
+        Ok(Sleigh {
+            params: params.clone(),
+            m: params.real("m"),
+            j,
+            a,
+            g: params.real("g"),
+            alpha: params.real("alpha"),
+            potential: match params.choice("potential") {
+                "com" => Potential::Com,
+                _ => Potential::Paper,
+            },
+        })
+    }
+
+    fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Eq. (22): `L = ½m[ẋ² + ẏ² + Jφ̇² + 2aφ̇(ẏ cos φ − ẋ sin φ)] + m g x sin α`,
+    /// plus `m g a sin α cos φ` with `potential = com`.
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], qd: &[D]) -> D {
+        let (x, phi) = (q[0], q[2]);
+        let (xd, yd, phid) = (qd[0], qd[1], qd[2]);
+        let (s, c) = phi.sin_cos();
+        let kinetic =
+            (xd * xd + yd * yd + phid * phid * self.j + phid * (yd * c - xd * s) * (2.0 * self.a))
+                * (0.5 * self.m);
+        let mg_sin = self.m * self.g * self.alpha.sin();
+        let potential = match self.potential {
+            Potential::Paper => x * mg_sin,
+            Potential::Com => x * mg_sin + c * (mg_sin * self.a),
+        };
+        kinetic + potential
+    }
+
+    /// Eq. (20) in a form regular at φ = π/2: `g = ẏ cos φ − ẋ sin φ`.
+    fn nonholonomic<D: Scalar>(&self, _t: D, q: &[D], qd: &[D], out: &mut [D]) {
+        let (s, c) = q[2].sin_cos();
+        out[0] = qd[1] * c - qd[0] * s;
+    }
+
+    /// Eq. (21) with the quadrant-correct arctangent: `φ = atan2(ẏ, ẋ)`.
+    fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], qd_ind: &[D], q_dep: &mut [D]) {
+        q_dep[0] = qd_ind[1].atan2(qd_ind[0]);
+    }
+
+    fn embedding_regularity(&self, _t: f64, _q_ind: &[f64], qd_ind: &[f64]) -> Option<f64> {
+        Some(qd_ind[0].hypot(qd_ind[1]))
+    }
+
+    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
+        let (u, omega) = (chart[0], chart[1]);
+        let (s, c) = q[2].sin_cos();
+        qd[0] = u * c;
+        qd[1] = u * s;
+        qd[2] = omega;
+    }
+
+    /// The spec's closed form for `a = 0`, `ω0 ≠ 0`: `ω = ω0`, `φ = φ0 + ω0 t`,
+    /// `u = C + K sin φ` with `K = g sin α/ω0`, `C = u0 − K sin φ0`.
+    fn closed_form(
+        &self,
+        q0: &[f64],
+        qd0: &[f64],
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<(), String> {
+        if self.a != 0.0 {
+            return Err(format!("the closed form needs a = 0 (a = {})", self.a));
+        }
+        let (x0, y0, phi0) = (q0[0], q0[1], q0[2]);
+        let omega0 = qd0[2];
+        if omega0 == 0.0 {
+            return Err("the closed form needs ω0 ≠ 0".to_string());
+        }
+        let u0 = qd0[0] * phi0.cos() + qd0[1] * phi0.sin();
+        let k = self.g * self.alpha.sin() / omega0;
+        let c = u0 - k * phi0.sin();
+        let phi = phi0 + omega0 * t;
+        let (s, co) = phi.sin_cos();
+        let (s0, c0) = phi0.sin_cos();
+        q[0] = x0 + (c * (s - s0) + 0.5 * k * (s * s - s0 * s0)) / omega0;
+        q[1] = y0
+            + (-c * (co - c0)
+                + k * (0.5 * (phi - phi0) - 0.25 * ((2.0 * phi).sin() - (2.0 * phi0).sin())))
+                / omega0;
+        q[2] = phi;
+        let u = c + k * s;
+        qd[0] = u * co;
+        qd[1] = u * s;
+        qd[2] = omega0;
+        Ok(())
+    }
+}

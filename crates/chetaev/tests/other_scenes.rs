@@ -1,0 +1,316 @@
+//! Formulation B on the rolling disk, Appell–Hamel and the Cartesian pendulum.
+
+mod common;
+
+use common::*;
+use nonholo_core::integrate::{IntegrateError, Method, OdeSystem, Options, SystemError, solve};
+use nonholo_core::{Observation, Scene};
+use nonholo_scenes::{AppellHamel, Pendulum, RollingDisk};
+use rand::{Rng, SeedableRng};
+
+/// B gives θ̈ = ψ̈ = 0 for the vertical disk at any state on the constraints.
+#[test]
+fn disk_turning_and_rolling_rates_are_constant() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    let disk: RollingDisk = scene(&[("R", "0.7"), ("I", "0.3"), ("Jr", "0.6"), ("m", "2")]);
+    let mut b = chetaev(disk.clone(), &[]);
+    for _ in 0..200 {
+        let q = [
+            rng.random_range(-5.0..5.0),
+            rng.random_range(-5.0..5.0),
+            rng.random_range(-4.0..4.0),
+            rng.random_range(-4.0..4.0),
+        ];
+        let chart = [rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)];
+        let mut qd = [0.0; 4];
+        disk.velocities_from(&q, &chart, &mut qd);
+        let (mut qdd, mut lam) = ([0.0; 4], [0.0; 2]);
+        b.accelerations(0.0, &q, &qd, &mut qdd, &mut lam).unwrap();
+        assert!(
+            qdd[2].abs() < 1e-14 && qdd[3].abs() < 1e-14,
+            "θ̈ = {}, ψ̈ = {}",
+            qdd[2],
+            qdd[3]
+        );
+        // The contact point turns with the disk: ẍ = −R ψ̇ θ̇ sin θ, ÿ = R ψ̇ θ̇ cos θ.
+        let (s, c) = q[2].sin_cos();
+        assert!((qdd[0] + 0.7 * qd[3] * qd[2] * s).abs() < 1e-13);
+        assert!((qdd[1] - 0.7 * qd[3] * qd[2] * c).abs() < 1e-13);
+    }
+}
+
+/// At tight tolerance the disk follows its closed form; energy, constraint
+/// residual and the invariants θ̇, ψ̇ stay at round-off.
+#[test]
+fn disk_trajectory_invariants_and_closed_form() {
+    let disk: RollingDisk = scene(&[]);
+    let mut run = run_b(
+        &disk,
+        &[],
+        &[("omega_theta", "0.5"), ("omega_psi", "1.3")],
+        Method::Dop853,
+        1e-13,
+        50.0,
+        grid(50.0, 0.5),
+    );
+    assert!(run.completed());
+    let d = &run.diagnostics;
+    assert!(
+        d.constraint_residual_max < 1e-13,
+        "residual {:e}",
+        d.constraint_residual_max
+    );
+    assert!(
+        d.energy_drift_max < 1e-13,
+        "energy drift {:e}",
+        d.energy_drift_max
+    );
+    for inv in &d.invariants {
+        assert!(
+            inv.drift_max < 1e-13,
+            "{} drift {:e}",
+            inv.name,
+            inv.drift_max
+        );
+    }
+    let (mut q, mut qd) = ([0.0; 4], [0.0; 4]);
+    let mut obs = Observation::new(4, 2);
+    for t in [0.3, 7.7, 31.4, 50.0] {
+        run.observe_at(t, &mut obs).unwrap();
+        disk.closed_form(&run.initial.q, &run.initial.qd, t, &mut q, &mut qd)
+            .unwrap();
+        for i in 0..4 {
+            assert!(
+                (obs.q[i] - q[i]).abs() < 1e-10,
+                "t = {t}: q[{i}] {} vs {}",
+                obs.q[i],
+                q[i]
+            );
+        }
+        // The multipliers are the contact force on the disk: m ẍ = λ1, m ÿ = λ2 (m = 1).
+        let (s, c) = q[2].sin_cos();
+        let (ax, ay) = (-qd[3] * qd[2] * s, qd[3] * qd[2] * c);
+        assert!((obs.multipliers[0] - ax).abs() < 1e-9 && (obs.multipliers[1] - ay).abs() < 1e-9);
+    }
+}
+
+/// Appell–Hamel under B: straight horizontal path, ρ̇ = c g/(1 + c²),
+/// z̈ = −c² g/(1 + c²), λ = m g/(1 + c²) (spec, closed form).
+#[test]
+fn appell_hamel_matches_closed_form() {
+    for c in ["0.5", "2", "-0.3"] {
+        let s: AppellHamel = scene(&[("c", c), ("m", "1.5")]);
+        let cv: f64 = c.parse().unwrap();
+        // Up to just before the stop for c < 0.
+        let t_end = if cv < 0.0 {
+            0.9 * 3.0 * (1.0 + cv * cv) / (cv.abs() * 9.81)
+        } else {
+            5.0
+        };
+        let run = run_b(
+            &s,
+            &[],
+            &[("rho", "3"), ("beta", "0.4")],
+            Method::Dop853,
+            1e-12,
+            t_end,
+            grid(t_end, t_end / 50.0),
+        );
+        assert!(run.completed(), "c = {c}: {:?}", run.failure);
+        let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
+        for (t, o) in run.solution.t.iter().zip(&run.samples) {
+            s.closed_form(&run.initial.q, &run.initial.qd, *t, &mut q, &mut qd)
+                .unwrap();
+            for i in 0..3 {
+                assert!(
+                    (o.q[i] - q[i]).abs() < 1e-9 && (o.qd[i] - qd[i]).abs() < 1e-9,
+                    "c = {c}, t = {t}"
+                );
+            }
+            let lambda = 1.5 * 9.81 / (1.0 + cv * cv);
+            assert!(
+                (o.multipliers[0] - lambda).abs() < 1e-10,
+                "λ {} vs {lambda}",
+                o.multipliers[0]
+            );
+        }
+        assert!(run.diagnostics.energy_drift_max < 1e-11);
+        assert!(run.diagnostics.invariants[0].drift_max < 1e-12);
+    }
+}
+
+/// With c < 0 the horizontal speed reaches zero at t* = ρ0 (1 + c²)/(|c| g),
+/// where the constraint is not differentiable: the run stops there with an
+/// error naming the time and the reason, and keeps the trajectory before it.
+#[test]
+fn appell_hamel_stops_at_zero_horizontal_speed() {
+    let s: AppellHamel = scene(&[("c", "-0.5")]);
+    let t_star = 2.0 * (1.0 + 0.25) / (0.5 * 9.81);
+    let run = run_b(
+        &s,
+        &[],
+        &[("rho", "2")],
+        Method::Dop853,
+        1e-10,
+        3.0,
+        grid(3.0, 0.01),
+    );
+    match &run.failure {
+        Some(e @ IntegrateError::Stopped { t, reason }) => {
+            // The stop is where ρ = singular_tol = 1e-8, i.e. 1e-8/|ρ̇| before t*.
+            let rho_dot = 0.5 * 9.81 / 1.25;
+            assert!(
+                (t - (t_star - 1e-8 / rho_dot)).abs() < 1e-9,
+                "stopped at {t}, t* = {t_star}"
+            );
+            assert!(reason.contains("horizontal speed"), "{reason}");
+            let msg = e.to_string();
+            assert!(msg.contains(&format!("{t}")), "{msg}");
+        }
+        other => panic!("expected a stop at t*, got {other:?}"),
+    }
+    assert!(*run.solution.t.last().unwrap() <= t_star);
+    assert!(run.samples.len() > 50);
+}
+
+/// The pendulum angle equation θ̈ = −(g/l) sin θ, integrated independently.
+struct AngleEquation {
+    g_over_l: f64,
+}
+
+impl OdeSystem for AngleEquation {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = y[1];
+        dy[1] = -self.g_over_l * y[0].sin();
+        Ok(())
+    }
+}
+
+/// The holonomic path of B: the Cartesian pendulum follows the angle
+/// equation, and ν is the rod tension: Fᵀν = 2(x, y) ν = −T r̂ with
+/// T = m(l θ̇² + g cos θ), so ν = −T/(2l).
+#[test]
+fn pendulum_matches_angle_equation_and_tension() {
+    let (m, g, l) = (1.3, 9.81, 0.8);
+    let p: Pendulum = scene(&[("m", "1.3"), ("l", "0.8")]);
+    let run = run_b(
+        &p,
+        &[],
+        &[("omega", "1.1")],
+        Method::Dop853,
+        1e-12,
+        10.0,
+        grid(10.0, 0.1),
+    );
+    assert!(run.completed());
+    let theta0 = 0.5f64;
+    let reference = solve(
+        Method::Dop853,
+        &mut AngleEquation { g_over_l: g / l },
+        0.0,
+        &[theta0, 1.1],
+        10.0,
+        &Options {
+            rtol: 1e-13,
+            atol: 1e-13,
+            output: run.solution.t.clone(),
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    for (i, o) in run.samples.iter().enumerate() {
+        let (th, thd) = (reference.row(i)[0], reference.row(i)[1]);
+        assert!(
+            (o.q[0] - l * th.sin()).abs() < 1e-9 && (o.q[1] + l * th.cos()).abs() < 1e-9,
+            "t = {}",
+            reference.t[i]
+        );
+        let tension = m * (l * thd * thd + g * th.cos());
+        assert!(
+            (o.multipliers[0] + tension / (2.0 * l)).abs() < 1e-8,
+            "ν {} vs {}",
+            o.multipliers[0],
+            -tension / (2.0 * l)
+        );
+    }
+}
+
+/// Stabilisation on a long pendulum run at loose tolerance: without it |f|
+/// drifts; Baumgarte bounds it; projection holds it at round-off. The choice
+/// is recorded in the model's options.
+#[test]
+fn stabilisation_controls_holonomic_drift() {
+    let p: Pendulum = scene(&[]);
+    let residual = |opts: &[(&str, &str)]| {
+        let run = run_b(
+            &p,
+            opts,
+            &[("omega", "2")],
+            Method::Dopri5,
+            1e-6,
+            200.0,
+            grid(200.0, 1.0),
+        );
+        assert!(run.completed());
+        let d = &run.diagnostics;
+        assert_eq!(
+            run.model.options().choice("stab"),
+            opts.first().map(|o| o.1).unwrap_or("none")
+        );
+        (d.holonomic_residual_max, d.holonomic_velocity_residual_max)
+    };
+    let none = residual(&[]);
+    let baumgarte = residual(&[
+        ("stab", "baumgarte"),
+        ("baumgarte_alpha", "5"),
+        ("baumgarte_beta", "5"),
+    ]);
+    let projection = residual(&[("stab", "projection")]);
+    eprintln!("|f|, |ḟ| max: none {none:?}, baumgarte {baumgarte:?}, projection {projection:?}");
+    assert!(none.0 > 1e-5, "drift without stabilisation {:e}", none.0);
+    assert!(baumgarte.0 < none.0 / 10.0);
+    assert!(
+        projection.0 < 1e-13 && projection.1 < 1e-12,
+        "{projection:?}"
+    );
+}
+
+/// Projection on the sleigh keeps the nonholonomic residual at round-off
+/// even at a loose tolerance.
+#[test]
+fn projection_holds_the_sleigh_on_its_constraint() {
+    let s: nonholo_scenes::Sleigh = scene(&[]);
+    let init_values = [("phi", "0.2"), ("u", "2"), ("omega", "0.7")];
+    let loose = run_b(
+        &s,
+        &[],
+        &init_values,
+        Method::Dopri5,
+        1e-5,
+        20.0,
+        grid(20.0, 1.0),
+    );
+    let projected = run_b(
+        &s,
+        &[("stab", "projection")],
+        &init_values,
+        Method::Dopri5,
+        1e-5,
+        20.0,
+        grid(20.0, 1.0),
+    );
+    eprintln!(
+        "residual none {:e}, projection {:e}",
+        loose.diagnostics.nonholonomic_residual_max,
+        projected.diagnostics.nonholonomic_residual_max
+    );
+    // The sleigh reaches ~60 m/s: round-off of g = ẏ cos φ − ẋ sin φ is ~1e-14 × 60.
+    assert!(projected.diagnostics.nonholonomic_residual_max < 1e-12 * 60.0);
+    assert!(
+        loose.diagnostics.nonholonomic_residual_max
+            > 1e3 * projected.diagnostics.nonholonomic_residual_max
+    );
+}

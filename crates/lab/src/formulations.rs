@@ -1,0 +1,76 @@
+//! The registry of formulations: names, applicability, construction.
+
+use nonholo_core::{Error, FormulationInfo, Model, Params, Scene};
+use nonholo_scenes::{AnyScene, SceneVisitor};
+
+/// Every formulation this build has, in listing order.
+pub const ALL: &[&FormulationInfo] = &[&nonholo_chetaev::INFO];
+
+/// Formulations of the workbench's plan that this build does not have yet,
+/// with what they are: naming one gives a clear message instead of "unknown".
+const PLANNED: &[(&str, &str)] = &[
+    ("vakonomic", "C, the vakonomic variant"),
+    ("embedding", "A, the paper's Hamilton-principle embedding"),
+    (
+        "visc",
+        "the viscous-friction realisation of the constraints",
+    ),
+    ("mass", "the added-mass realisation of the constraints"),
+];
+
+/// The formulation called `name`, or an error listing the valid names.
+pub fn info(name: &str) -> Result<&'static FormulationInfo, Error> {
+    if let Some(f) = ALL.iter().find(|f| f.name == name) {
+        return Ok(f);
+    }
+    if let Some((_, what)) = PLANNED.iter().find(|(n, _)| *n == name) {
+        return Err(Error::Unavailable(format!(
+            "formulation `{name}` ({what}) is not in this build yet; available: {}",
+            ALL.iter().map(|f| f.name).collect::<Vec<_>>().join(", ")
+        )));
+    }
+    Err(Error::UnknownName {
+        what: "formulation".into(),
+        name: name.into(),
+        valid: ALL.iter().map(|f| f.name.to_string()).collect(),
+    })
+}
+
+/// Binds formulation `name` with `options` (`name=value` pairs) to `scene`.
+pub fn build_model(
+    scene: AnyScene,
+    name: &str,
+    options: &[(String, String)],
+) -> Result<Box<dyn Model>, Error> {
+    let f = info(name)?;
+    let info = scene.info();
+    (f.applicable)(info).map_err(|reason| Error::NotApplicable {
+        formulation: f.name.into(),
+        scene: info.name.into(),
+        reason,
+    })?;
+    let options = Params::resolve(f.options, options, &format!("option of `{}`", f.name))?;
+    scene.visit(Build {
+        formulation: f,
+        options,
+    })
+}
+
+struct Build {
+    formulation: &'static FormulationInfo,
+    options: Params,
+}
+
+impl SceneVisitor for Build {
+    type Output = Result<Box<dyn Model>, Error>;
+
+    fn visit<S: Scene>(self, scene: S) -> Self::Output {
+        match self.formulation.name {
+            "chetaev" => Ok(Box::new(nonholo_chetaev::Chetaev::new(
+                scene,
+                self.options,
+            )?)),
+            other => unreachable!("formulation `{other}` registered but not constructed"),
+        }
+    }
+}

@@ -1,0 +1,46 @@
+use clap::{Parser, Subcommand};
+use nonholo_lab::simulate::{self, SimulateArgs};
+use nonholo_lab::{CliError, listing};
+
+/// A workbench for nonholonomic mechanics: Hamilton-principle embedding (A),
+/// D'Alembert–Lagrange with Chetaev's conditions (B), vakonomic (C).
+#[derive(Debug, Parser)]
+#[command(name = "nonholo", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// List the scenes: coordinates, parameters (units, defaults, ranges), formulations that apply.
+    Scenes {
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run one motion of a scene under one formulation.
+    Simulate(Box<SimulateArgs>),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result: Result<(), CliError> = match &cli.command {
+        Command::Scenes { json } => {
+            if *json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&listing::json()).unwrap_or_default()
+                );
+            } else {
+                print!("{}", listing::text());
+            }
+            Ok(())
+        }
+        Command::Simulate(args) => simulate::command(args),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(e.exit_code());
+    }
+}

@@ -1,0 +1,309 @@
+//! The result schema of one run (`nonholo.run/1`, documented in
+//! `docs/schema.md`) and atomic writing of result files.
+
+use std::io::Write;
+use std::path::Path;
+
+use nonholo_core::{Params, Run, Value};
+use serde::Serialize;
+use serde_json::{Map, Value as Json};
+
+/// Identifier of the run schema; bumped only for incompatible changes.
+pub const RUN_SCHEMA: &str = "nonholo.run/1";
+
+#[derive(Debug, Clone, Serialize)]
+pub struct IntegratorRecord {
+    pub method: String,
+    pub rtol: f64,
+    pub atol: f64,
+    pub fixed_step: Option<f64>,
+    pub max_steps: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProjectionRecord {
+    pub q_before: Vec<f64>,
+    pub q_dot_before: Vec<f64>,
+    pub dq_norm: f64,
+    pub dq_dot_norm: f64,
+    pub velocity_residual_before: f64,
+    pub velocity_residual_after: f64,
+    pub position_residual_before: f64,
+    pub position_residual_after: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct InitRecord {
+    pub t0: f64,
+    pub q: Vec<f64>,
+    pub q_dot: Vec<f64>,
+    /// Formulation-specific initial values (`lambda`, ...).
+    pub extra: Map<String, Json>,
+    /// What `--project-init` changed.
+    pub projection: Option<ProjectionRecord>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct InvariantRecord {
+    pub name: String,
+    pub initial: f64,
+    pub drift_max: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DiagnosticsRecord {
+    pub constraint_residual_max: f64,
+    pub nonholonomic_residual_max: f64,
+    pub holonomic_residual_max: f64,
+    pub holonomic_velocity_residual_max: f64,
+    pub energy_initial: f64,
+    pub energy_final: f64,
+    pub energy_drift_max: f64,
+    pub invariants: Vec<InvariantRecord>,
+    pub states_checked: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct StatsRecord {
+    pub steps: usize,
+    pub rejected_steps: usize,
+    pub rhs_evals: usize,
+    pub jacobian_evals: usize,
+    pub lu_decompositions: usize,
+    pub newton_failures: usize,
+    pub wall_time_s: f64,
+    /// `[t, h·|λ|]` where the stiffness test of an explicit method fired.
+    pub stiffness_detected: Option<[f64; 2]>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ErrorRecord {
+    pub t: Option<f64>,
+    pub message: String,
+}
+
+/// One run, as written to `--out FILE.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunRecord {
+    pub schema: &'static str,
+    pub scene: String,
+    pub formulation: String,
+    pub integrator: IntegratorRecord,
+    pub params: Map<String, Json>,
+    pub options: Map<String, Json>,
+    pub init: InitRecord,
+    pub coordinates: Vec<String>,
+    pub t: Vec<f64>,
+    pub q: Vec<Vec<f64>>,
+    pub q_dot: Vec<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lambda: Option<Vec<Vec<f64>>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nu: Option<Vec<Vec<f64>>>,
+    pub diagnostics: DiagnosticsRecord,
+    pub stats: StatsRecord,
+    /// `completed` or `failed`.
+    pub status: &'static str,
+    pub error: Option<ErrorRecord>,
+}
+
+/// `{name: value}` in spec order.
+pub fn params_json(p: &Params) -> Map<String, Json> {
+    p.iter()
+        .map(|(spec, v)| {
+            let j = match v {
+                Value::Real(x) => Json::from(x),
+                Value::Choice(c) => Json::from(c),
+            };
+            (spec.name.to_string(), j)
+        })
+        .collect()
+}
+
+impl RunRecord {
+    /// The record of `run`. Refuses (with the column and time) if any number
+    /// that would be written is not finite: JSON has no NaN, and a silent
+    /// `null` in a result is worse than no result.
+    pub fn from_run(run: &Run) -> Result<RunRecord, String> {
+        let info = run.model.scene_info();
+        let (s, k) = (info.s(), info.k());
+        let names = run.model.multiplier_names();
+        let has_multipliers = !names.is_empty();
+        let t = run.solution.t[..run.samples.len()].to_vec();
+        let q: Vec<Vec<f64>> = run.samples.iter().map(|o| o.q.clone()).collect();
+        let q_dot: Vec<Vec<f64>> = run.samples.iter().map(|o| o.qd.clone()).collect();
+        let lambda: Option<Vec<Vec<f64>>> = (has_multipliers && s > 0).then(|| {
+            run.samples
+                .iter()
+                .map(|o| o.multipliers[..s].to_vec())
+                .collect()
+        });
+        let nu: Option<Vec<Vec<f64>>> = (has_multipliers && k > 0).then(|| {
+            run.samples
+                .iter()
+                .map(|o| o.multipliers[s..s + k].to_vec())
+                .collect()
+        });
+
+        let check = |what: &str, rows: &[Vec<f64>]| -> Result<(), String> {
+            for (i, r) in rows.iter().enumerate() {
+                if let Some(j) = r.iter().position(|v| !v.is_finite()) {
+                    return Err(format!(
+                        "refusing to write a non-finite value: {what}[{j}] = {} at t = {}",
+                        r[j], t[i]
+                    ));
+                }
+            }
+            Ok(())
+        };
+        check("q", &q)?;
+        check("q_dot", &q_dot)?;
+        if let Some(l) = &lambda {
+            check("lambda", l)?;
+        }
+        if let Some(l) = &nu {
+            check("nu", l)?;
+        }
+
+        let d = &run.diagnostics;
+        let st = &run.solution.stats;
+        let cfg = &run.config;
+        Ok(RunRecord {
+            schema: RUN_SCHEMA,
+            scene: info.name.to_string(),
+            formulation: run.model.formulation().name.to_string(),
+            integrator: IntegratorRecord {
+                method: cfg.method.name().to_string(),
+                rtol: cfg.options.rtol,
+                atol: cfg.options.atol,
+                fixed_step: cfg.options.fixed_step,
+                max_steps: cfg.options.max_steps,
+            },
+            params: params_json(run.model.scene_params()),
+            options: params_json(run.model.options()),
+            init: InitRecord {
+                t0: run.initial.t0,
+                q: run.initial.q.clone(),
+                q_dot: run.initial.qd.clone(),
+                extra: run
+                    .initial
+                    .extra
+                    .iter()
+                    .map(|(n, v)| (n.clone(), Json::from(*v)))
+                    .collect(),
+                projection: run.projection.as_ref().map(|ip| {
+                    let p = &ip.projection;
+                    ProjectionRecord {
+                        q_before: ip.q_before.clone(),
+                        q_dot_before: ip.qd_before.clone(),
+                        dq_norm: p.dq_norm,
+                        dq_dot_norm: p.dqd_norm,
+                        velocity_residual_before: p.velocity_residual.0,
+                        velocity_residual_after: p.velocity_residual.1,
+                        position_residual_before: p.position_residual.0,
+                        position_residual_after: p.position_residual.1,
+                    }
+                }),
+            },
+            coordinates: info
+                .coordinates
+                .iter()
+                .map(|c| c.name.to_string())
+                .collect(),
+            t,
+            q,
+            q_dot,
+            lambda,
+            nu,
+            diagnostics: DiagnosticsRecord {
+                constraint_residual_max: d.constraint_residual_max,
+                nonholonomic_residual_max: d.nonholonomic_residual_max,
+                holonomic_residual_max: d.holonomic_residual_max,
+                holonomic_velocity_residual_max: d.holonomic_velocity_residual_max,
+                energy_initial: d.energy_initial,
+                energy_final: d.energy_final,
+                energy_drift_max: d.energy_drift_max,
+                invariants: d
+                    .invariants
+                    .iter()
+                    .map(|i| InvariantRecord {
+                        name: i.name.clone(),
+                        initial: i.initial,
+                        drift_max: i.drift_max,
+                    })
+                    .collect(),
+                states_checked: d.states_checked,
+            },
+            stats: StatsRecord {
+                steps: st.steps,
+                rejected_steps: st.rejected_steps,
+                rhs_evals: st.rhs_evals,
+                jacobian_evals: st.jacobian_evals,
+                lu_decompositions: st.lu_decompositions,
+                newton_failures: st.newton_failures,
+                wall_time_s: st.wall_time_s,
+                stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
+            },
+            status: if run.failure.is_some() {
+                "failed"
+            } else {
+                "completed"
+            },
+            error: run.failure.as_ref().map(|e| ErrorRecord {
+                t: e.time(),
+                message: e.to_string(),
+            }),
+        })
+    }
+
+    /// CSV: `t,<q names>,<q names>_dot,<multiplier names>`, one row per output time.
+    pub fn to_csv(&self, multiplier_names: &[String]) -> Result<Vec<u8>, String> {
+        let mut w = csv::Writer::from_writer(Vec::new());
+        let mut header = vec!["t".to_string()];
+        header.extend(self.coordinates.iter().cloned());
+        header.extend(self.coordinates.iter().map(|c| format!("{c}_dot")));
+        header.extend(multiplier_names.iter().cloned());
+        w.write_record(&header).map_err(|e| e.to_string())?;
+        for i in 0..self.t.len() {
+            let mut row = vec![self.t[i].to_string()];
+            row.extend(self.q[i].iter().map(|v| v.to_string()));
+            row.extend(self.q_dot[i].iter().map(|v| v.to_string()));
+            if let Some(l) = &self.lambda {
+                row.extend(l[i].iter().map(|v| v.to_string()));
+            }
+            if let Some(l) = &self.nu {
+                row.extend(l[i].iter().map(|v| v.to_string()));
+            }
+            w.write_record(&row).map_err(|e| e.to_string())?;
+        }
+        w.into_inner().map_err(|e| e.to_string())
+    }
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same
+/// directory, flushed to disk, then renamed over `path`. A reader never sees
+/// a half-written file, and a crash leaves at most a stray `*.tmp`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    if let Some(d) = dir {
+        std::fs::create_dir_all(d)?;
+    }
+    let name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::other(format!("not a file path: {}", path.display())))?;
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}

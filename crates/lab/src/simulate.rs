@@ -1,0 +1,315 @@
+//! `nonholo simulate`: one motion of one scene under one formulation.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use nonholo_core::integrate::{Method, Options};
+use nonholo_core::{Run, RunConfig, init, simulate};
+
+use crate::CliError;
+use crate::formulations;
+use crate::record::{RunRecord, write_atomic};
+
+#[derive(Debug, Clone, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct SimulateArgs {
+    /// Scene name (see `nonholo scenes`).
+    #[arg(long)]
+    pub scene: String,
+    /// Formulation: chetaev (B), ...
+    #[arg(long, default_value = "chetaev")]
+    pub formulation: String,
+    /// Scene parameter, `name=value` (repeatable); angles accept a `deg` suffix.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    pub params: Vec<String>,
+    /// Initial value, `name=value` (repeatable): a coordinate, `<coord>_dot`,
+    /// a convenience value of the scene, or a formulation's own (`lambda`).
+    #[arg(long = "init", value_name = "NAME=VALUE")]
+    pub init: Vec<String>,
+    /// Formulation option, `name=value` (repeatable), e.g. `stab=projection`.
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    pub options: Vec<String>,
+    /// End of the time span (start is 0).
+    #[arg(long, default_value_t = 10.0)]
+    pub t_end: f64,
+    /// Spacing of the output grid (default: 1/100 of the span).
+    #[arg(long)]
+    pub output_every: Option<f64>,
+    /// Integrator: rk4, dopri5, dop853.
+    #[arg(long, default_value = "dop853")]
+    pub integrator: String,
+    /// Relative tolerance (adaptive methods).
+    #[arg(long, default_value_t = 1e-10)]
+    pub rtol: f64,
+    /// Absolute tolerance (adaptive methods).
+    #[arg(long, default_value_t = 1e-10)]
+    pub atol: f64,
+    /// Fixed step size: required for rk4; turns step-size control off for the others.
+    #[arg(long)]
+    pub step: Option<f64>,
+    /// Budget on integrator steps (accepted plus rejected).
+    #[arg(long, default_value_t = 10_000_000)]
+    pub max_steps: usize,
+    /// Move inconsistent initial data onto the constraints (nearest in the
+    /// kinetic-energy metric) instead of refusing them.
+    #[arg(long)]
+    pub project_init: bool,
+    /// Write the run to FILE.json or FILE.csv (default: a summary on stdout).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Also write the file when the run fails part-way (status "failed").
+    #[arg(long)]
+    pub keep_partial: bool,
+}
+
+/// Splits `name=value` pairs given to `flag`.
+pub fn pairs(flag: &str, items: &[String]) -> Result<Vec<(String, String)>, CliError> {
+    items
+        .iter()
+        .map(|s| {
+            s.split_once('=')
+                .map(|(a, b)| (a.trim().to_string(), b.trim().to_string()))
+                .filter(|(a, _)| !a.is_empty())
+                .ok_or_else(|| CliError::Input(format!("{flag} expects NAME=VALUE, got `{s}`")))
+        })
+        .collect()
+}
+
+fn positive(flag: &str, v: f64) -> Result<f64, CliError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(CliError::Input(format!(
+            "{flag}: must be a positive finite number (got {v})"
+        )))
+    }
+}
+
+/// Output grid `0, Δ, 2Δ, …` up to `t_end`, which is always the last point.
+pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
+    let count = (t_end / every).floor();
+    if count > 1e7 {
+        return Err(CliError::Input(format!(
+            "--output-every {every} over [0, {t_end}] gives {count:e} output points (limit 1e7)"
+        )));
+    }
+    let count = count as usize;
+    let mut grid: Vec<f64> = (0..=count).map(|i| i as f64 * every).collect();
+    if t_end - grid[count] > 1e-12 * t_end {
+        grid.push(t_end);
+    } else {
+        grid[count] = t_end;
+    }
+    Ok(grid)
+}
+
+/// Integrator method and options from command-line values.
+pub fn integrator(
+    name: &str,
+    rtol: f64,
+    atol: f64,
+    step: Option<f64>,
+    max_steps: usize,
+) -> Result<(Method, Options), CliError> {
+    let method = Method::from_name(name).ok_or_else(|| {
+        CliError::Input(format!(
+            "unknown integrator `{name}`; valid names: {}",
+            Method::ALL.map(|m| m.name()).join(", ")
+        ))
+    })?;
+    let step = step.map(|h| positive("--step", h)).transpose()?;
+    if method.needs_fixed_step() && step.is_none() {
+        return Err(CliError::Input(format!(
+            "integrator `{name}` has a fixed step: give --step"
+        )));
+    }
+    if max_steps == 0 {
+        return Err(CliError::Input("--max-steps: must be at least 1".into()));
+    }
+    Ok((
+        method,
+        Options {
+            rtol: positive("--rtol", rtol)?,
+            atol: positive("--atol", atol)?,
+            fixed_step: step,
+            max_steps,
+            ..Options::default()
+        },
+    ))
+}
+
+/// Builds and runs the simulation described by `args`.
+pub fn run(args: &SimulateArgs) -> Result<Run, CliError> {
+    let t_end = positive("--t-end", args.t_end)?;
+    let every = positive("--output-every", args.output_every.unwrap_or(t_end / 100.0))?;
+    let (method, mut options) = integrator(
+        &args.integrator,
+        args.rtol,
+        args.atol,
+        args.step,
+        args.max_steps,
+    )?;
+    options.output = output_grid(t_end, every)?;
+
+    let scene = nonholo_scenes::build(&args.scene, &pairs("--param", &args.params)?)?;
+    let model = formulations::build_model(
+        scene.clone(),
+        &args.formulation,
+        &pairs("--option", &args.options)?,
+    )?;
+    let initial = scene.clone().visit(ResolveInit {
+        given: pairs("--init", &args.init)?,
+        extra: model.extra_init_names(),
+    })?;
+    Ok(simulate(
+        model,
+        initial,
+        RunConfig {
+            method,
+            options,
+            t_end,
+            project_init: args.project_init,
+        },
+    )?)
+}
+
+struct ResolveInit {
+    given: Vec<(String, String)>,
+    extra: Vec<nonholo_core::Named>,
+}
+
+impl nonholo_scenes::SceneVisitor for ResolveInit {
+    type Output = Result<nonholo_core::Initial, nonholo_core::Error>;
+    fn visit<S: nonholo_core::Scene>(self, scene: S) -> Self::Output {
+        init::resolve(&scene, &self.given, &self.extra)
+    }
+}
+
+/// Runs `nonholo simulate`; writes the file or prints the summary.
+pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
+    if let Some(path) = &args.out {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("json") | Some("csv") => {}
+            _ => {
+                return Err(CliError::Input(format!(
+                    "--out {}: the file name must end in .json or .csv",
+                    path.display()
+                )));
+            }
+        }
+    }
+    let run = run(args)?;
+    let record = RunRecord::from_run(&run).map_err(CliError::Run)?;
+    if let Some(p) = &run.projection {
+        eprintln!(
+            "--project-init moved the initial data: |Δq| = {:.3e}, |Δq̇| = {:.3e} (velocity residual {:.3e} → {:.3e})",
+            p.projection.dq_norm,
+            p.projection.dqd_norm,
+            p.projection.velocity_residual.0,
+            p.projection.velocity_residual.1
+        );
+    }
+    let write = run.completed() || args.keep_partial;
+    match (&args.out, write) {
+        (Some(path), true) => {
+            let bytes = if path.extension().and_then(|e| e.to_str()) == Some("csv") {
+                record
+                    .to_csv(&run.model.multiplier_names())
+                    .map_err(CliError::Run)?
+            } else {
+                let mut b =
+                    serde_json::to_vec_pretty(&record).map_err(|e| CliError::Run(e.to_string()))?;
+                b.push(b'\n');
+                b
+            };
+            write_atomic(path, &bytes)
+                .map_err(|e| CliError::Run(format!("cannot write {}: {e}", path.display())))?;
+        }
+        (None, _) => print!("{}", summary(&run, &record)),
+        (Some(_), false) => {}
+    }
+    match &run.failure {
+        None => Ok(()),
+        Some(e) => Err(CliError::Run(format!(
+            "{}{}",
+            e,
+            if args.out.is_some() && !args.keep_partial {
+                " (no file written; --keep-partial writes the trajectory up to the failure)"
+            } else {
+                ""
+            }
+        ))),
+    }
+}
+
+/// A short human-readable account of a run.
+pub fn summary(run: &Run, r: &RunRecord) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let f = run.model.formulation();
+    let _ = writeln!(
+        s,
+        "scene {}, formulation {} ({}), integrator {} (rtol {:e}, atol {:e}{})",
+        r.scene,
+        f.name,
+        f.letter,
+        r.integrator.method,
+        r.integrator.rtol,
+        r.integrator.atol,
+        r.integrator
+            .fixed_step
+            .map(|h| format!(", step {h}"))
+            .unwrap_or_default()
+    );
+    let _ = writeln!(
+        s,
+        "status: {}{}",
+        r.status,
+        r.error
+            .as_ref()
+            .map(|e| format!(" — {}", e.message))
+            .unwrap_or_default()
+    );
+    if let (Some(t), Some(q), Some(qd)) = (r.t.last(), r.q.last(), r.q_dot.last()) {
+        let _ = writeln!(s, "state at t = {t}:");
+        for (i, c) in r.coordinates.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "  {c:>8} = {:>22.15e}   {c}_dot = {:>22.15e}",
+                q[i], qd[i]
+            );
+        }
+        let names = run.model.multiplier_names();
+        if let Some(last) = run.samples.last() {
+            for (n, v) in names.iter().zip(&last.multipliers) {
+                let _ = writeln!(s, "  {n:>8} = {v:>22.15e}");
+            }
+        }
+    }
+    let d = &r.diagnostics;
+    let _ = writeln!(
+        s,
+        "constraint residual max {:.3e}; energy {:.12e}, drift max {:.3e}",
+        d.constraint_residual_max, d.energy_initial, d.energy_drift_max
+    );
+    for i in &d.invariants {
+        let _ = writeln!(
+            s,
+            "invariant {} = {:.12e}, drift max {:.3e}",
+            i.name, i.initial, i.drift_max
+        );
+    }
+    let st = &r.stats;
+    let _ = writeln!(
+        s,
+        "{} steps ({} rejected), {} right-hand sides, {:.4} s",
+        st.steps, st.rejected_steps, st.rhs_evals, st.wall_time_s
+    );
+    if let Some([t, hl]) = st.stiffness_detected {
+        let _ = writeln!(
+            s,
+            "stiffness detected at t = {t} (h·|λ| ≈ {hl:.2}): consider an implicit method"
+        );
+    }
+    s
+}

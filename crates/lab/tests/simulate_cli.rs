@@ -1,0 +1,479 @@
+//! `nonholo simulate` and `nonholo scenes` as a user runs them: the issue's
+//! command line, both output formats, and every bad-input case with its message.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn nonholo(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nonholo"))
+        .args(args)
+        .output()
+        .expect("nonholo runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nonholo-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const ISSUE_COMMAND: &[&str] = &[
+    "simulate",
+    "--scene",
+    "sleigh-incline",
+    "--formulation",
+    "chetaev",
+    "--param",
+    "a=0.4",
+    "--param",
+    "alpha=0.3",
+    "--param",
+    "potential=com",
+    "--init",
+    "x=0",
+    "--init",
+    "y=0",
+    "--init",
+    "phi=0.2",
+    "--init",
+    "u=2",
+    "--init",
+    "omega=0.7",
+    "--t-end",
+    "20",
+    "--output-every",
+    "1",
+    "--integrator",
+    "dop853",
+    "--rtol",
+    "1e-12",
+    "--atol",
+    "1e-12",
+];
+
+fn with(extra: &[&str]) -> Vec<String> {
+    ISSUE_COMMAND
+        .iter()
+        .chain(extra)
+        .map(|s| s.to_string())
+        .collect()
+}
+
+fn run(args: &[String]) -> Output {
+    let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    nonholo(&a)
+}
+
+#[test]
+fn issue_command_writes_json_with_the_schema() {
+    let dir = tmpdir("json");
+    let out = dir.join("run.json");
+    let o = run(&with(&["--out", out.to_str().unwrap()]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    assert_eq!(j["schema"], "nonholo.run/1");
+    assert_eq!(j["scene"], "sleigh-incline");
+    assert_eq!(j["formulation"], "chetaev");
+    assert_eq!(j["integrator"]["method"], "dop853");
+    assert_eq!(j["integrator"]["rtol"], 1e-12);
+    assert_eq!(j["params"]["a"], 0.4);
+    assert_eq!(j["params"]["potential"], "com");
+    assert_eq!(j["params"]["m"], 1.0, "defaults are resolved too");
+    assert_eq!(j["options"]["stab"], "none");
+    assert_eq!(j["init"]["q"], serde_json::json!([0.0, 0.0, 0.2]));
+    let qd0 = j["init"]["q_dot"].as_array().unwrap();
+    assert!((qd0[0].as_f64().unwrap() - 2.0 * 0.2f64.cos()).abs() < 1e-15);
+    assert_eq!(j["coordinates"], serde_json::json!(["x", "y", "phi"]));
+    assert_eq!(j["t"].as_array().unwrap().len(), 21);
+    assert_eq!(j["t"][20], 20.0);
+    assert_eq!(j["q"].as_array().unwrap().len(), 21);
+    assert_eq!(j["q"][0].as_array().unwrap().len(), 3);
+    assert_eq!(j["q_dot"].as_array().unwrap().len(), 21);
+    assert_eq!(j["lambda"][0].as_array().unwrap().len(), 1);
+    assert!(j.get("nu").is_none());
+    let d = &j["diagnostics"];
+    assert!(d["constraint_residual_max"].as_f64().unwrap() < 1e-11);
+    assert!(d["energy_drift_max"].as_f64().unwrap() < 1e-8);
+    assert!(d["energy_initial"].is_number());
+    for k in [
+        "steps",
+        "rejected_steps",
+        "rhs_evals",
+        "jacobian_evals",
+        "wall_time_s",
+    ] {
+        assert!(j["stats"][k].is_number(), "stats.{k}");
+    }
+    assert_eq!(j["status"], "completed");
+    assert!(j["error"].is_null());
+    // Nothing left behind but the result.
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+}
+
+#[test]
+fn issue_command_writes_csv() {
+    let dir = tmpdir("csv");
+    let out = dir.join("run.csv");
+    let o = run(&with(&["--out", out.to_str().unwrap()]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "t,x,y,phi,x_dot,y_dot,phi_dot,lambda");
+    assert_eq!(lines.len(), 22);
+    assert!(lines[1].starts_with("0,0,0,0.2,"));
+    assert!(lines[21].starts_with("20,"));
+}
+
+#[test]
+fn summary_without_out() {
+    let o = run(&with(&[]));
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("status: completed") && s.contains("phi_dot") && s.contains("lambda"),
+        "{s}"
+    );
+}
+
+fn fails_with(args: &[&str], code: i32, needles: &[&str]) {
+    let o = nonholo(args);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(code), "{args:?}: {e}");
+    for n in needles {
+        assert!(e.contains(n), "{args:?}: `{n}` not in: {e}");
+    }
+    assert!(!e.contains("panicked"), "{e}");
+}
+
+#[test]
+fn unknown_names_list_the_valid_ones() {
+    fails_with(
+        &["simulate", "--scene", "sled"],
+        2,
+        &[
+            "unknown scene `sled`",
+            "sleigh-incline, rolling-disk, appell-hamel, pendulum",
+        ],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "lagrange",
+        ],
+        2,
+        &["unknown formulation `lagrange`", "chetaev"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--param", "mass=2"],
+        2,
+        &["unknown parameter `mass`", "m, J, a, g, alpha, potential"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--init", "theta=1"],
+        2,
+        &[
+            "unknown initial value `theta`",
+            "x, y, phi, x_dot, y_dot, phi_dot, u, omega",
+        ],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--option",
+            "stabilisation=none",
+        ],
+        2,
+        &[
+            "`stabilisation`",
+            "stab, baumgarte_alpha, baumgarte_beta, singular_tol",
+        ],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--integrator",
+            "euler",
+        ],
+        2,
+        &["unknown integrator `euler`", "rk4, dopri5, dop853"],
+    );
+}
+
+#[test]
+fn values_that_do_not_parse_or_are_out_of_range() {
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--param", "a=abc"],
+        2,
+        &["parameter `a`", "`abc`", "real number"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "alpha=2",
+        ],
+        2,
+        &["parameter `alpha` = 2", "[0, 1.5707963267948966)"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--param", "m=-1"],
+        2,
+        &["parameter `m` = -1", "(0, inf)"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "potential=gravity",
+        ],
+        2,
+        &["`potential`", "{paper, com}"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "J=0.1",
+            "--param",
+            "a=0.5",
+        ],
+        2,
+        &["J = 0.1 must exceed a² = 0.25"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--init", "u=fast"],
+        2,
+        &["initial value `u`", "`fast`"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--option",
+            "stab=always",
+        ],
+        2,
+        &["`stab`", "{none, baumgarte, projection}"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--param", "a"],
+        2,
+        &["--param expects NAME=VALUE, got `a`"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--rtol", "-1"],
+        2,
+        &["--rtol", "positive"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--t-end", "0"],
+        2,
+        &["--t-end"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--integrator",
+            "rk4",
+        ],
+        2,
+        &["give --step"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--out", "run.txt"],
+        2,
+        &[".json or .csv"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--init",
+            "u=1",
+            "--init",
+            "x_dot=1",
+        ],
+        2,
+        &["either as", "not both"],
+    );
+}
+
+#[test]
+fn inconsistent_velocities_are_refused_or_projected() {
+    let base = [
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--init",
+        "phi=0.2",
+        "--init",
+        "x_dot=1",
+        "--init",
+        "y_dot=0",
+        "--init",
+        "phi_dot=0.5",
+        "--t-end",
+        "1",
+    ];
+    // g = ẏ cos φ − ẋ sin φ = −sin 0.2.
+    fails_with(
+        &base,
+        2,
+        &[
+            "violate the constraints",
+            "ẏ cos φ − ẋ sin φ = 0: residual -1.987e-1",
+            "--project-init",
+        ],
+    );
+    let dir = tmpdir("project");
+    let out = dir.join("p.json");
+    let mut args = base.to_vec();
+    args.extend(["--project-init", "--out", out.to_str().unwrap()]);
+    let o = nonholo(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--project-init moved the initial data"),
+        "{}",
+        stderr(&o)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let p = &j["init"]["projection"];
+    assert_eq!(p["q_dot_before"], serde_json::json!([1.0, 0.0, 0.5]));
+    assert!(p["velocity_residual_after"].as_f64().unwrap() < 1e-14);
+    // M-nearest for the sleigh (a = 0.4): moves (ẋ, ẏ) and φ̇.
+    let qd = j["init"]["q_dot"].as_array().unwrap();
+    let (xd, yd) = (qd[0].as_f64().unwrap(), qd[1].as_f64().unwrap());
+    assert!((yd * 0.2f64.cos() - xd * 0.2f64.sin()).abs() < 1e-14);
+}
+
+#[test]
+fn singularity_stops_with_time_and_reason_and_no_file() {
+    let dir = tmpdir("singular");
+    let out = dir.join("ah.json");
+    let args = [
+        "simulate",
+        "--scene",
+        "appell-hamel",
+        "--param",
+        "c=-0.5",
+        "--init",
+        "rho=2",
+        "--t-end",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    // t* = ρ0 (1 + c²)/(|c| g) = 0.50968...
+    fails_with(
+        &args,
+        1,
+        &["at t = 0.5096", "horizontal speed", "no file written"],
+    );
+    assert!(!out.exists());
+    let mut keep = args.to_vec();
+    keep.push("--keep-partial");
+    let o = nonholo(&keep);
+    assert_eq!(o.status.code(), Some(1));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    assert_eq!(j["status"], "failed");
+    assert!((j["error"]["t"].as_f64().unwrap() - 0.509683995922528).abs() < 1e-6);
+    assert!(j["t"].as_array().unwrap().last().unwrap().as_f64().unwrap() < 0.5097);
+}
+
+#[test]
+fn overflow_is_an_error_not_nan_in_a_file() {
+    let dir = tmpdir("overflow");
+    let out = dir.join("o.json");
+    std::fs::write(&out, "previous").unwrap();
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "g=1e307",
+            "--param",
+            "alpha=1.5",
+            "--t-end",
+            "100",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        1,
+        &["at t = "],
+    );
+    // The previous file is untouched, and no temporary is left behind.
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "previous");
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+}
+
+#[test]
+fn planned_formulation_is_named_as_not_built() {
+    // Keep in step with the build: once a formulation exists this names it as available.
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "vakonomic",
+        "--t-end",
+        "0.1",
+    ]);
+    let e = stderr(&o);
+    assert!(
+        o.status.success() || e.contains("not in this build yet"),
+        "{e}"
+    );
+}
+
+#[test]
+fn scenes_lists_coordinates_parameters_and_formulations() {
+    let o = nonholo(&["scenes"]);
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    for needle in [
+        "sleigh-incline",
+        "rolling-disk",
+        "appell-hamel",
+        "pendulum",
+        "alpha",
+        "[rad]",
+        "default 0.3",
+        "[0, 1.5707963267948966)",
+        "B chetaev: applies",
+        "φ = atan2(ẏ, ẋ)",
+    ] {
+        assert!(s.contains(needle), "`{needle}` missing from:\n{s}");
+    }
+    let o = nonholo(&["scenes", "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j[0]["name"], "sleigh-incline");
+    assert_eq!(j[0]["params"][4]["name"], "alpha");
+    assert_eq!(j[0]["formulations"][0]["applicable"], true);
+}

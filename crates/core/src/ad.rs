@@ -27,6 +27,13 @@ use num_dual::{Dual2_64, Dual64, HyperDual64};
 
 use crate::scene::{Scalar, ScalarField, VectorField};
 
+/// Which variables a Jacobian is taken with respect to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Wrt {
+    Positions,
+    Velocities,
+}
+
 /// Seed buffers for one dual number type.
 #[derive(Debug, Clone)]
 struct Seeds<D> {
@@ -199,16 +206,8 @@ impl Jet {
         rate0: &mut [f64],
     ) {
         let m = v.m();
+        self.jacobian(v, Wrt::Velocities, t, q, qd, jac);
         let d = &mut self.d;
-        let t_const = Dual64::from_re(t);
-        for j in 0..self.n {
-            d.constant(q, qd);
-            d.qd[j].eps = 1.0;
-            v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
-            for i in 0..m {
-                jac[(i, j)] = d.out[i].eps;
-            }
-        }
         d.constant(q, qd);
         for (s, &x) in d.q.iter_mut().zip(qd) {
             s.eps = x;
@@ -236,16 +235,7 @@ impl Jet {
         accel0: &mut [f64],
     ) {
         let m = v.m();
-        let d = &mut self.d;
-        let t_const = Dual64::from_re(t);
-        for j in 0..self.n {
-            d.constant(q, qd);
-            d.q[j].eps = 1.0;
-            v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
-            for i in 0..m {
-                jac[(i, j)] = d.out[i].eps;
-            }
-        }
+        self.jacobian(v, Wrt::Positions, t, q, qd, jac);
         let d2 = &mut self.d2;
         d2.constant(q, qd);
         for (s, &x) in d2.q.iter_mut().zip(qd) {
@@ -256,6 +246,32 @@ impl Jet {
             value[i] = d2.out[i].re;
             rate[i] = d2.out[i].v1;
             accel0[i] = d2.out[i].v2;
+        }
+    }
+
+    /// `∂v/∂q̇` or `∂v/∂q` into `jac` (m×n), one dual evaluation per column.
+    fn jacobian<V: VectorField>(
+        &mut self,
+        v: &V,
+        wrt: Wrt,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        jac: &mut DMatrixViewMut<f64>,
+    ) {
+        let m = v.m();
+        let d = &mut self.d;
+        let t_const = Dual64::from_re(t);
+        for j in 0..self.n {
+            d.constant(q, qd);
+            match wrt {
+                Wrt::Positions => d.q[j].eps = 1.0,
+                Wrt::Velocities => d.qd[j].eps = 1.0,
+            }
+            v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
+            for i in 0..m {
+                jac[(i, j)] = d.out[i].eps;
+            }
         }
     }
 

@@ -24,6 +24,7 @@ mod dense;
 mod error;
 mod explicit;
 mod options;
+mod radau;
 mod solution;
 mod system;
 
@@ -31,7 +32,7 @@ pub use dense::Dense;
 pub use error::{Failure, IntegrateError, SystemError};
 pub use options::{Method, Options};
 pub use solution::{Solution, Stats};
-pub use system::OdeSystem;
+pub use system::{ImplicitSystem, OdeSystem};
 
 /// Integrates `sys` from `(t0, y0)` to `t_end` with `method` and `opts`.
 ///
@@ -65,5 +66,24 @@ pub fn solve<S: OdeSystem + ?Sized>(
     t_end: f64,
     opts: &Options,
 ) -> Result<Solution, Failure> {
-    explicit::solve(method, sys, t0, y0, t_end, opts)
+    match method {
+        Method::Radau5 => radau::solve_ode(sys, t0, y0, t_end, opts),
+        _ => explicit::solve(method, sys, t0, y0, t_end, opts),
+    }
+}
+
+/// Integrates the implicit system `F(t, y, y') = 0` from consistent initial
+/// values `(t0, y0, y'0)` to `t_end` with Radau IIA (order 5).
+///
+/// The initial values must satisfy `F(t0, y0, y'0) = 0` and every hidden
+/// constraint of the system; they are checked (`F` only) and not modified.
+pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
+    sys: &mut S,
+    t0: f64,
+    y0: &[f64],
+    yp0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Solution, Failure> {
+    radau::solve_implicit(sys, t0, y0, yp0, t_end, opts)
 }

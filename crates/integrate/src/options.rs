@@ -7,11 +7,14 @@ pub enum Method {
     Dopri5,
     /// Dormand–Prince 8(5,3), adaptive (or fixed step if `Options::fixed_step` is set).
     Dop853,
+    /// Radau IIA of order 5 (three stages), implicit, adaptive; for stiff
+    /// ODEs and, through [`crate::solve_implicit`], implicit DAEs of index ≤ 3.
+    Radau5,
 }
 
 impl Method {
     /// Every method, in order of increasing order.
-    pub const ALL: [Method; 3] = [Method::Rk4, Method::Dopri5, Method::Dop853];
+    pub const ALL: [Method; 4] = [Method::Rk4, Method::Dopri5, Method::Dop853, Method::Radau5];
 
     /// The name used on command lines and in result files.
     pub fn name(self) -> &'static str {
@@ -19,6 +22,7 @@ impl Method {
             Method::Rk4 => "rk4",
             Method::Dopri5 => "dopri5",
             Method::Dop853 => "dop853",
+            Method::Radau5 => "radau5",
         }
     }
 
@@ -33,7 +37,13 @@ impl Method {
             Method::Rk4 => 4,
             Method::Dopri5 => 5,
             Method::Dop853 => 8,
+            Method::Radau5 => 5,
         }
+    }
+
+    /// Whether the method is implicit (solves nonlinear stage equations).
+    pub fn is_implicit(self) -> bool {
+        matches!(self, Method::Radau5)
     }
 
     /// Whether the method needs `Options::fixed_step`.

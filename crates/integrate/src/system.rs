@@ -14,6 +14,14 @@ pub trait OdeSystem {
     /// `(t, y)` (a singular matrix, a state outside the domain).
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError>;
 
+    /// The Jacobian `∂f/∂y` at `(t, y)`, row-major into `jac` (`dim × dim`,
+    /// `jac[i * dim + j] = ∂f_i/∂y_j`). Returns `Ok(false)` if the system does
+    /// not provide one (implicit methods then use finite differences and say
+    /// so in their counters).
+    fn jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut [f64]) -> Result<bool, SystemError> {
+        Ok(false)
+    }
+
     /// Called once after every accepted step with the new state.
     ///
     /// The system may modify `y` in place (projection onto a manifold) and
@@ -33,6 +41,54 @@ pub trait OdeSystem {
     }
 
     /// Why the run stopped, for a state at which [`OdeSystem::guard`] is zero.
+    fn guard_reason(&mut self, _t: f64, _y: &[f64]) -> String {
+        "guard function reached zero".to_string()
+    }
+}
+
+/// A fully implicit system `F(t, y, y') = 0` of fixed dimension, including
+/// differential-algebraic systems (`∂F/∂y'` singular) of index up to 3.
+///
+/// Implementations own their workspaces; [`ImplicitSystem::residual`] and
+/// [`ImplicitSystem::jacobians`] should not allocate.
+pub trait ImplicitSystem {
+    /// Dimension of `y` (and of `F`).
+    fn dim(&self) -> usize;
+
+    /// Writes `F(t, y, y')` into `res`.
+    fn residual(&mut self, t: f64, y: &[f64], yp: &[f64], res: &mut [f64])
+    -> Result<(), SystemError>;
+
+    /// `∂F/∂y` into `jy` and `∂F/∂y'` into `jyp`, both row-major `dim × dim`
+    /// (`jy[i * dim + j] = ∂F_i/∂y_j`).
+    fn jacobians(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yp: &[f64],
+        jy: &mut [f64],
+        jyp: &mut [f64],
+    ) -> Result<(), SystemError>;
+
+    /// The index class (1, 2 or 3) of every component of `y`, used as in
+    /// RADAU5 to scale the error estimate of index-2 and index-3 variables by
+    /// `h` and `h²`. Default: all 1 (an ODE or index-1 system).
+    fn variable_index(&self, index: &mut [u8]) {
+        index.fill(1);
+    }
+
+    /// Called once after every accepted step; may modify `y` (projection),
+    /// then returns `Ok(true)`. See [`OdeSystem::after_step`].
+    fn after_step(&mut self, _t: f64, _y: &mut [f64]) -> Result<bool, SystemError> {
+        Ok(false)
+    }
+
+    /// See [`OdeSystem::guard`].
+    fn guard(&mut self, _t: f64, _y: &[f64]) -> Option<f64> {
+        None
+    }
+
+    /// See [`OdeSystem::guard_reason`].
     fn guard_reason(&mut self, _t: f64, _y: &[f64]) -> String {
         "guard function reached zero".to_string()
     }

@@ -139,6 +139,7 @@ pub(crate) fn solve<S: OdeSystem + ?Sized>(
         Method::Rk4 => run::<rk4::Rk4, S>(method, sys, t0, y0, t_end, opts),
         Method::Dopri5 => run::<dopri5::Dopri5, S>(method, sys, t0, y0, t_end, opts),
         Method::Dop853 => run::<dop853::Dop853, S>(method, sys, t0, y0, t_end, opts),
+        Method::Radau5 => unreachable!("implicit methods are dispatched in lib.rs"),
     }
 }
 

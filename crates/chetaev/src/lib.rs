@@ -26,8 +26,9 @@ use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names}
 use nonholo_core::monitor::Monitor;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::project::Projector;
-use nonholo_core::scene::{Lagrangian, Scene, SceneInfo};
+use nonholo_core::scene::{Lagrangian, Scalar, Scene, SceneInfo};
 use nonholo_core::{Diagnostics, Error, Initial, consistency};
+use num_dual::Dual64;
 
 /// Options of formulation B.
 pub const OPTIONS: &[ParamSpec] = &[
@@ -92,6 +93,82 @@ pub enum Stabilisation {
     Projection,
 }
 
+/// Workspace of one KKT solve of B over base scalar `T` (`f64` for values,
+/// `Dual64` for Jacobian columns).
+struct Kkt<T: Scalar> {
+    jet: Jet<T>,
+    cs: ConstraintState<T>,
+    matrix: DMatrix<T>,
+    lu: Lu,
+    /// Right-hand side, then solution `(q̈, −λ, −ν)`.
+    sol: Vec<T>,
+}
+
+impl<T: Scalar> Kkt<T> {
+    fn new(n: usize, s: usize, k: usize) -> Self {
+        Kkt {
+            jet: Jet::new(n, s.max(k)),
+            cs: ConstraintState::new(n, s, k),
+            matrix: DMatrix::from_element(n + s + k, n + s + k, T::from(0.0)),
+            lu: Lu::new(n + s + k),
+            sol: vec![T::from(0.0); n + s + k],
+        }
+    }
+
+    /// Assembles and solves the KKT system at `(t, q, q̇)`; leaves `q̈` in
+    /// `sol[..n]` and `(−λ, −ν)` in `sol[n..]`.
+    fn solve<S: Scene>(
+        &mut self,
+        scene: &S,
+        stab: Stabilisation,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) -> Result<(), SystemError> {
+        let n = q.len();
+        let (s, k) = (self.cs.s, self.cs.k);
+        self.matrix.fill(T::from(0.0));
+        self.jet.mass_and_force(
+            &Lagrangian(scene),
+            t,
+            q,
+            qd,
+            &mut self.matrix.view_mut((0, 0), (n, n)),
+            &mut self.sol[..n],
+        );
+        if s + k > 0 {
+            self.cs.evaluate(&mut self.jet, scene, t, q, qd);
+            for r in 0..s + k {
+                for j in 0..n {
+                    let c = self.cs.jac[(r, j)];
+                    self.matrix[(n + r, j)] = c;
+                    self.matrix[(j, n + r)] = c;
+                }
+            }
+            let (alpha, beta) = match stab {
+                Stabilisation::Baumgarte { alpha, beta } => (alpha, beta),
+                _ => (0.0, 0.0),
+            };
+            for i in 0..s {
+                self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
+            }
+            for i in 0..k {
+                self.sol[n + s + i] = -self.cs.f_accel0[i]
+                    - self.cs.f_rate[i] * (2.0 * alpha)
+                    - self.cs.f[i] * (beta * beta);
+            }
+        }
+        self.lu.factor(&mut self.matrix).map_err(|e| {
+            SystemError::new(format!(
+                "KKT system of formulation B singular ({e}): constraints dependent, \
+                 or the kinetic energy degenerate on the admissible velocities"
+            ))
+        })?;
+        self.lu.solve(&self.matrix, &mut self.sol);
+        Ok(())
+    }
+}
+
 /// Formulation B bound to a scene.
 pub struct Chetaev<S: Scene> {
     scene: S,
@@ -99,12 +176,10 @@ pub struct Chetaev<S: Scene> {
     stab: Stabilisation,
     singular_tol: f64,
     n: usize,
-    jet: Jet,
-    cs: ConstraintState,
-    kkt: DMatrix<f64>,
-    lu: Lu,
-    /// KKT right-hand side and solution `(q̈, −λ, −ν)`.
-    sol: Vec<f64>,
+    kkt: Kkt<f64>,
+    /// The same solve carrying one directional derivative, for Jacobians.
+    kkt_dual: Kkt<Dual64>,
+    y_dual: Vec<Dual64>,
     projector: Projector,
     monitor: Monitor,
 }
@@ -131,11 +206,9 @@ impl<S: Scene> Chetaev<S> {
             options,
             stab,
             n,
-            jet: Jet::new(n, s.max(k)),
-            cs: ConstraintState::new(n, s, k),
-            kkt: DMatrix::zeros(n + s + k, n + s + k),
-            lu: Lu::new(n + s + k),
-            sol: vec![0.0; n + s + k],
+            kkt: Kkt::new(n, s, k),
+            kkt_dual: Kkt::new(n, s, k),
+            y_dual: vec![Dual64::from_re(0.0); 2 * n],
             projector: Projector::new(&scene),
             monitor: Monitor::new(&scene),
             scene,
@@ -151,7 +224,7 @@ impl<S: Scene> Chetaev<S> {
     }
 
     /// Solves the KKT system at `(t, q, q̇)`: `q̈` into `qdd`; `λ` then `ν`
-    /// into `multipliers` (length `s + k`).
+    /// into `multipliers` (at most `s + k` of them are written).
     pub fn accelerations(
         &mut self,
         t: f64,
@@ -161,47 +234,9 @@ impl<S: Scene> Chetaev<S> {
         multipliers: &mut [f64],
     ) -> Result<(), SystemError> {
         let n = self.n;
-        let (s, k) = (self.cs.s, self.cs.k);
-        self.kkt.fill(0.0);
-        self.jet.mass_and_force(
-            &Lagrangian(&self.scene),
-            t,
-            q,
-            qd,
-            &mut self.kkt.view_mut((0, 0), (n, n)),
-            &mut self.sol[..n],
-        );
-        if s + k > 0 {
-            self.cs.evaluate(&mut self.jet, &self.scene, t, q, qd);
-            for r in 0..s + k {
-                for j in 0..n {
-                    let c = self.cs.jac[(r, j)];
-                    self.kkt[(n + r, j)] = c;
-                    self.kkt[(j, n + r)] = c;
-                }
-            }
-            let (alpha, beta) = match self.stab {
-                Stabilisation::Baumgarte { alpha, beta } => (alpha, beta),
-                _ => (0.0, 0.0),
-            };
-            for i in 0..s {
-                self.sol[n + i] = -self.cs.g_rate0[i] - 2.0 * alpha * self.cs.g[i];
-            }
-            for i in 0..k {
-                self.sol[n + s + i] = -self.cs.f_accel0[i]
-                    - 2.0 * alpha * self.cs.f_rate[i]
-                    - beta * beta * self.cs.f[i];
-            }
-        }
-        self.lu.factor(&mut self.kkt).map_err(|e| {
-            SystemError::new(format!(
-                "KKT system of formulation B singular ({e}): constraints dependent, \
-                 or the kinetic energy degenerate on the admissible velocities"
-            ))
-        })?;
-        self.lu.solve(&self.kkt, &mut self.sol);
-        qdd.copy_from_slice(&self.sol[..n]);
-        for (m, v) in multipliers.iter_mut().zip(&self.sol[n..]) {
+        self.kkt.solve(&self.scene, self.stab, t, q, qd)?;
+        qdd.copy_from_slice(&self.kkt.sol[..n]);
+        for (m, v) in multipliers.iter_mut().zip(&self.kkt.sol[n..]) {
             *m = -v;
         }
         Ok(())
@@ -219,6 +254,30 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
         let (dq, dqd) = dy.split_at_mut(n);
         dq.copy_from_slice(qd);
         self.accelerations(t, q, qd, dqd, &mut [])
+    }
+
+    /// `∂f/∂y` of `f(q, q̇) = (q̇, q̈)`: the KKT solve repeated with one dual
+    /// direction per column of `y` (2n solves in `Dual64`).
+    fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
+        let n = self.n;
+        let dim = 2 * n;
+        jac.fill(0.0);
+        for i in 0..n {
+            jac[i * dim + n + i] = 1.0;
+        }
+        for j in 0..dim {
+            for (d, &v) in self.y_dual.iter_mut().zip(y) {
+                *d = Dual64::from_re(v);
+            }
+            self.y_dual[j].eps = 1.0;
+            let (q, qd) = self.y_dual.split_at(n);
+            self.kkt_dual
+                .solve(&self.scene, self.stab, Dual64::from_re(t), q, qd)?;
+            for i in 0..n {
+                jac[(n + i) * dim + j] = self.kkt_dual.sol[i].eps;
+            }
+        }
+        Ok(true)
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
@@ -280,7 +339,7 @@ impl<S: Scene> Model for Chetaev<S> {
     }
 
     fn multiplier_names(&self) -> Vec<String> {
-        multiplier_names(self.cs.s, self.cs.k)
+        multiplier_names(self.kkt.cs.s, self.kkt.cs.k)
     }
 
     fn make_consistent(

@@ -21,11 +21,26 @@
 //! and were the fastest option measured for these small systems
 //! (`../shared/deps.md`; see `docs/performance.md` for the figures here).
 //! [`Jet`] owns the seed buffers, so no evaluation allocates.
+//!
+//! The base scalar `T` is `f64` for values, or itself a dual number: with
+//! `T = Dual64` every piece carries one more directional derivative, which is
+//! how right-hand-side Jacobians (for implicit integrators) and Taylor
+//! coefficients along a motion are obtained from the same code.
 
 use nalgebra::DMatrixViewMut;
-use num_dual::{Dual2_64, Dual64, HyperDual64};
+use num_dual::{Dual, Dual2, HyperDual};
 
 use crate::scene::{Scalar, ScalarField, VectorField};
+
+#[inline]
+fn one<T: Scalar>() -> T {
+    T::from(1.0)
+}
+
+#[inline]
+fn zero<T: Scalar>() -> T {
+    T::from(0.0)
+}
 
 /// Which variables a Jacobian is taken with respect to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,29 +66,32 @@ impl<D: Scalar> Seeds<D> {
         }
     }
 
-    /// Sets every seed to the constant `(q, q̇)`.
+    /// Sets every seed to the constant `(q, q̇)` (no derivative parts).
     #[inline]
-    fn constant(&mut self, q: &[f64], qd: &[f64]) {
+    fn constant(&mut self, q: &[D::InnerDual], qd: &[D::InnerDual])
+    where
+        D::InnerDual: Copy,
+    {
         for (s, &x) in self.q.iter_mut().zip(q) {
-            *s = D::from(x);
+            *s = D::from_re(x);
         }
         for (s, &x) in self.qd.iter_mut().zip(qd) {
-            *s = D::from(x);
+            *s = D::from_re(x);
         }
     }
 }
 
 /// Workspace for the derivatives of fields on `n` coordinates with vector
-/// fields of at most `m` components.
+/// fields of at most `m` components, over base scalar `T`.
 #[derive(Debug, Clone)]
-pub struct Jet {
+pub struct Jet<T: Scalar = f64> {
     n: usize,
-    d: Seeds<Dual64>,
-    hd: Seeds<HyperDual64>,
-    d2: Seeds<Dual2_64>,
+    d: Seeds<Dual<T>>,
+    hd: Seeds<HyperDual<T>>,
+    d2: Seeds<Dual2<T>>,
 }
 
-impl Jet {
+impl<T: Scalar> Jet<T> {
     pub fn new(n: usize, m: usize) -> Self {
         Jet {
             n,
@@ -94,11 +112,11 @@ impl Jet {
     pub fn mass_and_force<F: ScalarField>(
         &mut self,
         f: &F,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        mass: &mut DMatrixViewMut<f64>,
-        force: &mut [f64],
+        t: T,
+        q: &[T],
+        qd: &[T],
+        mass: &mut DMatrixViewMut<T>,
+        force: &mut [T],
     ) {
         self.mass(f, t, q, qd, mass);
         self.force(f, t, q, qd, force);
@@ -108,23 +126,23 @@ impl Jet {
     pub fn mass<F: ScalarField>(
         &mut self,
         f: &F,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        mass: &mut DMatrixViewMut<f64>,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        mass: &mut DMatrixViewMut<T>,
     ) {
         let n = self.n;
         debug_assert_eq!(f.n(), n);
         let hd = &mut self.hd;
-        let t_const = HyperDual64::from_re(t);
+        let t_const = HyperDual::from_re(t);
         for i in 0..n {
             for j in i..n {
                 hd.constant(q, qd);
                 if i == j {
-                    hd.qd[i] = HyperDual64::new(qd[i], 1.0, 1.0, 0.0);
+                    hd.qd[i] = HyperDual::new(qd[i], one(), one(), zero());
                 } else {
-                    hd.qd[i].eps1 = 1.0;
-                    hd.qd[j].eps2 = 1.0;
+                    hd.qd[i].eps1 = one();
+                    hd.qd[j].eps2 = one();
                 }
                 let v = f.eval(t_const, &hd.q, &hd.qd);
                 mass[(i, j)] = v.eps1eps2;
@@ -135,61 +153,47 @@ impl Jet {
 
     /// `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t` into `force`: `n` hyper-dual and
     /// `n` dual evaluations.
-    pub fn force<F: ScalarField>(
-        &mut self,
-        f: &F,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        force: &mut [f64],
-    ) {
+    pub fn force<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T], force: &mut [T]) {
         let n = self.n;
         let hd = &mut self.hd;
         // d/dt (∂ℓ/∂q̇_i) along (q̇, q̈ = 0, 1): eps1 picks ∂/∂q̇_i, eps2 is the time jet.
-        let t_jet = HyperDual64::new(t, 0.0, 1.0, 0.0);
+        let t_jet = HyperDual::new(t, zero(), one(), zero());
         for (i, fi) in force.iter_mut().enumerate().take(n) {
             hd.constant(q, qd);
             for (s, &v) in hd.q.iter_mut().zip(qd) {
                 s.eps2 = v;
             }
-            hd.qd[i].eps1 = 1.0;
+            hd.qd[i].eps1 = one();
             let v = f.eval(t_jet, &hd.q, &hd.qd);
             *fi = -v.eps1eps2;
         }
         let d = &mut self.d;
-        let t_const = Dual64::from_re(t);
+        let t_const = Dual::from_re(t);
         for (i, fi) in force.iter_mut().enumerate().take(n) {
             d.constant(q, qd);
-            d.q[i].eps = 1.0;
+            d.q[i].eps = one();
             *fi += f.eval(t_const, &d.q, &d.qd).eps;
         }
     }
 
     /// The energy `E = q̇·∂ℓ/∂q̇ − ℓ` (one dual evaluation).
-    pub fn energy<F: ScalarField>(&mut self, f: &F, t: f64, q: &[f64], qd: &[f64]) -> f64 {
+    pub fn energy<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T]) -> T {
         let d = &mut self.d;
         d.constant(q, qd);
         for (s, &v) in d.qd.iter_mut().zip(qd) {
             s.eps = v;
         }
-        let v = f.eval(Dual64::from_re(t), &d.q, &d.qd);
+        let v = f.eval(Dual::from_re(t), &d.q, &d.qd);
         v.eps - v.re
     }
 
     /// The momenta `p = ∂ℓ/∂q̇` into `p` (n dual evaluations).
-    pub fn momentum<F: ScalarField>(
-        &mut self,
-        f: &F,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        p: &mut [f64],
-    ) {
+    pub fn momentum<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T], p: &mut [T]) {
         let d = &mut self.d;
         for (i, pi) in p.iter_mut().enumerate().take(self.n) {
             d.constant(q, qd);
-            d.qd[i].eps = 1.0;
-            *pi = f.eval(Dual64::from_re(t), &d.q, &d.qd).eps;
+            d.qd[i].eps = one();
+            *pi = f.eval(Dual::from_re(t), &d.q, &d.qd).eps;
         }
     }
 
@@ -198,12 +202,12 @@ impl Jet {
     pub fn velocity_jacobian<V: VectorField>(
         &mut self,
         v: &V,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        value: &mut [f64],
-        jac: &mut DMatrixViewMut<f64>,
-        rate0: &mut [f64],
+        t: T,
+        q: &[T],
+        qd: &[T],
+        value: &mut [T],
+        jac: &mut DMatrixViewMut<T>,
+        rate0: &mut [T],
     ) {
         let m = v.m();
         self.jacobian(v, Wrt::Velocities, t, q, qd, jac);
@@ -212,7 +216,7 @@ impl Jet {
         for (s, &x) in d.q.iter_mut().zip(qd) {
             s.eps = x;
         }
-        v.eval(Dual64::new(t, 1.0), &d.q, &d.qd, &mut d.out[..m]);
+        v.eval(Dual::new(t, one()), &d.q, &d.qd, &mut d.out[..m]);
         for i in 0..m {
             value[i] = d.out[i].re;
             rate0[i] = d.out[i].eps;
@@ -226,13 +230,13 @@ impl Jet {
     pub fn position_jacobian<V: VectorField>(
         &mut self,
         v: &V,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        value: &mut [f64],
-        jac: &mut DMatrixViewMut<f64>,
-        rate: &mut [f64],
-        accel0: &mut [f64],
+        t: T,
+        q: &[T],
+        qd: &[T],
+        value: &mut [T],
+        jac: &mut DMatrixViewMut<T>,
+        rate: &mut [T],
+        accel0: &mut [T],
     ) {
         let m = v.m();
         self.jacobian(v, Wrt::Positions, t, q, qd, jac);
@@ -241,7 +245,12 @@ impl Jet {
         for (s, &x) in d2.q.iter_mut().zip(qd) {
             s.v1 = x;
         }
-        v.eval(Dual2_64::new(t, 1.0, 0.0), &d2.q, &d2.qd, &mut d2.out[..m]);
+        v.eval(
+            Dual2::new(t, one(), zero()),
+            &d2.q,
+            &d2.qd,
+            &mut d2.out[..m],
+        );
         for i in 0..m {
             value[i] = d2.out[i].re;
             rate[i] = d2.out[i].v1;
@@ -254,19 +263,19 @@ impl Jet {
         &mut self,
         v: &V,
         wrt: Wrt,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        jac: &mut DMatrixViewMut<f64>,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        jac: &mut DMatrixViewMut<T>,
     ) {
         let m = v.m();
         let d = &mut self.d;
-        let t_const = Dual64::from_re(t);
+        let t_const = Dual::from_re(t);
         for j in 0..self.n {
             d.constant(q, qd);
             match wrt {
-                Wrt::Positions => d.q[j].eps = 1.0,
-                Wrt::Velocities => d.qd[j].eps = 1.0,
+                Wrt::Positions => d.q[j].eps = one(),
+                Wrt::Velocities => d.qd[j].eps = one(),
             }
             v.eval(t_const, &d.q, &d.qd, &mut d.out[..m]);
             for i in 0..m {
@@ -276,14 +285,7 @@ impl Jet {
     }
 
     /// Value of a vector field at `(t, q, q̇)`.
-    pub fn value<V: VectorField>(
-        &mut self,
-        v: &V,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        value: &mut [f64],
-    ) {
+    pub fn value<V: VectorField>(&mut self, v: &V, t: T, q: &[T], qd: &[T], value: &mut [T]) {
         v.eval(t, q, qd, &mut value[..v.m()]);
     }
 }

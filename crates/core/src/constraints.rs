@@ -3,7 +3,7 @@
 use nalgebra::DMatrix;
 
 use crate::ad::Jet;
-use crate::scene::{Holonomic, Nonholonomic, Scene};
+use crate::scene::{Holonomic, Nonholonomic, Scalar, Scene};
 
 /// Nonholonomic `g` (s rows) and holonomic `f` (k rows) with the
 /// derivatives the formulations need, evaluated at one `(t, q, q̇)`.
@@ -11,34 +11,34 @@ use crate::scene::{Holonomic, Nonholonomic, Scene};
 /// `jac` stacks the velocity Jacobians of the velocity-level constraints
 /// `[g; ḟ]`: rows `0..s` hold `G = ∂g/∂q̇`, rows `s..s+k` hold `F = ∂f/∂q = ∂ḟ/∂q̇`.
 #[derive(Debug, Clone)]
-pub struct ConstraintState {
+pub struct ConstraintState<T: Scalar = f64> {
     pub s: usize,
     pub k: usize,
     /// `g(q, q̇, t)`.
-    pub g: Vec<f64>,
+    pub g: Vec<T>,
     /// `ġ` without its `q̈` term: `(∂g/∂q) q̇ + ∂g/∂t`.
-    pub g_rate0: Vec<f64>,
+    pub g_rate0: Vec<T>,
     /// `f(q, t)`.
-    pub f: Vec<f64>,
+    pub f: Vec<T>,
     /// `ḟ = F q̇ + ∂f/∂t`.
-    pub f_rate: Vec<f64>,
+    pub f_rate: Vec<T>,
     /// `f̈` without its `q̈` term: `(d/dt F) q̇ + d/dt ∂f/∂t`.
-    pub f_accel0: Vec<f64>,
+    pub f_accel0: Vec<T>,
     /// `[G; F]`, `(s + k) × n`.
-    pub jac: DMatrix<f64>,
+    pub jac: DMatrix<T>,
 }
 
-impl ConstraintState {
+impl<T: Scalar> ConstraintState<T> {
     pub fn new(n: usize, s: usize, k: usize) -> Self {
         ConstraintState {
             s,
             k,
-            g: vec![0.0; s],
-            g_rate0: vec![0.0; s],
-            f: vec![0.0; k],
-            f_rate: vec![0.0; k],
-            f_accel0: vec![0.0; k],
-            jac: DMatrix::zeros(s + k, n),
+            g: vec![T::from(0.0); s],
+            g_rate0: vec![T::from(0.0); s],
+            f: vec![T::from(0.0); k],
+            f_rate: vec![T::from(0.0); k],
+            f_accel0: vec![T::from(0.0); k],
+            jac: DMatrix::from_element(s + k, n, T::from(0.0)),
         }
     }
 
@@ -48,7 +48,7 @@ impl ConstraintState {
     }
 
     /// Evaluates every piece the scene has (nothing for absent ones).
-    pub fn evaluate<S: Scene>(&mut self, jet: &mut Jet, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+    pub fn evaluate<S: Scene>(&mut self, jet: &mut Jet<T>, scene: &S, t: T, q: &[T], qd: &[T]) {
         let n = q.len();
         if self.s > 0 {
             jet.velocity_jacobian(
@@ -80,11 +80,11 @@ impl ConstraintState {
         self.g
             .iter()
             .chain(&self.f_rate)
-            .fold(0.0, |m, v| m.max(v.abs()))
+            .fold(0.0, |m, v| m.max(v.re().abs()))
     }
 
     /// Largest position-level residual `|f|`.
     pub fn position_residual(&self) -> f64 {
-        self.f.iter().fold(0.0, |m, v| m.max(v.abs()))
+        self.f.iter().fold(0.0, |m, v| m.max(v.re().abs()))
     }
 }

@@ -4,8 +4,14 @@
 //! and solved once per right-hand side. nalgebra's `LU` takes its matrix by
 //! value and allocates a permutation for dynamic sizes; here the matrix and
 //! the pivot vector live in the caller's workspace and are reused.
+//!
+//! The entries may be dual numbers: pivots are chosen on the real parts, and
+//! the derivative parts then follow the same elimination, which is exactly
+//! forward-mode differentiation of the solve.
 
 use nalgebra::DMatrix;
+
+use crate::scene::Scalar;
 
 /// A pivot that is zero relative to the matrix: the matrix is (numerically) singular.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,17 +50,17 @@ impl Lu {
     ///
     /// A pivot below `n·ε·max|a|` is reported as [`Singular`]: beyond that the
     /// solution would carry no correct digits.
-    pub fn factor(&mut self, a: &mut DMatrix<f64>) -> Result<(), Singular> {
+    pub fn factor<T: Scalar>(&mut self, a: &mut DMatrix<T>) -> Result<(), Singular> {
         let n = a.nrows();
         debug_assert_eq!(a.ncols(), n);
         debug_assert_eq!(self.piv.len(), n);
-        let scale = a.amax();
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.re().abs()));
         let tiny = (n.max(1) as f64) * f64::EPSILON * scale;
         for k in 0..n {
             let mut p = k;
-            let mut best = a[(k, k)].abs();
+            let mut best = a[(k, k)].re().abs();
             for i in k + 1..n {
-                let v = a[(i, k)].abs();
+                let v = a[(i, k)].re().abs();
                 if v > best {
                     best = v;
                     p = i;
@@ -76,10 +82,9 @@ impl Lu {
             for i in k + 1..n {
                 let l = a[(i, k)] / pivot;
                 a[(i, k)] = l;
-                if l != 0.0 {
-                    for j in k + 1..n {
-                        a[(i, j)] -= l * a[(k, j)];
-                    }
+                for j in k + 1..n {
+                    let u = a[(k, j)];
+                    a[(i, j)] -= l * u;
                 }
             }
         }
@@ -87,7 +92,7 @@ impl Lu {
     }
 
     /// Solves `A x = b` in place with the factors from [`Lu::factor`].
-    pub fn solve(&self, lu: &DMatrix<f64>, b: &mut [f64]) {
+    pub fn solve<T: Scalar>(&self, lu: &DMatrix<T>, b: &mut [T]) {
         let n = lu.nrows();
         for k in 0..n {
             b.swap(k, self.piv[k]);
@@ -143,12 +148,14 @@ mod tests {
         let mut a = DMatrix::from_row_slice(3, 3, &[2.0, 0.0, 1.0, 0.0, 3.0, 1.0, 1.0, 1.0, 0.0]);
         let mut lu = Lu::new(3);
         lu.factor(&mut a).unwrap();
-        let mut x = [1.0, 2.0, 0.5];
+        let mut x: [f64; 3] = [1.0, 2.0, 0.5];
         lu.solve(&a, &mut x);
         // Exact solution of 2x + z = 1, 3y + z = 2, x + y = 0.5.
-        let (xx, yy, zz) = (0.1, 0.4, 0.8);
+        let (xx, yy, zz): (f64, f64, f64) = (0.1, 0.4, 0.8);
         assert!(
-            (x[0] - xx).abs() < 1e-15 && (x[1] - yy).abs() < 1e-15 && (x[2] - zz).abs() < 1e-15
+            (x[0] - xx as f64).abs() < 1e-15
+                && (x[1] - yy).abs() < 1e-15
+                && (x[2] - zz).abs() < 1e-15
         );
     }
 

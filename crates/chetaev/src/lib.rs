@@ -16,53 +16,20 @@
 //! projection stabilisation moves the state back onto the constraints after
 //! every accepted step instead. State `y = (q, q̇)`.
 
-use nalgebra::DMatrix;
-use nonholo_core::ad::Jet;
 use nonholo_core::consistency::{InitProjection, check_or_project};
-use nonholo_core::constraints::ConstraintState;
 use nonholo_core::integrate::{OdeSystem, SystemError};
-use nonholo_core::linalg::Lu;
+use nonholo_core::kkt::Kkt;
 use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
-use nonholo_core::monitor::Monitor;
-use nonholo_core::param::{Bound, ParamSpec, Params};
-use nonholo_core::project::Projector;
-use nonholo_core::scene::{Lagrangian, Scalar, Scene, SceneInfo};
-use nonholo_core::{Diagnostics, Error, Initial, consistency};
+use nonholo_core::param::{ParamSpec, Params};
+use nonholo_core::scene::{Lagrangian, Scene, SceneInfo};
+use nonholo_core::stab::{
+    BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
+};
+use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::Dual64;
 
 /// Options of formulation B.
-pub const OPTIONS: &[ParamSpec] = &[
-    ParamSpec::choice(
-        "stab",
-        &["none", "baumgarte", "projection"],
-        "constraint stabilisation: none; Baumgarte (ġ + 2α g = 0, f̈ + 2α ḟ + β² f = 0); \
-         projection onto the constraints after every step",
-    ),
-    ParamSpec::real(
-        "baumgarte_alpha",
-        "1/s",
-        5.0,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "Baumgarte damping gain α",
-    ),
-    ParamSpec::real(
-        "baumgarte_beta",
-        "1/s",
-        5.0,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "Baumgarte stiffness gain β (holonomic constraints)",
-    ),
-    ParamSpec::real(
-        "singular_tol",
-        "",
-        1e-8,
-        Bound::Exclusive(0.0),
-        Bound::Unbounded,
-        "the run stops where the constraint's regularity measure (appell-hamel: horizontal speed) falls to this value",
-    ),
-];
+pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL];
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "chetaev",
@@ -80,108 +47,17 @@ fn applicable(_scene: &SceneInfo) -> Result<(), String> {
     Ok(())
 }
 
-/// Constraint stabilisation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Stabilisation {
-    None,
-    /// `ġ + 2α g = 0`, `f̈ + 2α ḟ + β² f = 0`.
-    Baumgarte {
-        alpha: f64,
-        beta: f64,
-    },
-    /// Projection onto `f = 0`, `g = 0`, `ḟ = 0` after every accepted step.
-    Projection,
-}
-
-/// Workspace of one KKT solve of B over base scalar `T` (`f64` for values,
-/// `Dual64` for Jacobian columns).
-struct Kkt<T: Scalar> {
-    jet: Jet<T>,
-    cs: ConstraintState<T>,
-    matrix: DMatrix<T>,
-    lu: Lu,
-    /// Right-hand side, then solution `(q̈, −λ, −ν)`.
-    sol: Vec<T>,
-}
-
-impl<T: Scalar> Kkt<T> {
-    fn new(n: usize, s: usize, k: usize) -> Self {
-        Kkt {
-            jet: Jet::new(n, s.max(k)),
-            cs: ConstraintState::new(n, s, k),
-            matrix: DMatrix::from_element(n + s + k, n + s + k, T::from(0.0)),
-            lu: Lu::new(n + s + k),
-            sol: vec![T::from(0.0); n + s + k],
-        }
-    }
-
-    /// Assembles and solves the KKT system at `(t, q, q̇)`; leaves `q̈` in
-    /// `sol[..n]` and `(−λ, −ν)` in `sol[n..]`.
-    fn solve<S: Scene>(
-        &mut self,
-        scene: &S,
-        stab: Stabilisation,
-        t: T,
-        q: &[T],
-        qd: &[T],
-    ) -> Result<(), SystemError> {
-        let n = q.len();
-        let (s, k) = (self.cs.s, self.cs.k);
-        self.matrix.fill(T::from(0.0));
-        self.jet.mass_and_force(
-            &Lagrangian(scene),
-            t,
-            q,
-            qd,
-            &mut self.matrix.view_mut((0, 0), (n, n)),
-            &mut self.sol[..n],
-        );
-        if s + k > 0 {
-            self.cs.evaluate(&mut self.jet, scene, t, q, qd);
-            for r in 0..s + k {
-                for j in 0..n {
-                    let c = self.cs.jac[(r, j)];
-                    self.matrix[(n + r, j)] = c;
-                    self.matrix[(j, n + r)] = c;
-                }
-            }
-            let (alpha, beta) = match stab {
-                Stabilisation::Baumgarte { alpha, beta } => (alpha, beta),
-                _ => (0.0, 0.0),
-            };
-            for i in 0..s {
-                self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
-            }
-            for i in 0..k {
-                self.sol[n + s + i] = -self.cs.f_accel0[i]
-                    - self.cs.f_rate[i] * (2.0 * alpha)
-                    - self.cs.f[i] * (beta * beta);
-            }
-        }
-        self.lu.factor(&mut self.matrix).map_err(|e| {
-            SystemError::new(format!(
-                "KKT system of formulation B singular ({e}): constraints dependent, \
-                 or the kinetic energy degenerate on the admissible velocities"
-            ))
-        })?;
-        self.lu.solve(&self.matrix, &mut self.sol);
-        Ok(())
-    }
-}
-
 /// Formulation B bound to a scene.
 pub struct Chetaev<S: Scene> {
     scene: S,
     options: Params,
     stab: Stabilisation,
-    singular_tol: f64,
     n: usize,
     kkt: Kkt<f64>,
     /// The same solve carrying one directional derivative, for Jacobians.
     kkt_dual: Kkt<Dual64>,
     y_dual: Vec<Dual64>,
-    projector: Projector,
-    monitor: Monitor,
+    hooks: StepHooks,
 }
 
 impl<S: Scene> Chetaev<S> {
@@ -192,25 +68,16 @@ impl<S: Scene> Chetaev<S> {
             scene: info.name.into(),
             reason,
         })?;
-        let stab = match options.choice("stab") {
-            "baumgarte" => Stabilisation::Baumgarte {
-                alpha: options.real("baumgarte_alpha"),
-                beta: options.real("baumgarte_beta"),
-            },
-            "projection" => Stabilisation::Projection,
-            _ => Stabilisation::None,
-        };
+        let stab = Stabilisation::from_options(&options);
         let (n, s, k) = (info.n(), info.s(), info.k());
         Ok(Chetaev {
-            singular_tol: options.real("singular_tol"),
+            hooks: StepHooks::new(&scene, &options),
             options,
             stab,
             n,
             kkt: Kkt::new(n, s, k),
             kkt_dual: Kkt::new(n, s, k),
             y_dual: vec![Dual64::from_re(0.0); 2 * n],
-            projector: Projector::new(&scene),
-            monitor: Monitor::new(&scene),
             scene,
         })
     }
@@ -234,7 +101,16 @@ impl<S: Scene> Chetaev<S> {
         multipliers: &mut [f64],
     ) -> Result<(), SystemError> {
         let n = self.n;
-        self.kkt.solve(&self.scene, self.stab, t, q, qd)?;
+        self.kkt.solve(
+            &Lagrangian(&self.scene),
+            &[],
+            &self.scene,
+            self.stab,
+            t,
+            q,
+            qd,
+            "formulation B",
+        )?;
         qdd.copy_from_slice(&self.kkt.sol[..n]);
         for (m, v) in multipliers.iter_mut().zip(&self.kkt.sol[n..]) {
             *m = -v;
@@ -271,8 +147,16 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
             }
             self.y_dual[j].eps = 1.0;
             let (q, qd) = self.y_dual.split_at(n);
-            self.kkt_dual
-                .solve(&self.scene, self.stab, Dual64::from_re(t), q, qd)?;
+            self.kkt_dual.solve(
+                &Lagrangian(&self.scene),
+                &[],
+                &self.scene,
+                self.stab,
+                Dual64::from_re(t),
+                q,
+                qd,
+                "formulation B",
+            )?;
             for i in 0..n {
                 jac[(n + i) * dim + j] = self.kkt_dual.sol[i].eps;
             }
@@ -281,43 +165,18 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let n = self.n;
-        let mut changed = false;
-        if self.stab == Stabilisation::Projection {
-            let (q, qd) = y.split_at_mut(n);
-            let p = self
-                .projector
-                .project(&self.scene, t, q, qd, consistency::PROJECT_TOL)
-                .map_err(SystemError::new)?;
-            changed = p.iterations > 0;
-        }
-        let (q, qd) = y.split_at(n);
-        self.monitor.record(&self.scene, t, q, qd);
-        Ok(changed)
+        let (q, qd) = y.split_at_mut(self.n);
+        self.hooks.after_step(&self.scene, t, q, qd)
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
         let (q, qd) = y.split_at(self.n);
-        self.scene
-            .constraint_regularity(t, q, qd)
-            .map(|r| r - self.singular_tol)
+        self.hooks.guard(&self.scene, t, q, qd)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
         let (q, qd) = y.split_at(self.n);
-        let r = self
-            .scene
-            .constraint_regularity(t, q, qd)
-            .unwrap_or(f64::NAN);
-        format!(
-            "the motion reached the singular set of the constraints of `{}`: {} (regularity measure {r:.3e} ≤ singular_tol = {:.1e})",
-            self.scene.info().name,
-            self.scene
-                .info()
-                .constraint_singular_set
-                .unwrap_or("constraint singular"),
-            self.singular_tol
-        )
+        self.hooks.guard_reason(&self.scene, t, q, qd)
     }
 }
 
@@ -351,8 +210,7 @@ impl<S: Scene> Model for Chetaev<S> {
     }
 
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
-        self.monitor = Monitor::new(&self.scene);
-        self.monitor.record(&self.scene, init.t0, &init.q, &init.qd);
+        self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
         Ok(init.q.iter().chain(&init.qd).copied().collect())
     }
 
@@ -366,6 +224,6 @@ impl<S: Scene> Model for Chetaev<S> {
     }
 
     fn diagnostics(&self) -> Diagnostics {
-        self.monitor.diagnostics().clone()
+        self.hooks.diagnostics().clone()
     }
 }

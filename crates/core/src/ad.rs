@@ -54,6 +54,8 @@ enum Wrt {
 struct Seeds<D> {
     q: Vec<D>,
     qd: Vec<D>,
+    /// Parameters of a scalar field, lifted to `D` (no derivative parts).
+    p: Vec<D>,
     out: Vec<D>,
 }
 
@@ -62,8 +64,19 @@ impl<D: Scalar> Seeds<D> {
         Seeds {
             q: vec![D::from(0.0); n],
             qd: vec![D::from(0.0); n],
+            p: Vec::new(),
             out: vec![D::from(0.0); m],
         }
+    }
+
+    /// Lifts the field parameters `p` into the `D` buffer.
+    #[inline]
+    fn params(&mut self, p: &[D::InnerDual])
+    where
+        D::InnerDual: Copy,
+    {
+        self.p.clear();
+        self.p.extend(p.iter().map(|&x| D::from_re(x)));
     }
 
     /// Sets every seed to the constant `(q, q̇)` (no derivative parts).
@@ -115,11 +128,12 @@ impl<T: Scalar> Jet<T> {
         t: T,
         q: &[T],
         qd: &[T],
+        p: &[T],
         mass: &mut DMatrixViewMut<T>,
         force: &mut [T],
     ) {
-        self.mass(f, t, q, qd, mass);
-        self.force(f, t, q, qd, force);
+        self.mass(f, t, q, qd, p, mass);
+        self.force(f, t, q, qd, p, force);
     }
 
     /// `M = ∂²ℓ/∂q̇²` into `mass` (n×n): `n(n+1)/2` hyper-dual evaluations.
@@ -129,11 +143,13 @@ impl<T: Scalar> Jet<T> {
         t: T,
         q: &[T],
         qd: &[T],
+        p: &[T],
         mass: &mut DMatrixViewMut<T>,
     ) {
         let n = self.n;
         debug_assert_eq!(f.n(), n);
         let hd = &mut self.hd;
+        hd.params(p);
         let t_const = HyperDual::from_re(t);
         for i in 0..n {
             for j in i..n {
@@ -144,7 +160,7 @@ impl<T: Scalar> Jet<T> {
                     hd.qd[i].eps1 = one();
                     hd.qd[j].eps2 = one();
                 }
-                let v = f.eval(t_const, &hd.q, &hd.qd);
+                let v = f.eval(t_const, &hd.q, &hd.qd, &hd.p);
                 mass[(i, j)] = v.eps1eps2;
                 mass[(j, i)] = v.eps1eps2;
             }
@@ -153,9 +169,18 @@ impl<T: Scalar> Jet<T> {
 
     /// `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t` into `force`: `n` hyper-dual and
     /// `n` dual evaluations.
-    pub fn force<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T], force: &mut [T]) {
+    pub fn force<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        p: &[T],
+        force: &mut [T],
+    ) {
         let n = self.n;
         let hd = &mut self.hd;
+        hd.params(p);
         // d/dt (∂ℓ/∂q̇_i) along (q̇, q̈ = 0, 1): eps1 picks ∂/∂q̇_i, eps2 is the time jet.
         let t_jet = HyperDual::new(t, zero(), one(), zero());
         for (i, fi) in force.iter_mut().enumerate().take(n) {
@@ -164,36 +189,47 @@ impl<T: Scalar> Jet<T> {
                 s.eps2 = v;
             }
             hd.qd[i].eps1 = one();
-            let v = f.eval(t_jet, &hd.q, &hd.qd);
+            let v = f.eval(t_jet, &hd.q, &hd.qd, &hd.p);
             *fi = -v.eps1eps2;
         }
         let d = &mut self.d;
+        d.params(p);
         let t_const = Dual::from_re(t);
         for (i, fi) in force.iter_mut().enumerate().take(n) {
             d.constant(q, qd);
             d.q[i].eps = one();
-            *fi += f.eval(t_const, &d.q, &d.qd).eps;
+            *fi += f.eval(t_const, &d.q, &d.qd, &d.p).eps;
         }
     }
 
     /// The energy `E = q̇·∂ℓ/∂q̇ − ℓ` (one dual evaluation).
-    pub fn energy<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T]) -> T {
+    pub fn energy<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T], p: &[T]) -> T {
         let d = &mut self.d;
+        d.params(p);
         d.constant(q, qd);
         for (s, &v) in d.qd.iter_mut().zip(qd) {
             s.eps = v;
         }
-        let v = f.eval(Dual::from_re(t), &d.q, &d.qd);
+        let v = f.eval(Dual::from_re(t), &d.q, &d.qd, &d.p);
         v.eps - v.re
     }
 
     /// The momenta `p = ∂ℓ/∂q̇` into `p` (n dual evaluations).
-    pub fn momentum<F: ScalarField>(&mut self, f: &F, t: T, q: &[T], qd: &[T], p: &mut [T]) {
+    pub fn momentum<F: ScalarField>(
+        &mut self,
+        f: &F,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        params: &[T],
+        p: &mut [T],
+    ) {
         let d = &mut self.d;
+        d.params(params);
         for (i, pi) in p.iter_mut().enumerate().take(self.n) {
             d.constant(q, qd);
             d.qd[i].eps = one();
-            *pi = f.eval(Dual::from_re(t), &d.q, &d.qd).eps;
+            *pi = f.eval(Dual::from_re(t), &d.q, &d.qd, &d.p).eps;
         }
     }
 

@@ -15,6 +15,7 @@ pub mod consistency;
 pub mod constraints;
 mod error;
 pub mod init;
+pub mod kkt;
 pub mod linalg;
 pub mod model;
 pub mod monitor;
@@ -22,6 +23,7 @@ pub mod param;
 pub mod project;
 pub mod run;
 pub mod scene;
+pub mod stab;
 
 pub use error::Error;
 pub use init::Initial;

@@ -97,7 +97,7 @@ impl Monitor {
             .max(d.holonomic_residual_max)
             .max(d.holonomic_velocity_residual_max);
 
-        let e = self.jet.energy(&Lagrangian(scene), t, q, qd);
+        let e = self.jet.energy(&Lagrangian(scene), t, q, qd, &[]);
         if d.states_checked == 0 {
             d.energy_initial = e;
             for (i, inv) in d.invariants.iter_mut().enumerate() {

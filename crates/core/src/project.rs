@@ -112,6 +112,7 @@ impl Projector {
             t,
             q,
             qd,
+            &[],
             &mut kkt.view_mut((0, 0), (n, n)),
         );
         for (a, r) in rows.clone().enumerate() {

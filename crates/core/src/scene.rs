@@ -192,12 +192,14 @@ pub trait Scene: Send + Sync + 'static {
     }
 }
 
-/// A scalar function `ℓ(t, q, q̇)` written once for every [`Scalar`]; what
-/// [`crate::ad`] differentiates (a Lagrangian, or one augmented by multipliers).
+/// A scalar function `ℓ(t, q, q̇; p)` written once for every [`Scalar`]; what
+/// [`crate::ad`] differentiates (a Lagrangian, or one augmented by
+/// multipliers). The parameters `p` (e.g. multipliers `λ`) are held constant
+/// by the differentiation.
 pub trait ScalarField {
     /// Number of coordinates `n`.
     fn n(&self) -> usize;
-    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D;
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], p: &[D]) -> D;
 }
 
 /// A vector function `v(t, q, q̇) ∈ R^m` written once for every [`Scalar`].
@@ -216,8 +218,33 @@ impl<S: Scene> ScalarField for Lagrangian<'_, S> {
         self.0.info().n()
     }
     #[inline]
-    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D {
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], _p: &[D]) -> D {
         self.0.lagrangian(t, q, qd)
+    }
+}
+
+/// `L + λᵀg`, the Lagrangian augmented by the nonholonomic constraints with
+/// multipliers `λ = p` (spec, section C). Needs a workspace for `g`, so it
+/// is evaluated through a closure-free buffer of at most [`MAX_CONSTRAINTS`] rows.
+pub struct Augmented<'a, S>(pub &'a S);
+
+/// Largest number of nonholonomic constraints [`Augmented`] supports.
+pub const MAX_CONSTRAINTS: usize = 16;
+
+impl<S: Scene> ScalarField for Augmented<'_, S> {
+    fn n(&self) -> usize {
+        self.0.info().n()
+    }
+    #[inline]
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], p: &[D]) -> D {
+        let s = self.0.info().s();
+        let mut g = [D::from(0.0); MAX_CONSTRAINTS];
+        self.0.nonholonomic(t, q, qd, &mut g[..s]);
+        let mut l = self.0.lagrangian(t, q, qd);
+        for i in 0..s {
+            l += p[i] * g[i];
+        }
+        l
     }
 }
 

@@ -111,6 +111,7 @@ fn mass_and_force_match_finite_differences() {
             t,
             &q,
             &qd,
+            &[],
             &mut m.view_mut((0, 0), (3, 3)),
             &mut force,
         );
@@ -158,10 +159,10 @@ fn mass_and_force_match_finite_differences() {
         // Energy q̇·∂L/∂q̇ − L.
         let p = momentum_fd(&s, t, &q, &qd);
         let e = (0..3).map(|i| qd[i] * p[i]).sum::<f64>() - lag(&s, t, &q, &qd);
-        let e_ad = jet.energy(&Lagrangian(&s), t, &q, &qd);
+        let e_ad = jet.energy(&Lagrangian(&s), t, &q, &qd, &[]);
         assert!((e - e_ad).abs() < 1e-8 * (1.0 + e.abs()));
         let mut p_ad = [0.0; 3];
-        jet.momentum(&Lagrangian(&s), t, &q, &qd, &mut p_ad);
+        jet.momentum(&Lagrangian(&s), t, &q, &qd, &[], &mut p_ad);
         for i in 0..3 {
             assert!((p_ad[i] - p[i]).abs() < 1e-8);
         }
@@ -266,6 +267,7 @@ fn consistency_check_and_projection() {
         initial.t0,
         &q,
         &qd,
+        &[],
         &mut m.view_mut((0, 0), (3, 3)),
         &mut force,
     );

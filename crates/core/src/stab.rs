@@ -1,0 +1,158 @@
+//! Constraint stabilisation, shared by the formulations with multipliers,
+//! and the options that select it.
+
+use nonholo_integrate::SystemError;
+
+use crate::consistency::PROJECT_TOL;
+use crate::monitor::{Diagnostics, Monitor};
+use crate::param::{Bound, ParamSpec, Params};
+use crate::project::Projector;
+use crate::scene::Scene;
+
+/// `--option stab=none|baumgarte|projection`.
+pub const STAB: ParamSpec = ParamSpec::choice(
+    "stab",
+    &["none", "baumgarte", "projection"],
+    "constraint stabilisation: none; Baumgarte (ġ + 2α g = 0, f̈ + 2α ḟ + β² f = 0); \
+     projection onto the constraints after every step",
+);
+
+/// Baumgarte damping gain `α`.
+pub const BAUMGARTE_ALPHA: ParamSpec = ParamSpec::real(
+    "baumgarte_alpha",
+    "1/s",
+    5.0,
+    Bound::Inclusive(0.0),
+    Bound::Unbounded,
+    "Baumgarte damping gain α",
+);
+
+/// Baumgarte stiffness gain `β` (holonomic constraints).
+pub const BAUMGARTE_BETA: ParamSpec = ParamSpec::real(
+    "baumgarte_beta",
+    "1/s",
+    5.0,
+    Bound::Inclusive(0.0),
+    Bound::Unbounded,
+    "Baumgarte stiffness gain β (holonomic constraints)",
+);
+
+/// Where a run stops near a singular set of the constraints.
+pub const SINGULAR_TOL: ParamSpec = ParamSpec::real(
+    "singular_tol",
+    "",
+    1e-8,
+    Bound::Exclusive(0.0),
+    Bound::Unbounded,
+    "the run stops where the constraint's regularity measure (appell-hamel: horizontal speed) \
+     falls to this value",
+);
+
+/// Constraint stabilisation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stabilisation {
+    None,
+    /// `ġ + 2α g = 0`, `f̈ + 2α ḟ + β² f = 0`.
+    Baumgarte {
+        alpha: f64,
+        beta: f64,
+    },
+    /// Projection onto `f = 0`, `g = 0`, `ḟ = 0` after every accepted step.
+    Projection,
+}
+
+impl Stabilisation {
+    /// From options that include [`STAB`], [`BAUMGARTE_ALPHA`], [`BAUMGARTE_BETA`].
+    pub fn from_options(options: &Params) -> Self {
+        match options.choice("stab") {
+            "baumgarte" => Stabilisation::Baumgarte {
+                alpha: options.real("baumgarte_alpha"),
+                beta: options.real("baumgarte_beta"),
+            },
+            "projection" => Stabilisation::Projection,
+            _ => Stabilisation::None,
+        }
+    }
+
+    /// Baumgarte gains `(α, β)`; zero unless Baumgarte is chosen.
+    pub fn gains(self) -> (f64, f64) {
+        match self {
+            Stabilisation::Baumgarte { alpha, beta } => (alpha, beta),
+            _ => (0.0, 0.0),
+        }
+    }
+}
+
+/// What a formulation on `(q, q̇)` does between steps: projection (if
+/// chosen), diagnostics, and the guard on the constraints' singular set.
+#[derive(Debug, Clone)]
+pub struct StepHooks {
+    pub stab: Stabilisation,
+    pub singular_tol: f64,
+    projector: Projector,
+    monitor: Monitor,
+}
+
+impl StepHooks {
+    /// From options that include the stabilisation options and [`SINGULAR_TOL`].
+    pub fn new<S: Scene>(scene: &S, options: &Params) -> Self {
+        StepHooks {
+            stab: Stabilisation::from_options(options),
+            singular_tol: options.real("singular_tol"),
+            projector: Projector::new(scene),
+            monitor: Monitor::new(scene),
+        }
+    }
+
+    /// Starts the diagnostics of a new run at the initial state.
+    pub fn start<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+        self.monitor = Monitor::new(scene);
+        self.monitor.record(scene, t, q, qd);
+    }
+
+    /// After an accepted step: projects `(q, q̇)` if projection is chosen
+    /// (returns whether anything moved) and records diagnostics.
+    pub fn after_step<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<bool, SystemError> {
+        let mut changed = false;
+        if self.stab == Stabilisation::Projection {
+            let p = self
+                .projector
+                .project(scene, t, q, qd, PROJECT_TOL)
+                .map_err(SystemError::new)?;
+            changed = p.iterations > 0;
+        }
+        self.monitor.record(scene, t, q, qd);
+        Ok(changed)
+    }
+
+    /// Distance of `(q, q̇)` from the constraints' singular set, minus `singular_tol`.
+    pub fn guard<S: Scene>(&self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> Option<f64> {
+        scene
+            .constraint_regularity(t, q, qd)
+            .map(|r| r - self.singular_tol)
+    }
+
+    /// Why the guard stopped the run.
+    pub fn guard_reason<S: Scene>(&self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> String {
+        let r = scene.constraint_regularity(t, q, qd).unwrap_or(f64::NAN);
+        let info = scene.info();
+        format!(
+            "the motion reached the singular set of the constraints of `{}`: {} \
+             (regularity measure {r:.3e} ≤ singular_tol = {:.1e})",
+            info.name,
+            info.constraint_singular_set
+                .unwrap_or("constraint singular"),
+            self.singular_tol
+        )
+    }
+
+    pub fn diagnostics(&self) -> &Diagnostics {
+        self.monitor.diagnostics()
+    }
+}

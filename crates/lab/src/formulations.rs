@@ -4,12 +4,11 @@ use nonholo_core::{Error, FormulationInfo, Model, Params, Scene};
 use nonholo_scenes::{AnyScene, SceneVisitor};
 
 /// Every formulation this build has, in listing order.
-pub const ALL: &[&FormulationInfo] = &[&nonholo_chetaev::INFO];
+pub const ALL: &[&FormulationInfo] = &[&nonholo_chetaev::INFO, &nonholo_vakonomic::INFO];
 
 /// Formulations of the workbench's plan that this build does not have yet,
 /// with what they are: naming one gives a clear message instead of "unknown".
 const PLANNED: &[(&str, &str)] = &[
-    ("vakonomic", "C, the vakonomic variant"),
     ("embedding", "A, the paper's Hamilton-principle embedding"),
     (
         "visc",
@@ -70,7 +69,38 @@ impl SceneVisitor for Build {
                 scene,
                 self.options,
             )?)),
+            "vakonomic" => Ok(Box::new(nonholo_vakonomic::Vakonomic::new(
+                scene,
+                self.options,
+            )?)),
             other => unreachable!("formulation `{other}` registered but not constructed"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every registered formulation is constructed for every scene it
+    /// declares itself applicable to, and refused with a reason otherwise.
+    #[test]
+    fn registry_builds_every_applicable_pair() {
+        for scene in nonholo_scenes::ALL {
+            for f in ALL {
+                let built = nonholo_scenes::build(scene.name, &[])
+                    .and_then(|s| build_model(s, f.name, &[]));
+                match (f.applicable)(scene) {
+                    Ok(()) => assert!(
+                        built.is_ok(),
+                        "{} on {}: {:?}",
+                        f.name,
+                        scene.name,
+                        built.err()
+                    ),
+                    Err(_) => assert!(matches!(built, Err(Error::NotApplicable { .. }))),
+                }
+            }
         }
     }
 }

@@ -1,0 +1,318 @@
+//! Formulation C: the vakonomic variant (spec section C).
+//!
+//! Hamilton's principle for `L + λᵀg` with `λ(t)` unknown, the constraints
+//! imposed on the admissible curves:
+//!
+//! ```text
+//! d/dt(∂L/∂q̇ + Gᵀλ) − ∂L/∂q − (∂g/∂q)ᵀλ = Fᵀν,   g = 0,   f = 0
+//! ```
+//!
+//! Expanded with `ℓ = L + λᵀg` at frozen `λ` — whose `∂²ℓ/∂q̇² = M + H_λ`,
+//! `H_λ = Σ λ_i ∂²g_i/∂q̇²`, and whose `Q_ℓ = Q + (∂g/∂q)ᵀλ − (∂G/∂q q̇ + ∂G/∂t)ᵀλ`
+//! are exactly the terms of the spec — one KKT solve gives `(q̈, λ̇, ν)`:
+//!
+//! ```text
+//! [ M + H_λ  Gᵀ  Fᵀ ] [ q̈  ]   [ Q_ℓ             ]
+//! [ G        0   0  ] [ λ̇  ] = [ −ġ₀ − 2α g      ]
+//! [ F        0   0  ] [ −ν ]   [ −f̈₀ − 2α ḟ − β² f ]
+//! ```
+//!
+//! State `y = (q, q̇, λ)`; `λ(0)` is free initial data (`--init lambda=…`,
+//! default 0), so one physical state starts a whole family of motions.
+//! Holonomic constraints enter as in B (their multiplier `ν` is algebraic).
+//! The multipliers reported are the `λ` of `L + λᵀg` as written.
+
+use nonholo_core::consistency::{InitProjection, check_or_project};
+use nonholo_core::integrate::{OdeSystem, SystemError};
+use nonholo_core::kkt::Kkt;
+use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::param::{ParamSpec, Params};
+use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Named, Scene, SceneInfo};
+use nonholo_core::stab::{
+    BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
+};
+use nonholo_core::{Diagnostics, Error, Initial};
+use num_dual::Dual64;
+
+/// Options of formulation C.
+pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL];
+
+pub const INFO: FormulationInfo = FormulationInfo {
+    name: "vakonomic",
+    letter: "C",
+    title: "Vakonomic: Hamilton's principle for L + λᵀg",
+    description: "(M + H_λ) q̈ + Gᵀλ̇ = Q_λ with ġ = 0; one KKT solve per right-hand side; \
+                  state (q, q̇, λ), λ(0) free",
+    options: OPTIONS,
+    applicable,
+};
+
+fn applicable(scene: &SceneInfo) -> Result<(), String> {
+    if scene.s() == 0 {
+        return Err(
+            "the scene has no nonholonomic constraints, so the vakonomic variant \
+                    is the same motion as B"
+                .into(),
+        );
+    }
+    if scene.s() > MAX_CONSTRAINTS {
+        return Err(format!(
+            "the scene has {} nonholonomic constraints; L + λᵀg supports at most {MAX_CONSTRAINTS}",
+            scene.s()
+        ));
+    }
+    Ok(())
+}
+
+/// Formulation C bound to a scene.
+pub struct Vakonomic<S: Scene> {
+    scene: S,
+    options: Params,
+    stab: Stabilisation,
+    n: usize,
+    s: usize,
+    kkt: Kkt<f64>,
+    /// The same solve carrying one directional derivative: Jacobian columns
+    /// and time derivatives along the motion.
+    kkt_dual: Kkt<Dual64>,
+    y_dual: Vec<Dual64>,
+    hooks: StepHooks,
+}
+
+impl<S: Scene> Vakonomic<S> {
+    pub fn new(scene: S, options: Params) -> Result<Self, Error> {
+        let info = scene.info();
+        applicable(info).map_err(|reason| Error::NotApplicable {
+            formulation: INFO.name.into(),
+            scene: info.name.into(),
+            reason,
+        })?;
+        let (n, s, k) = (info.n(), info.s(), info.k());
+        Ok(Vakonomic {
+            stab: Stabilisation::from_options(&options),
+            hooks: StepHooks::new(&scene, &options),
+            options,
+            n,
+            s,
+            kkt: Kkt::new(n, s, k),
+            kkt_dual: Kkt::new(n, s, k),
+            y_dual: vec![Dual64::from_re(0.0); 2 * n + s],
+            scene,
+        })
+    }
+
+    pub fn scene(&self) -> &S {
+        &self.scene
+    }
+
+    /// Solves the KKT system at `(t, q, q̇, λ)`: `q̈` into `qdd`, `λ̇` into
+    /// `lambda_dot`, and `ν` (if the scene has holonomic constraints) into `nu`.
+    pub fn accelerations(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        qdd: &mut [f64],
+        lambda_dot: &mut [f64],
+        nu: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let (n, s) = (self.n, self.s);
+        let (q, rest) = y.split_at(n);
+        let (qd, lambda) = rest.split_at(n);
+        self.kkt.solve(
+            &Augmented(&self.scene),
+            lambda,
+            &self.scene,
+            self.stab,
+            t,
+            q,
+            qd,
+            "formulation C",
+        )?;
+        qdd.copy_from_slice(self.kkt.qdd());
+        lambda_dot.copy_from_slice(&self.kkt.mu()[..s]);
+        for (v, m) in nu.iter_mut().zip(&self.kkt.mu()[s..]) {
+            *v = -m;
+        }
+        Ok(())
+    }
+
+    /// The right-hand side over dual numbers: `dy = f(t, y)` with one
+    /// directional derivative carried through the KKT solve.
+    fn rhs_dual(&mut self, t: Dual64) -> Result<(), SystemError> {
+        let n = self.n;
+        let (q, rest) = self.y_dual.split_at(n);
+        let (qd, lambda) = rest.split_at(n);
+        self.kkt_dual.solve(
+            &Augmented(&self.scene),
+            lambda,
+            &self.scene,
+            self.stab,
+            t,
+            q,
+            qd,
+            "formulation C",
+        )
+    }
+
+    /// Derivatives along the motion through `(t, y)`: `ẏ = f(t, y)` and
+    /// `ÿ = (∂f/∂y) ẏ + ∂f/∂t`, the latter by one dual pass of the
+    /// right-hand side along the time jet `(y + ẏ τ, t + τ)` (Taylor-mode
+    /// differentiation). Gives `q̈ = ẏ[n..2n]` and `q⃛ = ÿ[n..2n]`.
+    pub fn taylor(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yd: &mut [f64],
+        ydd: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let (n, s) = (self.n, self.s);
+        self.rhs(t, y, yd)?;
+        for i in 0..2 * n + s {
+            self.y_dual[i] = Dual64::new(y[i], yd[i]);
+        }
+        self.rhs_dual(Dual64::new(t, 1.0))?;
+        ydd[..n].copy_from_slice(&yd[n..2 * n]);
+        for i in 0..n {
+            ydd[n + i] = self.kkt_dual.qdd()[i].eps;
+        }
+        for i in 0..s {
+            ydd[2 * n + i] = self.kkt_dual.mu()[i].eps;
+        }
+        Ok(())
+    }
+}
+
+impl<S: Scene> OdeSystem for Vakonomic<S> {
+    fn dim(&self) -> usize {
+        2 * self.n + self.s
+    }
+
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        let n = self.n;
+        dy[..n].copy_from_slice(&y[n..2 * n]);
+        let (qdd, lambda_dot) = dy[n..].split_at_mut(n);
+        self.accelerations(t, y, qdd, lambda_dot, &mut [])
+    }
+
+    /// `∂f/∂y` for `y = (q, q̇, λ)`: the KKT solve repeated with one dual
+    /// direction per column (2n + s solves in `Dual64`).
+    fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
+        let (n, s) = (self.n, self.s);
+        let dim = 2 * n + s;
+        jac.fill(0.0);
+        for i in 0..n {
+            jac[i * dim + n + i] = 1.0;
+        }
+        for j in 0..dim {
+            for (d, &v) in self.y_dual.iter_mut().zip(y) {
+                *d = Dual64::from_re(v);
+            }
+            self.y_dual[j].eps = 1.0;
+            self.rhs_dual(Dual64::from_re(t))?;
+            for i in 0..n {
+                jac[(n + i) * dim + j] = self.kkt_dual.qdd()[i].eps;
+            }
+            for i in 0..s {
+                jac[(2 * n + i) * dim + j] = self.kkt_dual.mu()[i].eps;
+            }
+        }
+        Ok(true)
+    }
+
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        let (q, rest) = y.split_at_mut(self.n);
+        let qd = &mut rest[..self.n];
+        self.hooks.after_step(&self.scene, t, q, qd)
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        let n = self.n;
+        self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n])
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        let n = self.n;
+        self.hooks
+            .guard_reason(&self.scene, t, &y[..n], &y[n..2 * n])
+    }
+}
+
+impl<S: Scene> Model for Vakonomic<S> {
+    fn scene_info(&self) -> &'static SceneInfo {
+        self.scene.info()
+    }
+
+    fn formulation(&self) -> &'static FormulationInfo {
+        &INFO
+    }
+
+    fn scene_params(&self) -> &Params {
+        self.scene.params()
+    }
+
+    fn options(&self) -> &Params {
+        &self.options
+    }
+
+    fn multiplier_names(&self) -> Vec<String> {
+        multiplier_names(self.s, self.scene.info().k())
+    }
+
+    /// `lambda` (or `lambda1`, …): the initial multipliers `λ(0)`.
+    fn extra_init_names(&self) -> Vec<Named> {
+        lambda_names(self.s)
+    }
+
+    fn make_consistent(
+        &mut self,
+        init: &mut Initial,
+        project: bool,
+    ) -> Result<Option<InitProjection>, Error> {
+        check_or_project(&self.scene, init, project)
+    }
+
+    fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
+        self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
+        let mut y: Vec<f64> = init.q.iter().chain(&init.qd).copied().collect();
+        for name in lambda_names(self.s) {
+            y.push(init.extra(name.name).unwrap_or(0.0));
+        }
+        Ok(y)
+    }
+
+    fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
+        let (n, s) = (self.n, self.s);
+        obs.q.copy_from_slice(&y[..n]);
+        obs.qd.copy_from_slice(&y[n..2 * n]);
+        obs.multipliers[..s].copy_from_slice(&y[2 * n..]);
+        if obs.multipliers.len() > s {
+            let mut qdd = vec![0.0; n];
+            let mut lambda_dot = vec![0.0; s];
+            let (_, nu) = obs.multipliers.split_at_mut(s);
+            self.accelerations(t, y, &mut qdd, &mut lambda_dot, nu)?;
+        }
+        Ok(())
+    }
+
+    fn diagnostics(&self) -> Diagnostics {
+        self.hooks.diagnostics().clone()
+    }
+}
+
+/// The names of the initial multipliers: `lambda`, or `lambda1..s`.
+pub fn lambda_names(s: usize) -> Vec<Named> {
+    const NUMBERED: [&str; 16] = [
+        "lambda1", "lambda2", "lambda3", "lambda4", "lambda5", "lambda6", "lambda7", "lambda8",
+        "lambda9", "lambda10", "lambda11", "lambda12", "lambda13", "lambda14", "lambda15",
+        "lambda16",
+    ];
+    let describe = "initial multiplier λ(0) of L + λᵀg";
+    if s == 1 {
+        vec![Named::new("lambda", "", describe)]
+    } else {
+        NUMBERED[..s]
+            .iter()
+            .map(|n| Named::new(n, "", describe))
+            .collect()
+    }
+}

@@ -32,7 +32,7 @@ use nonholo_core::stab::{
     BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
 };
 use nonholo_core::{Diagnostics, Error, Initial};
-use num_dual::Dual64;
+use num_dual::{Dual2_64, Dual64};
 
 /// Options of formulation C.
 pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL];
@@ -76,6 +76,9 @@ pub struct Vakonomic<S: Scene> {
     /// and time derivatives along the motion.
     kkt_dual: Kkt<Dual64>,
     y_dual: Vec<Dual64>,
+    /// Second-order time jets through the solve, for the third Taylor coefficient.
+    kkt_jet2: Kkt<Dual2_64>,
+    y_jet2: Vec<Dual2_64>,
     hooks: StepHooks,
 }
 
@@ -97,6 +100,8 @@ impl<S: Scene> Vakonomic<S> {
             kkt: Kkt::new(n, s, k),
             kkt_dual: Kkt::new(n, s, k),
             y_dual: vec![Dual64::from_re(0.0); 2 * n + s],
+            kkt_jet2: Kkt::new(n, s, k),
+            y_jet2: vec![Dual2_64::from_re(0.0); 2 * n + s],
             scene,
         })
     }
@@ -154,16 +159,18 @@ impl<S: Scene> Vakonomic<S> {
         )
     }
 
-    /// Derivatives along the motion through `(t, y)`: `ẏ = f(t, y)` and
-    /// `ÿ = (∂f/∂y) ẏ + ∂f/∂t`, the latter by one dual pass of the
-    /// right-hand side along the time jet `(y + ẏ τ, t + τ)` (Taylor-mode
-    /// differentiation). Gives `q̈ = ẏ[n..2n]` and `q⃛ = ÿ[n..2n]`.
+    /// Taylor coefficients of the motion through `(t, y)`: `ẏ = f(t, y)`,
+    /// `ÿ` and `y⃛`, by Taylor-mode differentiation of the right-hand side:
+    /// one dual pass along the first-order jet `(y + ẏτ, t + τ)` gives `ÿ`,
+    /// one second-order dual pass along `y + ẏτ + ÿτ²/2` gives `y⃛`. So
+    /// `q̈ = ẏ[n..2n]`, `q⃛ = ÿ[n..2n]`, `q⁗ = y⃛[n..2n]`.
     pub fn taylor(
         &mut self,
         t: f64,
         y: &[f64],
         yd: &mut [f64],
         ydd: &mut [f64],
+        yddd: &mut [f64],
     ) -> Result<(), SystemError> {
         let (n, s) = (self.n, self.s);
         self.rhs(t, y, yd)?;
@@ -177,6 +184,28 @@ impl<S: Scene> Vakonomic<S> {
         }
         for i in 0..s {
             ydd[2 * n + i] = self.kkt_dual.mu()[i].eps;
+        }
+        for i in 0..2 * n + s {
+            self.y_jet2[i] = Dual2_64::new(y[i], yd[i], ydd[i]);
+        }
+        let (q, rest) = self.y_jet2.split_at(n);
+        let (qd, lambda) = rest.split_at(n);
+        self.kkt_jet2.solve(
+            &Augmented(&self.scene),
+            lambda,
+            &self.scene,
+            self.stab,
+            Dual2_64::new(t, 1.0, 0.0),
+            q,
+            qd,
+            "formulation C",
+        )?;
+        yddd[..n].copy_from_slice(&ydd[n..2 * n]);
+        for i in 0..n {
+            yddd[n + i] = self.kkt_jet2.qdd()[i].v2;
+        }
+        for i in 0..s {
+            yddd[2 * n + i] = self.kkt_jet2.mu()[i].v2;
         }
         Ok(())
     }

@@ -218,8 +218,9 @@ fn trajectory_matches_reduced_integration() {
     }
 }
 
-/// The Taylor coefficients along C's motion: ÿ from one dual pass equals a
-/// central difference of f along ẏ.
+/// The Taylor coefficients along C's motion: ÿ and y⃛ from dual passes
+/// equal central differences of f and of ÿ along the motion (DOP853 at 1e-13
+/// gives the states at t ± h).
 #[test]
 fn taylor_coefficients_match_differences() {
     let s: Sleigh = scene(&[("a", "0.4"), ("potential", "com")]);
@@ -233,8 +234,8 @@ fn taylor_coefficients_match_differences() {
         0.6,
         0.4,
     ];
-    let (mut yd, mut ydd) = ([0.0; 7], [0.0; 7]);
-    c.taylor(0.0, &y, &mut yd, &mut ydd).unwrap();
+    let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
+    c.taylor(0.0, &y, &mut yd, &mut ydd, &mut yddd).unwrap();
     let h = 1e-5;
     let (mut fp, mut fm) = ([0.0; 7], [0.0; 7]);
     let yp: Vec<f64> = (0..7).map(|i| y[i] + h * yd[i]).collect();
@@ -247,6 +248,39 @@ fn taylor_coefficients_match_differences() {
             (ydd[i] - fd).abs() < 1e-8 * (1.0 + fd.abs()),
             "ÿ[{i}] {} vs {fd}",
             ydd[i]
+        );
+    }
+    // y⃛ = d/dt ÿ along the motion: one-sided second-order difference of ÿ at
+    // the states reached after h and 2h (DOP853 at 1e-14):
+    // (−3ÿ(0) + 4ÿ(h) − ÿ(2h))/(2h), error ~h² y⁽⁵⁾/3.
+    let h = 1e-4;
+    let opts = Options {
+        rtol: 1e-14,
+        atol: 1e-14,
+        output: vec![h, 2.0 * h],
+        ..Options::default()
+    };
+    let later = solve(
+        Method::Dop853,
+        &mut vakonomic(scene::<Sleigh>(&[("a", "0.4"), ("potential", "com")])),
+        0.0,
+        &y,
+        2.0 * h,
+        &opts,
+    )
+    .unwrap();
+    let mut second = [[0.0; 7]; 2];
+    for k in 0..2 {
+        let (mut a, mut b) = ([0.0; 7], [0.0; 7]);
+        c.taylor(0.0, later.row(k), &mut a, &mut second[k], &mut b)
+            .unwrap();
+    }
+    for i in 0..7 {
+        let fd = (-3.0 * ydd[i] + 4.0 * second[0][i] - second[1][i]) / (2.0 * h);
+        assert!(
+            (yddd[i] - fd).abs() < 1e-6 * (1.0 + fd.abs()),
+            "y⃛[{i}] {} vs {fd}",
+            yddd[i]
         );
     }
 }

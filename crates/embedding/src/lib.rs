@@ -1,0 +1,6 @@
+//! Formulation A: the seed paper's Hamilton-principle embedding (§3–4).
+//!
+//! See [`elo`] for `Θ` and the Euler–Lagrange–Ostrogradsky equations.
+
+pub mod elo;
+pub mod jet;

@@ -2,5 +2,6 @@
 //!
 //! See [`elo`] for `Θ` and the Euler–Lagrange–Ostrogradsky equations.
 
+pub mod analysis;
 pub mod elo;
 pub mod jet;

@@ -123,3 +123,80 @@ fn elo_residual_vanishes_on_vakonomic_motions() {
     }
     eprintln!("worst relative ELO residual on C's motions: {worst:e}");
 }
+
+/// The sleigh's structure at points of vakonomic motions: rank W = 1 (= s),
+/// two hidden constraints, 6 free initial data — the count of C's
+/// (q, q̇ on the constraint, λ(0)) = 2n. The completion recovers C's q⃛ from
+/// (q, q̇, q̈) and a guess 20 % off (q⃛ is locally unique); from the far guess
+/// q⃛ = 0 it succeeds in most cases and otherwise says it could not.
+#[test]
+fn sleigh_structure_and_completion() {
+    use nonholo_embedding::analysis::{complete, structure};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let e = Sleigh::INFO.embedding.unwrap();
+    let (mut far_ok, mut far_total) = (0, 0);
+    for potential in ["paper", "com"] {
+        for _ in 0..20 {
+            let a: f64 = rng.random_range(-1.0..1.0);
+            let s = sleigh(
+                a,
+                a * a + rng.random_range(0.2..2.0),
+                rng.random_range(0.0..1.3),
+                potential,
+            );
+            let mut c = Vakonomic::new(s.clone(), Params::defaults(OPTIONS)).unwrap();
+            let phi: f64 = rng.random_range(-3.0..3.0);
+            let u: f64 = rng.random_range(0.5..3.0);
+            let y = [
+                0.0,
+                0.0,
+                phi,
+                u * phi.cos(),
+                u * phi.sin(),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+            ];
+            let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
+            c.taylor(0.0, &y, &mut yd, &mut ydd, &mut yddd).unwrap();
+            let base = [y[0], y[1], y[3], y[4], yd[3], yd[4]];
+            let mut d = vec![0.0; 14];
+            d[..6].copy_from_slice(&base);
+            d[6] = ydd[3] * 1.2 + 0.1;
+            d[7] = ydd[4] * 0.8 - 0.1;
+            let done = complete(&s, &e, 0.0, &mut d, true, 1e-12).unwrap();
+            assert!(done.third_unique, "{done:?}");
+            for k in 0..2 {
+                let want = ydd[3 + k];
+                assert!(
+                    (d[6 + k] - want).abs() < 1e-8 * (1.0 + want.abs()),
+                    "q⃛[{k}] {} vs C's {want}",
+                    d[6 + k]
+                );
+            }
+            let st = structure(&s, &e, 0.0, &d);
+            assert_eq!(
+                (st.rank_w, st.hidden_constraints, st.free_initial_data),
+                (1, 2, 6),
+                "{st:?}"
+            );
+            assert!(
+                st.rank_gap.1 < 1e-6 * st.rank_gap.0,
+                "unclear rank decision {st:?}"
+            );
+            if far_total == 0 {
+                eprintln!("{st:?}");
+            }
+
+            let mut far = vec![0.0; 14];
+            far[..6].copy_from_slice(&base);
+            far_total += 1;
+            match complete(&s, &e, 0.0, &mut far, true, 1e-12) {
+                Ok(_) if (far[6] - ydd[3]).abs() < 1e-6 * (1.0 + ydd[3].abs()) => far_ok += 1,
+                Ok(_) => {}
+                Err(msg) => assert!(msg.contains("could not be satisfied"), "{msg}"),
+            }
+        }
+    }
+    eprintln!("completion from q⃛ = 0 reached C's q⃛ in {far_ok} of {far_total} cases");
+    assert!(far_ok * 10 >= far_total * 9, "{far_ok} of {far_total}");
+}

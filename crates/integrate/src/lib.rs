@@ -1,19 +1,25 @@
-//! Integrators for initial value problems `y' = f(t, y)`, `y(t0) = y0`.
+//! Integrators for initial value problems `y' = f(t, y)`, `y(t0) = y0`, and
+//! for implicit systems `F(t, y, y') = 0` (differential-algebraic equations
+//! of index up to 3).
 //!
 //! This crate knows no mechanics. A problem is anything implementing
-//! [`OdeSystem`]; a run returns a [`Solution`] (samples on a requested output
-//! grid, optional continuous extension, work counters) or a [`Failure`]
-//! carrying the error, the time at which it happened and the partial
-//! solution up to that time.
+//! [`OdeSystem`] (or [`ImplicitSystem`] for [`solve_implicit`]); a run
+//! returns a [`Solution`] (samples on a requested output grid, optional
+//! continuous extension, work counters) or a [`Failure`] carrying the error,
+//! the time at which it happened and the partial solution up to that time.
 //!
 //! | method | order | error estimate | dense output order | reference |
 //! |---|---|---|---|---|
 //! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | Kutta 1901 |
 //! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
 //! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
+//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
 //!
 //! Step-size control, initial step selection and stiffness detection follow
-//! Hairer's DOPRI5/DOP853 codes.
+//! Hairer's DOPRI5/DOP853 codes; Radau IIA follows his RADAU5 (simplified
+//! Newton iteration with Jacobian reuse, Gustafsson's predictive controller;
+//! see the documentation of `src/radau/mod.rs` for its options, counters
+//! and failures).
 
 // A `Failure` carries its partial `Solution` by design, and `Ok` carries a
 // `Solution` of the same size: boxing the error would save nothing.
@@ -21,6 +27,7 @@
 #![warn(missing_docs)]
 
 mod dense;
+mod driver;
 mod error;
 mod explicit;
 mod options;
@@ -57,7 +64,12 @@ pub use system::{ImplicitSystem, OdeSystem};
 /// Every error comes as a [`Failure`] whose `partial` solution holds the
 /// samples, continuous extension and counters up to the error time, which
 /// is also `partial.t_last`. See the documentation of the methods in
-/// `src/explicit/` for orders, defaults and counters.
+/// `src/explicit/` and `src/radau/` for orders, defaults and counters.
+///
+/// [`Method::Radau5`] solves the stiff ODE with Radau IIA as RADAU5 does:
+/// the Jacobian comes from [`OdeSystem::jacobian`] or from forward
+/// differences; a stage that cannot be evaluated, a Newton iteration that
+/// fails and a singular iteration matrix reject the step (`h /= 2`).
 pub fn solve<S: OdeSystem + ?Sized>(
     method: Method,
     sys: &mut S,
@@ -76,7 +88,17 @@ pub fn solve<S: OdeSystem + ?Sized>(
 /// values `(t0, y0, y'0)` to `t_end` with Radau IIA (order 5).
 ///
 /// The initial values must satisfy `F(t0, y0, y'0) = 0` and every hidden
-/// constraint of the system; they are checked (`F` only) and not modified.
+/// constraint of the system; they are checked (`F` only: every
+/// `|F_i(t0, y0, y'0)| <= atol + rtol·|y0_i|`, else
+/// [`IntegrateError::InvalidInput`] naming the largest residual component)
+/// and not modified.
+///
+/// `∂F/∂y` and `∂F/∂y'` come from [`ImplicitSystem::jacobians`]; the index
+/// classes of [`ImplicitSystem::variable_index`] scale the error estimate of
+/// index-2 and index-3 components by `h` and `h²`. Output grid, continuous
+/// extension, projection, guard, budgets and failures are as for [`solve`];
+/// `rhs_evals` counts evaluations of `F`. Method, error estimate and
+/// counters: see `src/radau/mod.rs`.
 pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     sys: &mut S,
     t0: f64,

@@ -59,8 +59,9 @@ pub struct Options {
     pub rtol: f64,
     /// Absolute tolerance of the local error estimate.
     pub atol: f64,
-    /// Fixed step size: required for RK4; for the embedded methods it turns
-    /// step-size control off (used to measure convergence orders).
+    /// Fixed step size: required for RK4; for the embedded methods and
+    /// Radau5 it turns step-size control off (used to measure convergence
+    /// orders; Radau5 still iterates Newton to `newton_tol`).
     pub fixed_step: Option<f64>,
     /// Initial step size; `None` chooses it as Hairer's `HINIT`.
     pub h_init: Option<f64>,
@@ -75,6 +76,26 @@ pub struct Options {
     pub output: Vec<f64>,
     /// Keep the continuous extension of every step ([`crate::Dense`]).
     pub dense: bool,
+    /// [`Method::Radau5`] only: largest number of simplified Newton
+    /// iterations per step (RADAU5's `NIT`, `IWORK(3)`). Default 7.
+    pub newton_max_iter: usize,
+    /// [`Method::Radau5`] only: the Newton iteration stops when its
+    /// estimated remaining error `θ/(1 − θ)·‖ΔZ‖` is at most this, in units
+    /// of the error scale (RADAU5's `FNEWT`, `WORK(4)`). `None` (default):
+    /// `max(10·uround/rtol', min(0.03, sqrt(rtol')))` with RADAU5's internal
+    /// tolerance `rtol' = 0.1·rtol^(2/3)`.
+    pub newton_tol: Option<f64>,
+    /// [`Method::Radau5`] only: after a step whose Newton iteration
+    /// converged with rate `θ <= jacobian_reuse` the Jacobian is kept for the
+    /// next step (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
+    /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
+    pub jacobian_reuse: f64,
+    /// [`Method::Radau5`] only: `(lo, hi)` with `lo <= 1 <= hi`; when the
+    /// Jacobian is kept and the proposed step ratio `h_new/h` lies in
+    /// `[lo, hi]`, the step size is left unchanged, which saves the LU
+    /// decompositions (RADAU5's `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`).
+    /// Default `(1.0, 1.2)`.
+    pub keep_step: (f64, f64),
 }
 
 impl Default for Options {
@@ -89,6 +110,10 @@ impl Default for Options {
             max_wall_time_s: None,
             output: Vec::new(),
             dense: true,
+            newton_max_iter: 7,
+            newton_tol: None,
+            jacobian_reuse: 0.001,
+            keep_step: (1.0, 1.2),
         }
     }
 }

@@ -5,15 +5,21 @@ use crate::{Dense, Method};
 pub struct Stats {
     /// Accepted steps.
     pub steps: usize,
-    /// Rejected steps (error test failed, or a trial stage could not be evaluated).
+    /// Rejected steps (error test failed, or a trial stage could not be
+    /// evaluated; for Radau5 also a failed Newton iteration or a singular
+    /// iteration matrix). `steps + rejected_steps` is the number of trial steps.
     pub rejected_steps: usize,
-    /// Evaluations of `f`.
+    /// Evaluations of `f` (of `F` for [`crate::solve_implicit`]), including
+    /// those of finite-difference Jacobians.
     pub rhs_evals: usize,
-    /// Jacobian evaluations (zero for explicit methods).
+    /// Jacobian evaluations, analytic or by finite differences (zero for
+    /// explicit methods).
     pub jacobian_evals: usize,
-    /// LU factorisations (zero for explicit methods).
+    /// LU factorisations (zero for explicit methods). Radau5 factors a real
+    /// and a complex matrix for each step size; the pair counts as one.
     pub lu_decompositions: usize,
-    /// Newton iterations that failed to converge (zero for explicit methods).
+    /// Newton iterations that failed to converge (diverged, too slow, or not
+    /// converged within `Options::newton_max_iter`; zero for explicit methods).
     pub newton_failures: usize,
     /// Wall-clock time of the run in seconds.
     pub wall_time_s: f64,

@@ -56,8 +56,13 @@ pub trait ImplicitSystem {
     fn dim(&self) -> usize;
 
     /// Writes `F(t, y, y')` into `res`.
-    fn residual(&mut self, t: f64, y: &[f64], yp: &[f64], res: &mut [f64])
-    -> Result<(), SystemError>;
+    fn residual(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yp: &[f64],
+        res: &mut [f64],
+    ) -> Result<(), SystemError>;
 
     /// `∂F/∂y` into `jy` and `∂F/∂y'` into `jyp`, both row-major `dim × dim`
     /// (`jy[i * dim + j] = ∂F_i/∂y_j`).

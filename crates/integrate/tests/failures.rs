@@ -110,7 +110,16 @@ impl OdeSystem for Watched {
 fn guard_crossing_is_located_on_the_continuous_extension() {
     // cos t = 0 at π/2. The located time is accurate to the interpolation
     // error over |y1'| = 1: ~1e-12 at these settings, asserted to 1e-10.
+    // RADAU5's continuous extension is its collocation polynomial of degree
+    // 3 (order 3 inside the step, against 4 and 7 for DOPRI5 and DOP853): at
+    // tol 1e-12 its error on the oscillator is up to 4.6e-10 between step
+    // points (2.6e-12 at them), so states taken from it are asserted to 2e-9.
     for method in Method::ALL {
+        let bound = if method == Method::Radau5 {
+            2e-9
+        } else {
+            1e-10
+        };
         for dense in [true, false] {
             // RK4's global error at π/2 is ~t h⁴/120 = 8e-12 for h = 0.005.
             let mut opts = opts_for(method, 0.005, 1e-12);
@@ -125,14 +134,18 @@ fn guard_crossing_is_located_on_the_continuous_extension() {
                 "{method:?} dense={dense}: root {t}, error {:.1e}",
                 t - FRAC_PI_2
             );
-            assert!((t - FRAC_PI_2).abs() < 1e-10, "{method:?}: t = {t}");
+            assert!((t - FRAC_PI_2).abs() < bound, "{method:?}: t = {t}");
             assert!(reason.starts_with("y1 reached zero"));
             let p = &f.partial;
-            assert!(p.y_last[0] <= 0.0 && p.y_last[0].abs() < 1e-10);
-            assert!((p.y_last[1] + 1.0).abs() < 1e-10);
+            assert!(p.y_last[0] <= 0.0 && p.y_last[0].abs() < bound);
+            assert!(
+                (p.y_last[1] + 1.0).abs() < bound,
+                "{method:?}: {:?}",
+                p.y_last
+            );
             // Samples up to the root only.
             assert_eq!(p.t, [0.5, 1.0, 1.5]);
-            assert!(dist(p.row(2), &Oscillator::exact(1.5)) < 1e-9);
+            assert!(dist(p.row(2), &Oscillator::exact(1.5)) < 10.0 * bound);
             assert_eq!(p.dense.is_some(), dense);
             if let Some(d) = &p.dense {
                 let (_, b) = d.span().unwrap();
@@ -286,6 +299,11 @@ fn after_step_projection_is_applied_and_counted() {
         let st_free = &free.stats;
         if method == Method::Rk4 {
             assert_eq!(st.rhs_evals, st_free.rhs_evals + st.steps);
+        } else if method == Method::Radau5 {
+            // RADAU5 evaluates f at every accepted state anyway (for its
+            // error estimate), after the projection: the projection costs
+            // nothing, and the counts depend on the Newton iterations.
+            assert!(st.jacobian_evals >= 1 && st.lu_decompositions >= 1);
         } else {
             let per_trial = if method == Method::Dopri5 { 6 } else { 11 };
             let per_accept = if method == Method::Dopri5 { 1 } else { 5 };

@@ -5,7 +5,7 @@
 use crate::{OdeSystem, SystemError};
 
 /// The system with a counter of `f` evaluations.
-pub(super) struct Rhs<'a, S: ?Sized> {
+pub(crate) struct Rhs<'a, S: ?Sized> {
     pub sys: &'a mut S,
     pub evals: usize,
 }
@@ -19,7 +19,7 @@ impl<S: OdeSystem + ?Sized> Rhs<'_, S> {
 }
 
 /// Writes `Σ_j a_j k_j` into `out` (`a.len() <= k.len()`, zero weights skipped).
-pub(super) fn combine(out: &mut [f64], a: &[f64], k: &[Vec<f64>]) {
+pub(crate) fn combine(out: &mut [f64], a: &[f64], k: &[Vec<f64>]) {
     out.fill(0.0);
     for (&aj, kj) in a.iter().zip(k) {
         if aj != 0.0 {
@@ -32,7 +32,7 @@ pub(super) fn combine(out: &mut [f64], a: &[f64], k: &[Vec<f64>]) {
 
 /// Writes the stage state `y + h Σ_j a_j k_j` into `out` (the sum is formed
 /// first and added to `y` last, as in Hairer's codes).
-pub(super) fn stage(out: &mut [f64], y: &[f64], h: f64, a: &[f64], k: &[Vec<f64>]) {
+pub(crate) fn stage(out: &mut [f64], y: &[f64], h: f64, a: &[f64], k: &[Vec<f64>]) {
     combine(out, a, k);
     for (o, &yi) in out.iter_mut().zip(y) {
         *o = yi + h * *o;
@@ -40,18 +40,18 @@ pub(super) fn stage(out: &mut [f64], y: &[f64], h: f64, a: &[f64], k: &[Vec<f64>
 }
 
 /// Time of a stage with node `c`: the end of the step exactly when `c = 1`.
-pub(super) fn stage_time(t: f64, h: f64, c: f64, t_new: f64) -> f64 {
+pub(crate) fn stage_time(t: f64, h: f64, c: f64, t_new: f64) -> f64 {
     if c == 1.0 { t_new } else { t + c * h }
 }
 
 /// Whether every entry is finite.
-pub(super) fn all_finite(v: &[f64]) -> bool {
+pub(crate) fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
 /// Scalar tolerances; the scale of component `i` is `atol + rtol·max(|y_i|, |y_new,i|)`.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Tol {
+pub(crate) struct Tol {
     pub rtol: f64,
     pub atol: f64,
 }
@@ -64,7 +64,7 @@ impl Tol {
 
 /// Parameters of an adaptive method (Hairer's `WORK(2..5)`, `IORD`, stiffness bound).
 #[derive(Debug, Clone, Copy)]
-pub(super) struct ControlParams {
+pub(crate) struct ControlParams {
     /// Safety factor `SAFE`.
     pub safe: f64,
     /// `FAC1 <= h_new/h`.
@@ -82,7 +82,7 @@ pub(super) struct ControlParams {
 }
 
 /// Hairer's step-size controller (PI control with Lund stabilisation).
-pub(super) struct Controller {
+pub(crate) struct Controller {
     p: ControlParams,
     facold: f64,
 }
@@ -112,7 +112,7 @@ impl Controller {
 /// two stages at the same node, tried every `NSTIFF = 1000` accepted steps
 /// and then after every step while it keeps firing; 15 hits before 6
 /// successive misses declare the problem stiff.
-pub(super) struct StiffnessTest {
+pub(crate) struct StiffnessTest {
     bound: f64,
     hits: u32,
     misses: u32,
@@ -159,7 +159,7 @@ impl StiffnessTest {
 }
 
 /// `|h|·sqrt(Σ(k_i − k'_i)² / Σ(y_i − y'_i)²)`, or `None` if the denominator is zero.
-pub(super) fn stiffness_ratio(h: f64, k: &[f64], k2: &[f64], y: &[f64], y2: &[f64]) -> Option<f64> {
+pub(crate) fn stiffness_ratio(h: f64, k: &[f64], k2: &[f64], y: &[f64], y2: &[f64]) -> Option<f64> {
     let num: f64 = k.iter().zip(k2).map(|(a, b)| (a - b) * (a - b)).sum();
     let den: f64 = y.iter().zip(y2).map(|(a, b)| (a - b) * (a - b)).sum();
     (den > 0.0).then(|| h.abs() * (num / den).sqrt())
@@ -172,7 +172,7 @@ pub(super) fn stiffness_ratio(h: f64, k: &[f64], k2: &[f64], y: &[f64], y2: &[f6
 /// evaluated (or is not finite) at the Euler point, `h0` is returned and the
 /// step loop shrinks it as needed. `y1`, `f1` are workspaces.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn hinit<S: OdeSystem + ?Sized>(
+pub(crate) fn hinit<S: OdeSystem + ?Sized>(
     rhs: &mut Rhs<'_, S>,
     t: f64,
     y: &[f64],

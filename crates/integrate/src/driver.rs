@@ -1,0 +1,203 @@
+//! Pieces of the step loop shared by the explicit driver (`explicit::run`)
+//! and the Radau IIA driver (`radau`): the record of samples, step
+//! polynomials and counters, input validation, the fixed-step count and the
+//! root finder that locates guard crossings on a step polynomial.
+
+use std::time::Instant;
+
+use crate::dense::eval_nested;
+use crate::explicit::control::all_finite;
+use crate::{Dense, Failure, IntegrateError, Method, Options, Solution, Stats};
+
+/// Samples, step polynomials and counters collected during a run.
+pub(crate) struct Record {
+    pub(crate) method: Method,
+    pub(crate) dim: usize,
+    pub(crate) ncoef: usize,
+    /// Requested output times, `t_end` appended if missing.
+    pub(crate) grid: Vec<f64>,
+    /// Index of the next grid time to sample.
+    pub(crate) next: usize,
+    pub(crate) t: Vec<f64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) dense: Option<Dense>,
+    pub(crate) stats: Stats,
+    pub(crate) start: Instant,
+}
+
+impl Record {
+    pub(crate) fn next_time(&self) -> Option<f64> {
+        self.grid.get(self.next).copied()
+    }
+
+    /// Samples every pending grid time `<= t_lim`: `y_lim` at `t_lim` itself,
+    /// the step polynomial `(coef, t_n, h_n)` before it.
+    pub(crate) fn emit(
+        &mut self,
+        t_lim: f64,
+        y_lim: &[f64],
+        poly: Option<(&[f64], f64, f64)>,
+        buf: &mut [f64],
+    ) {
+        while let Some(tau) = self.next_time() {
+            if tau > t_lim {
+                break;
+            }
+            match poly {
+                Some((coef, tn, h)) if tau < t_lim => {
+                    eval_nested(coef, self.dim, self.ncoef, (tau - tn) / h, buf);
+                    self.y.extend_from_slice(buf);
+                }
+                _ => {
+                    // Only `tau == t_lim` can get here: the driver computes
+                    // the polynomial whenever a grid time lies inside a step.
+                    debug_assert!(tau == t_lim);
+                    self.y.extend_from_slice(y_lim);
+                }
+            }
+            self.t.push(tau);
+            self.next += 1;
+        }
+    }
+
+    pub(crate) fn finish(mut self, t_last: f64, y_last: &[f64], rhs_evals: usize) -> Solution {
+        self.stats.rhs_evals = rhs_evals;
+        self.stats.wall_time_s = self.start.elapsed().as_secs_f64();
+        Solution {
+            method: self.method,
+            dim: self.dim,
+            t: self.t,
+            y: self.y,
+            dense: self.dense,
+            t_last,
+            y_last: y_last.to_vec(),
+            stats: self.stats,
+        }
+    }
+
+    pub(crate) fn fail(
+        self,
+        error: IntegrateError,
+        t_last: f64,
+        y_last: &[f64],
+        rhs_evals: usize,
+    ) -> Failure {
+        Failure {
+            error,
+            partial: self.finish(t_last, y_last, rhs_evals),
+        }
+    }
+}
+
+/// Checks the initial data and options; the message says what is wrong.
+pub(crate) fn validate(
+    needs_fixed_step: bool,
+    dim: usize,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<(), String> {
+    let positive = |x: f64| x > 0.0 && x.is_finite();
+    if dim == 0 {
+        return Err("the system has dimension 0".into());
+    }
+    if y0.len() != dim {
+        return Err(format!(
+            "y0 has length {} but the system has dimension {dim}",
+            y0.len()
+        ));
+    }
+    if !t0.is_finite() || !t_end.is_finite() {
+        return Err(format!("t0 = {t0} and t_end = {t_end} must be finite"));
+    }
+    if t_end < t0 {
+        return Err(format!(
+            "t_end = {t_end} < t0 = {t0}: backward integration is not supported"
+        ));
+    }
+    if !all_finite(y0) {
+        return Err("y0 is not finite".into());
+    }
+    if !positive(opts.rtol) || !positive(opts.atol) {
+        return Err(format!(
+            "rtol = {} and atol = {} must be positive and finite",
+            opts.rtol, opts.atol
+        ));
+    }
+    match opts.fixed_step {
+        None if needs_fixed_step => return Err("this method needs Options::fixed_step".into()),
+        Some(h) if !positive(h) => {
+            return Err(format!("fixed_step = {h} must be positive and finite"));
+        }
+        _ => {}
+    }
+    for (name, v) in [("h_init", opts.h_init), ("h_max", opts.h_max)] {
+        if let Some(h) = v {
+            if !positive(h) {
+                return Err(format!("{name} = {h} must be positive and finite"));
+            }
+        }
+    }
+    if let Some(s) = opts.max_wall_time_s {
+        if s.is_nan() || s < 0.0 {
+            return Err(format!("max_wall_time_s = {s} must be >= 0"));
+        }
+    }
+    let mut prev = f64::NEG_INFINITY;
+    for &tau in &opts.output {
+        if !(tau >= t0 && tau <= t_end) {
+            return Err(format!("output time {tau} lies outside [{t0}, {t_end}]"));
+        }
+        if tau <= prev {
+            return Err(format!("output times must increase ({prev} then {tau})"));
+        }
+        prev = tau;
+    }
+    Ok(())
+}
+
+/// Number of steps of length `h` (the last one possibly shorter) covering `span`.
+pub(crate) fn fixed_step_count(span: f64, h: f64) -> usize {
+    // The factor absorbs the rounding of span/h when h divides the span.
+    ((span / h) * (1.0 - 1e-12)).ceil().max(1.0) as usize
+}
+
+/// Illinois iteration for a zero of `g(s)` on `[0, 1]` with `g(0) = ga > 0 >= g(1) = gb`.
+/// Returns `s` with `g(s) <= 0` (or NaN) within `tol` of the last `s` with `g > 0`.
+pub(crate) fn locate_root(
+    mut g: impl FnMut(f64) -> f64,
+    mut ga: f64,
+    mut gb: f64,
+    tol: f64,
+) -> f64 {
+    let (mut a, mut b) = (0.0_f64, 1.0_f64);
+    // Which end moved last: +1 for a, -1 for b.
+    let mut side = 0;
+    for _ in 0..200 {
+        if b - a <= tol || gb == 0.0 {
+            break;
+        }
+        let mut s = b - gb * (b - a) / (gb - ga);
+        if !(s > a && s < b) {
+            s = 0.5 * (a + b);
+        }
+        let gs = g(s);
+        if gs > 0.0 {
+            a = s;
+            ga = gs;
+            if side == 1 {
+                gb *= 0.5;
+            }
+            side = 1;
+        } else {
+            b = s;
+            gb = gs;
+            if side == -1 {
+                ga *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    b
+}

@@ -181,6 +181,10 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
 }
 
 impl<S: Scene> Model for Chetaev<S> {
+    fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
+        Some(self)
+    }
+
     fn scene_info(&self) -> &'static SceneInfo {
         self.scene.info()
     }

@@ -9,7 +9,25 @@
 //! stating the velocity would silently compete.
 
 use crate::Error;
-use crate::scene::{Named, Scene};
+use crate::scene::Scene;
+
+/// A formulation-specific initial value (`lambda`, `x_ddot`, …).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraName {
+    pub name: String,
+    pub unit: &'static str,
+    pub description: &'static str,
+}
+
+impl ExtraName {
+    pub fn new(name: impl Into<String>, unit: &'static str, description: &'static str) -> Self {
+        ExtraName {
+            name: name.into(),
+            unit,
+            description,
+        }
+    }
+}
 
 /// Resolved initial data.
 #[derive(Debug, Clone, PartialEq)]
@@ -75,11 +93,11 @@ fn parse_value(name: &str, text: &str, unit: &str) -> Result<f64, Error> {
 pub fn resolve<S: Scene>(
     scene: &S,
     given: &[(String, String)],
-    extra: &[Named],
+    extra: &[ExtraName],
 ) -> Result<Initial, Error> {
     let info = scene.info();
     let n = info.n();
-    let extra_names: Vec<String> = extra.iter().map(|e| e.name.to_string()).collect();
+    let extra_names: Vec<String> = extra.iter().map(|e| e.name.clone()).collect();
     let mut q = scene.default_q();
     let mut chart = info.default_velocity.to_vec();
     let has_chart = !info.velocity_chart.is_empty();
@@ -106,7 +124,7 @@ pub fn resolve<S: Scene>(
         } else if let Some(i) = info.velocity_chart.iter().position(|c| c.name == name) {
             chart[i] = parse_value(name, text, "")?;
             chart_given.push(info.velocity_chart[i].name);
-        } else if let Some(e) = extra.iter().find(|e| e.name == name) {
+        } else if let Some(e) = extra.iter().find(|e| &e.name == name) {
             extra_values.push((name.clone(), parse_value(name, text, e.unit)?));
         } else {
             return Err(Error::UnknownName {

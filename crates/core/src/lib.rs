@@ -14,6 +14,7 @@ pub mod ad;
 pub mod consistency;
 pub mod constraints;
 mod error;
+pub mod guard;
 pub mod init;
 pub mod kkt;
 pub mod linalg;

@@ -153,9 +153,7 @@ mod tests {
         // Exact solution of 2x + z = 1, 3y + z = 2, x + y = 0.5.
         let (xx, yy, zz): (f64, f64, f64) = (0.1, 0.4, 0.8);
         assert!(
-            (x[0] - xx).abs() < 1e-15
-                && (x[1] - yy).abs() < 1e-15
-                && (x[2] - zz).abs() < 1e-15
+            (x[0] - xx).abs() < 1e-15 && (x[1] - yy).abs() < 1e-15 && (x[2] - zz).abs() < 1e-15
         );
     }
 

@@ -4,14 +4,15 @@
 //! `(t, q, q̇)` plus its multipliers, so code that compares runs never
 //! special-cases a formulation.
 
-use nonholo_integrate::{OdeSystem, SystemError};
+use nonholo_integrate::{ImplicitSystem, OdeSystem, SystemError};
 
 use crate::Error;
 use crate::consistency::InitProjection;
+use crate::init::ExtraName;
 use crate::init::Initial;
 use crate::monitor::Diagnostics;
 use crate::param::{ParamSpec, Params};
-use crate::scene::{Named, SceneInfo};
+use crate::scene::SceneInfo;
 
 /// Static description of a formulation.
 #[derive(Debug, Clone, Copy)]
@@ -47,8 +48,24 @@ impl Observation {
     }
 }
 
-/// A formulation bound to a scene, ready to integrate.
-pub trait Model: OdeSystem + Send {
+/// A formulation bound to a scene, ready to integrate: an explicit form
+/// `y' = f(t, y)`, an implicit form `F(t, y, y') = 0`, or both.
+pub trait Model: Send {
+    /// The explicit form, if the formulation has one.
+    fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
+        None
+    }
+    /// The implicit form, if the formulation has one.
+    fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
+        None
+    }
+    /// Consistent `y'(t0)` for the implicit form, after [`Model::initial_state`].
+    fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
+        Err(Error::Unavailable(format!(
+            "formulation `{}` has no implicit form",
+            self.formulation().name
+        )))
+    }
     fn scene_info(&self) -> &'static SceneInfo;
     fn formulation(&self) -> &'static FormulationInfo;
     /// Resolved scene parameters.
@@ -60,7 +77,7 @@ pub trait Model: OdeSystem + Send {
     fn multiplier_names(&self) -> Vec<String>;
     /// Names `--init` accepts beyond coordinates, velocities and the scene's
     /// convenience values.
-    fn extra_init_names(&self) -> Vec<Named> {
+    fn extra_init_names(&self) -> Vec<ExtraName> {
         Vec::new()
     }
     /// Checks that the initial data satisfy the constraints; with `project`,
@@ -74,6 +91,11 @@ pub trait Model: OdeSystem + Send {
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error>;
     /// The physical reading of state `y` at `t`.
     fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError>;
+    /// Numbers the formulation found while setting up its initial state
+    /// (A: rank of W, hidden constraints, free initial data, …), for the record.
+    fn init_report(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
     /// Diagnostics accumulated since [`Model::initial_state`].
     fn diagnostics(&self) -> Diagnostics;
 }

@@ -1,7 +1,7 @@
 //! One run: initial data, a model, an integrator; the physical trajectory
 //! on the output grid, the continuous extension, diagnostics and counters.
 
-use nonholo_integrate::{IntegrateError, Method, Options, Solution, solve};
+use nonholo_integrate::{IntegrateError, Method, Options, Solution, solve, solve_implicit};
 
 use crate::Error;
 use crate::consistency::InitProjection;
@@ -85,14 +85,27 @@ pub fn simulate(
 ) -> Result<Run, Error> {
     let projection = model.make_consistent(&mut initial, config.project_init)?;
     let y0 = model.initial_state(&initial)?;
-    let result = solve(
-        config.method,
-        model.as_mut(),
-        initial.t0,
-        &y0,
-        config.t_end,
-        &config.options,
-    );
+    let formulation = model.formulation().name;
+    let result = if config.method.is_implicit() && model.implicit().is_some() {
+        let yp0 = model.initial_slope()?;
+        let sys = model.implicit().expect("checked above");
+        solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &config.options)
+    } else if let Some(sys) = model.ode() {
+        solve(
+            config.method,
+            sys,
+            initial.t0,
+            &y0,
+            config.t_end,
+            &config.options,
+        )
+    } else {
+        return Err(Error::Unavailable(format!(
+            "formulation `{formulation}` is an implicit (differential-algebraic) system and \
+             `{}` integrates explicit ones only: use --integrator radau5",
+            config.method.name()
+        )));
+    };
     let (mut solution, mut failure) = match result {
         Ok(s) => (s, None),
         Err(f) => (f.partial, Some(f.error)),

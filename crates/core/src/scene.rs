@@ -34,6 +34,9 @@ impl Named {
     }
 }
 
+/// Largest number of components of a singular-set vector.
+pub const MAX_SINGULAR: usize = 4;
+
 /// How the nonholonomic constraints depend on the velocities.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ConstraintKind {
@@ -149,18 +152,34 @@ pub trait Scene: Send + Sync + 'static {
     /// `g(q, q̇, t)` into `out` (length `s`).
     fn nonholonomic<D: Scalar>(&self, _t: D, _q: &[D], _qd: &[D], _out: &mut [D]) {}
 
-    /// A positive number that reaches zero on the singular set of the
-    /// nonholonomic constraints (where they stop being differentiable).
-    fn constraint_regularity(&self, _t: f64, _q: &[f64], _qd: &[f64]) -> Option<f64> {
-        None
+    /// A vector `r(t, q, q̇)` (at most [`MAX_SINGULAR`] components) whose zero
+    /// set is where the nonholonomic constraints stop being differentiable
+    /// (Appell–Hamel: the horizontal velocity). Returns the number of
+    /// components written, 0 if the constraints are regular everywhere.
+    fn constraint_singularity(
+        &self,
+        _t: f64,
+        _q: &[f64],
+        _qd: &[f64],
+        _r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        0
     }
 
     /// The embedding map `q_D = φ(q_I, q̇_I, t)` into `q_dep` (length `s`).
     fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], _qd_ind: &[D], _q_dep: &mut [D]) {}
 
-    /// A positive number that reaches zero on the singular set of the embedding map.
-    fn embedding_regularity(&self, _t: f64, _q_ind: &[f64], _qd_ind: &[f64]) -> Option<f64> {
-        None
+    /// A vector `r(t, q_I, q̇_I)` whose zero set is the singular set of the
+    /// embedding map (the sleigh: the velocity `(ẋ, ẏ)`); see
+    /// [`Scene::constraint_singularity`].
+    fn embedding_singularity(
+        &self,
+        _t: f64,
+        _q_ind: &[f64],
+        _qd_ind: &[f64],
+        _r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        0
     }
 
     /// Default positions `q0` (the static [`SceneInfo::default_q`] unless

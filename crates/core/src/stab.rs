@@ -4,10 +4,11 @@
 use nonholo_integrate::SystemError;
 
 use crate::consistency::PROJECT_TOL;
+use crate::guard::{SingularGuard, magnitude};
 use crate::monitor::{Diagnostics, Monitor};
 use crate::param::{Bound, ParamSpec, Params};
 use crate::project::Projector;
-use crate::scene::Scene;
+use crate::scene::{MAX_SINGULAR, Scene};
 
 /// `--option stab=none|baumgarte|projection`.
 pub const STAB: ParamSpec = ParamSpec::choice(
@@ -88,9 +89,10 @@ impl Stabilisation {
 #[derive(Debug, Clone)]
 pub struct StepHooks {
     pub stab: Stabilisation,
-    pub singular_tol: f64,
     projector: Projector,
     monitor: Monitor,
+    guard: SingularGuard,
+    r: [f64; MAX_SINGULAR],
 }
 
 impl StepHooks {
@@ -98,20 +100,23 @@ impl StepHooks {
     pub fn new<S: Scene>(scene: &S, options: &Params) -> Self {
         StepHooks {
             stab: Stabilisation::from_options(options),
-            singular_tol: options.real("singular_tol"),
             projector: Projector::new(scene),
             monitor: Monitor::new(scene),
+            guard: SingularGuard::new(options.real("singular_tol")),
+            r: [0.0; MAX_SINGULAR],
         }
     }
 
-    /// Starts the diagnostics of a new run at the initial state.
+    /// Starts the diagnostics and the guard of a new run at the initial state.
     pub fn start<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
         self.monitor = Monitor::new(scene);
         self.monitor.record(scene, t, q, qd);
+        let p = scene.constraint_singularity(t, q, qd, &mut self.r);
+        self.guard.start(&self.r, p);
     }
 
     /// After an accepted step: projects `(q, q̇)` if projection is chosen
-    /// (returns whether anything moved) and records diagnostics.
+    /// (returns whether anything moved), records diagnostics, moves the guard on.
     pub fn after_step<S: Scene>(
         &mut self,
         scene: &S,
@@ -128,27 +133,29 @@ impl StepHooks {
             changed = p.iterations > 0;
         }
         self.monitor.record(scene, t, q, qd);
+        let p = scene.constraint_singularity(t, q, qd, &mut self.r);
+        self.guard.accept(&self.r, p);
         Ok(changed)
     }
 
-    /// Distance of `(q, q̇)` from the constraints' singular set, minus `singular_tol`.
-    pub fn guard<S: Scene>(&self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> Option<f64> {
-        scene
-            .constraint_regularity(t, q, qd)
-            .map(|r| r - self.singular_tol)
+    /// Signed distance from the constraints' singular set (see [`crate::guard`]).
+    pub fn guard<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> Option<f64> {
+        let p = scene.constraint_singularity(t, q, qd, &mut self.r);
+        (p > 0).then(|| self.guard.value(&self.r, p))
     }
 
     /// Why the guard stopped the run.
-    pub fn guard_reason<S: Scene>(&self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> String {
-        let r = scene.constraint_regularity(t, q, qd).unwrap_or(f64::NAN);
+    pub fn guard_reason<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> String {
+        let p = scene.constraint_singularity(t, q, qd, &mut self.r);
         let info = scene.info();
         format!(
             "the motion reached the singular set of the constraints of `{}`: {} \
-             (regularity measure {r:.3e} ≤ singular_tol = {:.1e})",
+             (|r| = {:.3e}, singular_tol = {:.1e})",
             info.name,
             info.constraint_singular_set
                 .unwrap_or("constraint singular"),
-            self.singular_tol
+            magnitude(&self.r, p),
+            self.guard.tol
         )
     }
 

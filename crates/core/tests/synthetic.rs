@@ -302,7 +302,7 @@ fn initial_values_resolve_by_name() {
     let i = init::resolve(
         &s,
         &[("c".into(), "90deg".into()), ("a_dot".into(), "2".into())],
-        &[Named::new("lambda", "", "")],
+        &[init::ExtraName::new("lambda", "", "")],
     )
     .unwrap();
     assert!((i.q[2] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
@@ -310,7 +310,7 @@ fn initial_values_resolve_by_name() {
     let e = init::resolve(
         &s,
         &[("d".into(), "1".into())],
-        &[Named::new("lambda", "", "")],
+        &[init::ExtraName::new("lambda", "", "")],
     )
     .unwrap_err();
     assert!(
@@ -328,7 +328,7 @@ fn initial_values_resolve_by_name() {
     let i = init::resolve(
         &s,
         &[("lambda".into(), "0.5".into())],
-        &[Named::new("lambda", "", "")],
+        &[init::ExtraName::new("lambda", "", "")],
     )
     .unwrap();
     assert_eq!(i.extra("lambda"), Some(0.5));

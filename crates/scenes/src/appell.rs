@@ -2,7 +2,9 @@
 
 use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
-use nonholo_core::scene::{ClosedFormInfo, ConstraintKind, Named, Scalar, Scene, SceneInfo};
+use nonholo_core::scene::{
+    ClosedFormInfo, ConstraintKind, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
+};
 
 /// A weight at height `z` coupled to a wheel at `(x, y)`: `ż + c √(ẋ² + ẏ²) = 0`.
 #[derive(Debug, Clone)]
@@ -118,8 +120,21 @@ impl Scene for AppellHamel {
         out[0] = qd[2] + (qd[0] * qd[0] + qd[1] * qd[1]).sqrt() * self.c;
     }
 
-    fn constraint_regularity(&self, _t: f64, _q: &[f64], qd: &[f64]) -> Option<f64> {
-        Some(qd[0].hypot(qd[1]))
+    /// The horizontal velocity `(ẋ, ẏ)`: the constraint is not differentiable
+    /// where it vanishes (unless `c = 0`, when the constraint is `ż = 0`).
+    fn constraint_singularity(
+        &self,
+        _t: f64,
+        _q: &[f64],
+        qd: &[f64],
+        r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        if self.c == 0.0 {
+            return 0;
+        }
+        r[0] = qd[0];
+        r[1] = qd[1];
+        2
     }
 
     fn velocities_from(&self, _q: &[f64], chart: &[f64], qd: &mut [f64]) {

@@ -6,7 +6,7 @@ use std::f64::consts::FRAC_PI_2;
 use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{
-    ClosedFormInfo, ConstraintKind, EmbeddingInfo, Named, Scalar, Scene, SceneInfo,
+    ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
 };
 
 /// Which potential energy the Lagrangian carries.
@@ -177,8 +177,17 @@ impl Scene for Sleigh {
         q_dep[0] = qd_ind[1].atan2(qd_ind[0]);
     }
 
-    fn embedding_regularity(&self, _t: f64, _q_ind: &[f64], qd_ind: &[f64]) -> Option<f64> {
-        Some(qd_ind[0].hypot(qd_ind[1]))
+    /// The velocity `(ẋ, ẏ)`: atan2 has no value at zero speed.
+    fn embedding_singularity(
+        &self,
+        _t: f64,
+        _q_ind: &[f64],
+        qd_ind: &[f64],
+        r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        r[0] = qd_ind[0];
+        r[1] = qd_ind[1];
+        2
     }
 
     fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {

@@ -23,11 +23,12 @@
 //! The multipliers reported are the `λ` of `L + λᵀg` as written.
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
+use nonholo_core::init::ExtraName;
 use nonholo_core::integrate::{OdeSystem, SystemError};
 use nonholo_core::kkt::Kkt;
 use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
 use nonholo_core::param::{ParamSpec, Params};
-use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Named, Scene, SceneInfo};
+use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Scene, SceneInfo};
 use nonholo_core::stab::{
     BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
 };
@@ -267,6 +268,10 @@ impl<S: Scene> OdeSystem for Vakonomic<S> {
 }
 
 impl<S: Scene> Model for Vakonomic<S> {
+    fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
+        Some(self)
+    }
+
     fn scene_info(&self) -> &'static SceneInfo {
         self.scene.info()
     }
@@ -288,7 +293,7 @@ impl<S: Scene> Model for Vakonomic<S> {
     }
 
     /// `lambda` (or `lambda1`, …): the initial multipliers `λ(0)`.
-    fn extra_init_names(&self) -> Vec<Named> {
+    fn extra_init_names(&self) -> Vec<ExtraName> {
         lambda_names(self.s)
     }
 
@@ -304,7 +309,7 @@ impl<S: Scene> Model for Vakonomic<S> {
         self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
         let mut y: Vec<f64> = init.q.iter().chain(&init.qd).copied().collect();
         for name in lambda_names(self.s) {
-            y.push(init.extra(name.name).unwrap_or(0.0));
+            y.push(init.extra(&name.name).unwrap_or(0.0));
         }
         Ok(y)
     }
@@ -329,19 +334,9 @@ impl<S: Scene> Model for Vakonomic<S> {
 }
 
 /// The names of the initial multipliers: `lambda`, or `lambda1..s`.
-pub fn lambda_names(s: usize) -> Vec<Named> {
-    const NUMBERED: [&str; 16] = [
-        "lambda1", "lambda2", "lambda3", "lambda4", "lambda5", "lambda6", "lambda7", "lambda8",
-        "lambda9", "lambda10", "lambda11", "lambda12", "lambda13", "lambda14", "lambda15",
-        "lambda16",
-    ];
-    let describe = "initial multiplier λ(0) of L + λᵀg";
-    if s == 1 {
-        vec![Named::new("lambda", "", describe)]
-    } else {
-        NUMBERED[..s]
-            .iter()
-            .map(|n| Named::new(n, "", describe))
-            .collect()
-    }
+pub fn lambda_names(s: usize) -> Vec<ExtraName> {
+    multiplier_names(s, 0)
+        .into_iter()
+        .map(|n| ExtraName::new(n, "", "initial multiplier λ(0) of L + λᵀg"))
+        .collect()
 }

@@ -5,3 +5,6 @@
 pub mod analysis;
 pub mod elo;
 pub mod jet;
+pub mod model;
+
+pub use model::{Embedding, INFO, OPTIONS};

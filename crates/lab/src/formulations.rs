@@ -4,12 +4,15 @@ use nonholo_core::{Error, FormulationInfo, Model, Params, Scene};
 use nonholo_scenes::{AnyScene, SceneVisitor};
 
 /// Every formulation this build has, in listing order.
-pub const ALL: &[&FormulationInfo] = &[&nonholo_chetaev::INFO, &nonholo_vakonomic::INFO];
+pub const ALL: &[&FormulationInfo] = &[
+    &nonholo_embedding::INFO,
+    &nonholo_chetaev::INFO,
+    &nonholo_vakonomic::INFO,
+];
 
 /// Formulations of the workbench's plan that this build does not have yet,
 /// with what they are: naming one gives a clear message instead of "unknown".
 const PLANNED: &[(&str, &str)] = &[
-    ("embedding", "A, the paper's Hamilton-principle embedding"),
     (
         "visc",
         "the viscous-friction realisation of the constraints",
@@ -70,6 +73,10 @@ impl SceneVisitor for Build {
                 self.options,
             )?)),
             "vakonomic" => Ok(Box::new(nonholo_vakonomic::Vakonomic::new(
+                scene,
+                self.options,
+            )?)),
+            "embedding" => Ok(Box::new(nonholo_embedding::Embedding::new(
                 scene,
                 self.options,
             )?)),

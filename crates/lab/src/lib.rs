@@ -3,6 +3,7 @@
 
 pub mod formulations;
 pub mod listing;
+pub mod matching;
 pub mod record;
 pub mod simulate;
 

@@ -41,6 +41,9 @@ pub struct InitRecord {
     pub extra: Map<String, Json>,
     /// What `--project-init` changed.
     pub projection: Option<ProjectionRecord>,
+    /// What the formulation found setting up its initial state (A: `rank_w`,
+    /// `hidden_constraints`, `free_initial_data`, …); empty for B and C.
+    pub report: Map<String, Json>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -105,6 +108,9 @@ pub struct RunRecord {
     /// `completed` or `failed`.
     pub status: &'static str,
     pub error: Option<ErrorRecord>,
+    /// Formulation A: how its initial derivatives were matched with C.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub matching: Option<crate::matching::MatchReport>,
 }
 
 /// `{name: value}` in spec order.
@@ -204,6 +210,12 @@ impl RunRecord {
                         position_residual_after: p.position_residual.1,
                     }
                 }),
+                report: run
+                    .model
+                    .init_report()
+                    .into_iter()
+                    .map(|(k, v)| (k.to_string(), Json::from(v)))
+                    .collect(),
             },
             coordinates: info
                 .coordinates
@@ -253,6 +265,7 @@ impl RunRecord {
                 t: e.time(),
                 message: e.to_string(),
             }),
+            matching: None,
         })
     }
 

@@ -8,6 +8,7 @@ use nonholo_core::{Run, RunConfig, init, simulate};
 
 use crate::CliError;
 use crate::formulations;
+use crate::matching::{self, MatchReport};
 use crate::record::{RunRecord, write_atomic};
 
 #[derive(Debug, Clone, Args)]
@@ -138,8 +139,9 @@ pub fn integrator(
     ))
 }
 
-/// Builds and runs the simulation described by `args`.
-pub fn run(args: &SimulateArgs) -> Result<Run, CliError> {
+/// Builds and runs the simulation described by `args`; for formulation A
+/// also reports how its initial derivatives were matched with C.
+pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> {
     let t_end = positive("--t-end", args.t_end)?;
     let every = positive("--output-every", args.output_every.unwrap_or(t_end / 100.0))?;
     let (method, mut options) = integrator(
@@ -157,11 +159,16 @@ pub fn run(args: &SimulateArgs) -> Result<Run, CliError> {
         &args.formulation,
         &pairs("--option", &args.options)?,
     )?;
-    let initial = scene.clone().visit(ResolveInit {
+    let mut initial = scene.clone().visit(ResolveInit {
         given: pairs("--init", &args.init)?,
         extra: model.extra_init_names(),
     })?;
-    Ok(simulate(
+    let matching = if model.formulation().name == nonholo_embedding::INFO.name {
+        Some(matching::prepare_embedding(&scene, &mut initial)?)
+    } else {
+        None
+    };
+    let run = simulate(
         model,
         initial,
         RunConfig {
@@ -170,12 +177,13 @@ pub fn run(args: &SimulateArgs) -> Result<Run, CliError> {
             t_end,
             project_init: args.project_init,
         },
-    )?)
+    )?;
+    Ok((run, matching))
 }
 
 struct ResolveInit {
     given: Vec<(String, String)>,
-    extra: Vec<nonholo_core::Named>,
+    extra: Vec<nonholo_core::init::ExtraName>,
 }
 
 impl nonholo_scenes::SceneVisitor for ResolveInit {
@@ -198,8 +206,9 @@ pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
             }
         }
     }
-    let run = run(args)?;
-    let record = RunRecord::from_run(&run).map_err(CliError::Run)?;
+    let (run, matching) = run(args)?;
+    let mut record = RunRecord::from_run(&run).map_err(CliError::Run)?;
+    record.matching = matching;
     if let Some(p) = &run.projection {
         eprintln!(
             "--project-init moved the initial data: |Δq| = {:.3e}, |Δq̇| = {:.3e} (velocity residual {:.3e} → {:.3e})",

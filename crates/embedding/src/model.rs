@@ -1,0 +1,542 @@
+//! Formulation A as a model: the implicit system `F(t, z, ż) = 0` in
+//! `z = (q_I, q̇_I, q̈_I, q⃛_I)`, its initial data, and its physical reading.
+//!
+//! ```text
+//! F = [ ż₀ − z₁ ;  ż₁ − z₂ ;  ż₂ − z₃ ;  E(z, ż₃) ]        (E: eq. 19)
+//! ```
+//!
+//! `∂F/∂z` and `∂F/∂ż` come from dual passes through `E` (the block
+//! `∂E/∂ż₃ = W` included). Integrated by Radau IIA as a differential-algebraic
+//! system; the rank of `W`, the hidden constraints and the free initial data
+//! are computed at the start and reported.
+
+use nonholo_core::consistency::{InitProjection, check_or_project};
+use nonholo_core::guard::{SingularGuard, magnitude};
+use nonholo_core::init::ExtraName;
+use nonholo_core::integrate::{ImplicitSystem, SystemError};
+use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::monitor::Monitor;
+use nonholo_core::param::{Bound, ParamSpec, Params};
+use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene, SceneInfo};
+use nonholo_core::{Diagnostics, Error, Initial};
+use num_dual::{Dual2, Dual2_64, Dual64};
+
+use crate::analysis::{Completion, Structure, complete, structure};
+use crate::elo::{MAX_DOF, elo_array, reconstruct};
+
+/// Where the run stops near the embedding map's singular set.
+pub const SINGULAR_TOL: ParamSpec = ParamSpec::real(
+    "singular_tol",
+    "",
+    1e-3,
+    Bound::Exclusive(0.0),
+    Bound::Unbounded,
+    "the run stops where the embedding map's regularity measure (sleigh: speed √(ẋ² + ẏ²), m/s) \
+     falls to this value; the equations scale like 1/speed² near it",
+);
+
+/// Whether the map may put the dependent coordinates on another branch than given.
+pub const BRANCH: ParamSpec = ParamSpec::choice(
+    "branch",
+    &["strict", "map"],
+    "strict: refuse initial data whose dependent coordinates differ from the embedding map's \
+     value (e.g. a sleigh moving backwards, where atan2(ẏ, ẋ) = φ + π); map: take the map's \
+     value and report the difference (the branch effect of the spec)",
+);
+
+/// Relative tolerance of the hidden constraints on initial data.
+pub const HIDDEN_RTOL: f64 = 1e-10;
+
+/// Options of formulation A.
+pub const OPTIONS: &[ParamSpec] = &[SINGULAR_TOL, BRANCH];
+
+pub const INFO: FormulationInfo = FormulationInfo {
+    name: "embedding",
+    letter: "A",
+    title: "Hamilton-principle embedding (the seed paper)",
+    description: "the constraint substituted into L via q_D = φ(q_I, q̇_I, t); Euler–Lagrange–\
+                  Ostrogradsky equations (19) of Θ, fourth order in q_I, integrated as an implicit \
+                  (differential-algebraic) system in z = (q_I, q̇_I, q̈_I, q⃛_I)",
+    options: OPTIONS,
+    applicable,
+};
+
+fn applicable(scene: &SceneInfo) -> Result<(), String> {
+    let Some(e) = &scene.embedding else {
+        return Err(if scene.s() == 0 {
+            "the scene has no nonholonomic constraints to embed".into()
+        } else {
+            "the scene provides no embedding map q_D = φ(q_I, q̇_I, t) (eq. 14); for general \
+             constraints (eq. 27–30) the map needs ψ from integrating eq. (28), which this scene \
+             cannot provide"
+                .into()
+        });
+    };
+    if scene.k() > 0 {
+        return Err("holonomic constraints are not part of the paper's embedding (§3)".into());
+    }
+    if scene.n() > MAX_DOF {
+        return Err(format!("at most {MAX_DOF} coordinates are supported"));
+    }
+    if e.dependent.len() != scene.s() {
+        return Err("the embedding map must solve every nonholonomic constraint".into());
+    }
+    Ok(())
+}
+
+/// What the set-up of A's initial data found and did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitReport {
+    pub structure: Structure,
+    /// The completion or check of the hidden constraints.
+    pub completion: Completion,
+    /// Whether `q⃛_I(0)` was given (else computed from the hidden constraints).
+    pub third_given: bool,
+    /// `map value − given value` of each dependent coordinate (0 unless
+    /// `branch = map` moved it).
+    pub branch_shift: Vec<f64>,
+}
+
+/// Formulation A bound to a scene.
+pub struct Embedding<S: Scene> {
+    scene: S,
+    options: Params,
+    e: EmbeddingInfo,
+    n: usize,
+    m: usize,
+    guard: SingularGuard,
+    r: [f64; MAX_SINGULAR],
+    branch_map: bool,
+    /// Derivatives `(q_I⁽⁰⁾ … q_I⁽⁴⁾)` for one residual.
+    d: Vec<f64>,
+    d_dual: Vec<Dual64>,
+    e_out: Vec<f64>,
+    e_dual: Vec<Dual64>,
+    monitor: Monitor,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    /// Last reported dependent coordinates, for unwrapping angles.
+    last_dep: Vec<f64>,
+    yp0: Vec<f64>,
+    report: Option<InitReport>,
+}
+
+/// Names of the derivatives A accepts in `--init` for coordinate `c`.
+fn derivative_name(c: &str, order: usize) -> String {
+    match order {
+        2 => format!("{c}_ddot"),
+        3 => format!("{c}_dddot"),
+        _ => unreachable!("only second and third derivatives are initial data"),
+    }
+}
+
+impl<S: Scene> Embedding<S> {
+    pub fn new(scene: S, options: Params) -> Result<Self, Error> {
+        let info = scene.info();
+        applicable(info).map_err(|reason| Error::NotApplicable {
+            formulation: INFO.name.into(),
+            scene: info.name.into(),
+            reason,
+        })?;
+        let e = info.embedding.expect("checked by applicable");
+        let (n, m) = (info.n(), e.independent.len());
+        Ok(Embedding {
+            guard: SingularGuard::new(options.real("singular_tol")),
+            r: [0.0; MAX_SINGULAR],
+            branch_map: options.choice("branch") == "map",
+            options,
+            e,
+            n,
+            m,
+            d: vec![0.0; 5 * m],
+            d_dual: vec![Dual64::from_re(0.0); 5 * m],
+            e_out: vec![0.0; m],
+            e_dual: vec![Dual64::from_re(0.0); m],
+            monitor: Monitor::new(&scene),
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            last_dep: vec![0.0; e.dependent.len()],
+            yp0: Vec::new(),
+            report: None,
+            scene,
+        })
+    }
+
+    pub fn scene(&self) -> &S {
+        &self.scene
+    }
+
+    /// What the initial-data set-up found (after [`Model::initial_state`]).
+    pub fn report(&self) -> Option<&InitReport> {
+        self.report.as_ref()
+    }
+
+    /// Physical `(q, q̇)` from `z` into the model's buffers, dependent angles
+    /// unwrapped to the branch nearest the last reported value.
+    fn physical(&mut self, t: f64, z: &[f64]) {
+        let m = self.m;
+        reconstruct(
+            &self.scene,
+            &self.e,
+            t,
+            &z[..m],
+            &z[m..2 * m],
+            &z[2 * m..3 * m],
+            &mut self.q,
+            &mut self.qd,
+        );
+        let coords = self.scene.info().coordinates;
+        for (j, &i) in self.e.dependent.iter().enumerate() {
+            if coords[i].unit == "rad" {
+                let two_pi = std::f64::consts::TAU;
+                let k = ((self.last_dep[j] - self.q[i]) / two_pi).round();
+                self.q[i] += k * two_pi;
+            }
+            self.last_dep[j] = self.q[i];
+        }
+    }
+
+    /// The embedding map's singular-set vector at `z` into `self.r`.
+    fn singular_vector(&mut self, t: f64, z: &[f64]) -> usize {
+        let m = self.m;
+        self.scene
+            .embedding_singularity(t, &z[..m], &z[m..2 * m], &mut self.r)
+    }
+}
+
+impl<S: Scene> ImplicitSystem for Embedding<S> {
+    fn dim(&self) -> usize {
+        4 * self.m
+    }
+
+    fn residual(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yp: &[f64],
+        res: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let m = self.m;
+        for i in 0..3 * m {
+            res[i] = yp[i] - y[m + i];
+        }
+        self.d[..4 * m].copy_from_slice(y);
+        self.d[4 * m..].copy_from_slice(&yp[3 * m..]);
+        elo_array::<_, f64, Dual2_64>(&self.scene, &self.e, t, &self.d, &mut self.e_out);
+        res[3 * m..].copy_from_slice(&self.e_out);
+        if res.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            let p = self.singular_vector(t, y);
+            Err(SystemError::new(format!(
+                "the equations (19) are not finite here (|r| = {:.3e}): the embedding map is singular",
+                magnitude(&self.r, p)
+            )))
+        }
+    }
+
+    fn jacobians(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yp: &[f64],
+        jy: &mut [f64],
+        jyp: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let m = self.m;
+        let dim = 4 * m;
+        jy.fill(0.0);
+        jyp.fill(0.0);
+        for i in 0..3 * m {
+            jyp[i * dim + i] = 1.0;
+            jy[i * dim + m + i] = -1.0;
+        }
+        // Columns of ∂E/∂(z, ż₃): one dual pass each.
+        for j in 0..5 * m {
+            for (k, v) in self.d_dual.iter_mut().enumerate() {
+                *v = Dual64::from_re(if k < 4 * m { y[k] } else { yp[k - m] });
+            }
+            self.d_dual[j].eps = 1.0;
+            elo_array::<_, Dual64, Dual2<Dual64>>(
+                &self.scene,
+                &self.e,
+                Dual64::from_re(t),
+                &self.d_dual,
+                &mut self.e_dual,
+            );
+            for mu in 0..m {
+                let v = self.e_dual[mu].eps;
+                if j < 4 * m {
+                    jy[(3 * m + mu) * dim + j] = v;
+                } else {
+                    jyp[(3 * m + mu) * dim + (j - m)] = v;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `q_I, q̇_I, q̈_I` are differential variables; `q⃛_I` is fixed by the
+    /// hidden constraints (two levels for the sleigh) and is treated as an
+    /// index-3 variable in the error estimate.
+    fn variable_index(&self, index: &mut [u8]) {
+        let m = self.m;
+        index[..3 * m].fill(1);
+        index[3 * m..].fill(3);
+    }
+
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.physical(t, y);
+        self.monitor.record(&self.scene, t, &self.q, &self.qd);
+        let p = self.singular_vector(t, y);
+        self.guard.accept(&self.r, p);
+        Ok(false)
+    }
+
+    /// Signed distance from the embedding map's singular set (see
+    /// `nonholo_core::guard`): for the sleigh, the velocity's component along
+    /// its direction at the start of the step, minus `singular_tol`.
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        let p = self.singular_vector(t, y);
+        (p > 0).then(|| self.guard.value(&self.r, p))
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        let m = self.m;
+        let p = self.singular_vector(t, y);
+        let size = magnitude(&self.r, p);
+        // Zero crossing extrapolated linearly from the rate at which r falls
+        // along its own direction (for the sleigh: d|v|/dt = v·a/|v|).
+        let h = 1e-7 * (1.0 + t.abs());
+        let later: Vec<f64> = (0..2 * m).map(|i| y[i] + h * y[m + i]).collect();
+        let along_now = self.guard.value(&self.r, p);
+        let pl = self.singular_vector(t + h, &later);
+        let rate = (self.guard.value(&self.r, pl) - along_now) / h;
+        let crossing = if rate < 0.0 {
+            format!(
+                "; extrapolated zero at t ≈ {:.9}",
+                t - (along_now + self.guard.tol) / rate
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "the motion reached the singular set of the embedding map {} — {} \
+             (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
+            self.e.formula, self.e.singular_set, self.guard.tol
+        )
+    }
+}
+
+impl<S: Scene> Model for Embedding<S> {
+    fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
+        Some(self)
+    }
+
+    fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
+        if self.yp0.is_empty() {
+            return Err(Error::Numerical("initial_state was not called".into()));
+        }
+        Ok(self.yp0.clone())
+    }
+
+    fn scene_info(&self) -> &'static SceneInfo {
+        self.scene.info()
+    }
+
+    fn formulation(&self) -> &'static FormulationInfo {
+        &INFO
+    }
+
+    fn scene_params(&self) -> &Params {
+        self.scene.params()
+    }
+
+    fn options(&self) -> &Params {
+        &self.options
+    }
+
+    /// A has no multipliers.
+    fn multiplier_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// `lambda` (matched with C by the lab) and the second and third
+    /// derivatives of the independent coordinates (`x_ddot`, `x_dddot`, …).
+    fn extra_init_names(&self) -> Vec<ExtraName> {
+        let coords = self.scene.info().coordinates;
+        let mut names: Vec<ExtraName> = multiplier_names(self.e.dependent.len(), 0)
+            .into_iter()
+            .map(|n| {
+                ExtraName::new(
+                    n,
+                    "",
+                    "multiplier λ(0) of the vakonomic motion A is matched with (spec, section A)",
+                )
+            })
+            .collect();
+        for order in [2, 3] {
+            for &i in self.e.independent {
+                names.push(ExtraName::new(
+                    derivative_name(coords[i].name, order),
+                    "",
+                    "initial derivative of an independent coordinate",
+                ));
+            }
+        }
+        names
+    }
+
+    fn make_consistent(
+        &mut self,
+        init: &mut Initial,
+        project: bool,
+    ) -> Result<Option<InitProjection>, Error> {
+        check_or_project(&self.scene, init, project)
+    }
+
+    fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
+        let m = self.m;
+        let coords = self.scene.info().coordinates;
+        let t0 = init.t0;
+        let mut d = vec![0.0; 7 * m];
+        for (k, &i) in self.e.independent.iter().enumerate() {
+            d[k] = init.q[i];
+            d[m + k] = init.qd[i];
+        }
+        let value = |order: usize, i: usize| init.extra(&derivative_name(coords[i].name, order));
+        let second: Vec<Option<f64>> = self.e.independent.iter().map(|&i| value(2, i)).collect();
+        let third: Vec<Option<f64>> = self.e.independent.iter().map(|&i| value(3, i)).collect();
+        if second.iter().any(Option::is_none) {
+            let names: Vec<String> = self
+                .e
+                .independent
+                .iter()
+                .map(|&i| derivative_name(coords[i].name, 2))
+                .collect();
+            return Err(Error::InconsistentInit(format!(
+                "formulation A needs q̈_I(0): give {} (or `lambda`, from which they are matched \
+                 with the vakonomic motion)",
+                names.join(", ")
+            )));
+        }
+        for k in 0..m {
+            d[2 * m + k] = second[k].expect("checked");
+        }
+        let third_given = third.iter().all(Option::is_some);
+        if third.iter().any(Option::is_some) && !third_given {
+            return Err(Error::InconsistentInit(
+                "give every third derivative of the independent coordinates, or none".into(),
+            ));
+        }
+        if third_given {
+            for k in 0..m {
+                d[3 * m + k] = third[k].expect("checked");
+            }
+        }
+
+        // The dependent coordinates are the map's: check the given ones.
+        let mut q = vec![0.0; self.n];
+        let mut qd = vec![0.0; self.n];
+        reconstruct(
+            &self.scene,
+            &self.e,
+            t0,
+            &d[..m],
+            &d[m..2 * m],
+            &d[2 * m..3 * m],
+            &mut q,
+            &mut qd,
+        );
+        let mut branch_shift = Vec::new();
+        for &i in self.e.dependent {
+            let mut diff = q[i] - init.q[i];
+            if coords[i].unit == "rad" {
+                diff -= (diff / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+            }
+            if diff.abs() > 1e-9 * (1.0 + init.q[i].abs()) {
+                if !self.branch_map {
+                    return Err(Error::InconsistentInit(format!(
+                        "the embedding map {} gives {} = {:.12} but {} = {} was given (difference \
+                         {diff:.6}); for the sleigh this is backward motion, where the map turns \
+                         the heading by π — pass --option branch=map to study that branch",
+                        self.e.formula, coords[i].name, q[i], coords[i].name, init.q[i]
+                    )));
+                }
+            }
+            branch_shift.push(diff);
+            let dd = qd[i] - init.qd[i];
+            if dd.abs() > 1e-8 * (1.0 + init.qd[i].abs()) {
+                return Err(Error::InconsistentInit(format!(
+                    "{}_dot = {} does not match the embedding map's rate {:.12} for the given \
+                     second derivatives (eq. 15)",
+                    coords[i].name, init.qd[i], qd[i]
+                )));
+            }
+        }
+
+        // Hidden constraints: complete q⃛ (and what lies beyond), or check it.
+        let completion = complete(&self.scene, &self.e, t0, &mut d, !third_given, HIDDEN_RTOL)
+            .map_err(|msg| {
+                Error::InconsistentInit(if third_given {
+                    format!(
+                        "the given third derivatives violate the hidden constraints of A: {msg}; \
+                         omit them to have them computed"
+                    )
+                } else {
+                    msg
+                })
+            })?;
+        let structure = structure(&self.scene, &self.e, t0, &d);
+
+        self.last_dep = self.e.dependent.iter().map(|&i| init.q[i]).collect();
+        self.physical(t0, &d[..4 * m]);
+        self.monitor = Monitor::new(&self.scene);
+        self.monitor.record(&self.scene, t0, &self.q, &self.qd);
+        let p = self.singular_vector(t0, &d[..4 * m]);
+        self.guard.start(&self.r, p);
+        self.yp0 = d[m..5 * m].to_vec();
+        self.report = Some(InitReport {
+            structure,
+            completion,
+            third_given,
+            branch_shift,
+        });
+        Ok(d[..4 * m].to_vec())
+    }
+
+    fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
+        self.physical(t, y);
+        obs.q.copy_from_slice(&self.q);
+        obs.qd.copy_from_slice(&self.qd);
+        Ok(())
+    }
+
+    fn init_report(&self) -> Vec<(&'static str, f64)> {
+        let Some(r) = &self.report else {
+            return Vec::new();
+        };
+        let mut v = vec![
+            ("rank_w", r.structure.rank_w as f64),
+            ("hidden_constraints", r.structure.hidden_constraints as f64),
+            ("free_initial_data", r.structure.free_initial_data as f64),
+            ("state_dimension", (4 * self.m) as f64),
+            (
+                "third_derivatives_given",
+                if r.third_given { 1.0 } else { 0.0 },
+            ),
+            ("hidden_residual_before", r.completion.residual.0),
+            ("hidden_residual_after", r.completion.residual.1),
+            ("completion_iterations", r.completion.iterations as f64),
+            ("third_derivative_change", r.completion.third_change),
+        ];
+        for shift in &r.branch_shift {
+            v.push(("branch_shift", *shift));
+        }
+        v
+    }
+
+    fn diagnostics(&self) -> Diagnostics {
+        self.monitor.diagnostics().clone()
+    }
+}

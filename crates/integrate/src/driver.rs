@@ -125,6 +125,28 @@ pub(crate) fn validate(
             opts.rtol, opts.atol
         ));
     }
+    if opts.rtol < RTOL_MIN {
+        return Err(format!(
+            "rtol = {:e} is below 100·ε = {RTOL_MIN:.2e}: double precision (ε = {:.2e}) \
+             cannot deliver a relative accuracy finer than about that (rounding in the \
+             stages and in t alone is of order ε per step); use rtol >= {RTOL_MIN:.2e}",
+            opts.rtol,
+            f64::EPSILON
+        ));
+    }
+    if let Some(a) = &opts.atol_components {
+        if a.len() != dim {
+            return Err(format!(
+                "atol_components has length {} but the system has dimension {dim}",
+                a.len()
+            ));
+        }
+        if let Some((i, v)) = a.iter().enumerate().find(|(_, v)| !positive(**v)) {
+            return Err(format!(
+                "atol_components[{i}] = {v} must be positive and finite"
+            ));
+        }
+    }
     match opts.fixed_step {
         None if needs_fixed_step => return Err("this method needs Options::fixed_step".into()),
         Some(h) if !positive(h) => {
@@ -155,6 +177,49 @@ pub(crate) fn validate(
         prev = tau;
     }
     Ok(())
+}
+
+/// The smallest relative tolerance accepted: `100·ε ≈ 2.2e-14`.
+pub(crate) const RTOL_MIN: f64 = 100.0 * f64::EPSILON;
+
+/// The absolute tolerance of every component: `Options::atol_components`,
+/// else `Options::atol` repeated (validated before).
+pub(crate) fn atol_vector(opts: &Options, dim: usize) -> Vec<f64> {
+    match &opts.atol_components {
+        Some(a) => a.clone(),
+        None => vec![opts.atol; dim],
+    }
+}
+
+/// The smallest step size of the adaptive step loops:
+/// `h_min(t) = max(16 ε |t|, floor)`.
+///
+/// The relative part keeps `t + h` distinguishable from `t` (16 ulps). The
+/// absolute floor only matters near `t = 0`, where `16 ε |t|` vanishes: it
+/// is `16 ε min(10⁻⁶ |t_end − t0|, h_first)` (at least the smallest normal
+/// number), so it is positive — a step shrunk again and again near
+/// `t = 0` falls below it after finitely many reductions — yet never more
+/// than `16 ε ≈ 3.6e-15` times the first step, whatever the span (a span of
+/// `1e300` no longer puts the floor above the first step).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StepFloor {
+    floor: f64,
+}
+
+impl StepFloor {
+    /// The floor for a run over `span = t_end − t0 > 0` whose first trial
+    /// step is `h_first > 0`.
+    pub(crate) fn new(span: f64, h_first: f64) -> Self {
+        let floor = 16.0 * f64::EPSILON * (1e-6 * span).min(h_first.abs());
+        StepFloor {
+            floor: floor.max(f64::MIN_POSITIVE),
+        }
+    }
+
+    /// `h_min(t)`.
+    pub(crate) fn at(&self, t: f64) -> f64 {
+        (16.0 * f64::EPSILON * t.abs()).max(self.floor)
+    }
 }
 
 /// Number of steps of length `h` (the last one possibly shorter) covering `span`.

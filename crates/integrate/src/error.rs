@@ -55,7 +55,11 @@ pub enum IntegrateError {
         /// The budget `Options::max_wall_time_s`.
         seconds: f64,
     },
-    /// The state or its derivative stopped being finite.
+    /// The state or its derivative stopped being finite; also when the step
+    /// size collapsed because the last trial steps were rejected for
+    /// non-finite stages, states or error estimates (overflow), and when the
+    /// initial step size computed by `HINIT` is zero or not finite (its
+    /// weighted norms overflowed).
     NonFinite {
         /// Last time reached (the last finite state).
         t: f64,
@@ -108,7 +112,11 @@ impl fmt::Display for IntegrateError {
             IntegrateError::TimeBudgetExceeded { t, seconds } => {
                 write!(f, "at t = {t}: wall-time budget of {seconds} s used up")
             }
-            IntegrateError::NonFinite { t } => write!(f, "at t = {t}: state is not finite"),
+            IntegrateError::NonFinite { t } => write!(
+                f,
+                "at t = {t}: the solution is not finite (overflow or NaN in the state, \
+                 its derivative, the error estimate or the initial step size)"
+            ),
             IntegrateError::System { t, source } => write!(f, "at t = {t}: {source}"),
             IntegrateError::Stopped { t, reason } => write!(f, "at t = {t}: {reason}"),
         }

@@ -18,8 +18,9 @@
 //! Step-size control, initial step selection and stiffness detection follow
 //! Hairer's DOPRI5/DOP853 codes; Radau IIA follows his RADAU5 (simplified
 //! Newton iteration with Jacobian reuse, Gustafsson's predictive controller;
-//! see the documentation of `src/radau/mod.rs` for its options, counters
-//! and failures).
+//! optionally a full Newton iteration, [`RadauNewton::Full`], for fully
+//! implicit index-3 systems outside Hessenberg form; see the documentation
+//! of `src/radau/mod.rs` for its options, counters and failures).
 
 // A `Failure` carries its partial `Solution` by design, and `Ok` carries a
 // `Solution` of the same size: boxing the error would save nothing.
@@ -37,7 +38,7 @@ mod system;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, SystemError};
-pub use options::{Method, Options};
+pub use options::{Method, Options, RadauNewton};
 pub use solution::{Solution, Stats};
 pub use system::{ImplicitSystem, OdeSystem};
 
@@ -54,9 +55,13 @@ pub use system::{ImplicitSystem, OdeSystem};
 ///   step accepted; this is how convergence orders are measured). The last
 ///   step is shortened to land on `t_end` exactly.
 /// - After each accepted step [`OdeSystem::after_step`] may project the
-///   state, and [`OdeSystem::guard`] is watched: a sign change from `> 0` to
-///   `<= 0` is located on the step polynomial and ends the run with
+///   state, and then [`OdeSystem::guard`] is watched (always in this order,
+///   on the projected state): a sign change from `> 0` to `<= 0` is located
+///   on the step polynomial and ends the run with
 ///   [`IntegrateError::Stopped`] there.
+/// - Tolerances: `rtol >= 100 ε ≈ 2.2e-14`, `atol` (or
+///   `Options::atol_components`, per component) positive and finite, else
+///   [`IntegrateError::InvalidInput`]; so is a non-finite `f(t0, y0)`.
 /// - `f` failing at a trial stage of an adaptive method rejects the step
 ///   (`h /= 4`); failing at an accepted state, or at any stage with a fixed
 ///   step, ends the run with [`IntegrateError::System`].

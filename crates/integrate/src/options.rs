@@ -52,13 +52,56 @@ impl Method {
     }
 }
 
+/// How [`Method::Radau5`] solves the nonlinear stage equations of a step.
+///
+/// Both variants solve the same collocation equations
+/// `G_k(Z) = F(t_n + c_k h, y_n + Z_k, h⁻¹ Σ_j (A⁻¹)_kj Z_j) = 0` (`k = 1, 2, 3`)
+/// with the same starting values, convergence monitor (`θ`, `η`, the
+/// index-scaled norm, [`Options::newton_tol`], [`Options::newton_max_iter`])
+/// and the same error estimate; they differ in the Jacobian of the iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum RadauNewton {
+    /// RADAU5's simplified Newton iteration (the default): one pair
+    /// `J = ∂F/∂y`, `J' = ∂F/∂y'` taken at the step start (and reused across
+    /// steps while the iteration contracts fast), decoupled through
+    /// `T⁻¹ A⁻¹ T` into one real and one complex `n × n` system. Cheap
+    /// (`O(n³)` once per Jacobian/step size, `O(n²)` per iteration) and
+    /// linearly convergent.
+    #[default]
+    Simplified,
+    /// Full Newton iteration: every iteration evaluates `J_k`, `J'_k` at the
+    /// three stage points and solves the `3n × 3n` system with blocks
+    /// `∂G_k/∂Z_j = δ_kj J_k + h⁻¹ (A⁻¹)_kj J'_k` by real LU with partial
+    /// pivoting (`O(27 n³)` and 3 Jacobians per iteration). Quadratically
+    /// convergent; meant for fully implicit index-3 systems outside
+    /// Hessenberg form (e.g. `M(y) y' = f(y)` with a state-dependent
+    /// singular `M`), on which the simplified iteration can stall with
+    /// `θ ≈ 1`: there the change of the Jacobian over the step, `O(h)`, is
+    /// amplified by the `O(h⁻³)` inverse of the iteration matrix.
+    /// Jacobian reuse and [`Options::keep_step`] do not apply; the error
+    /// estimate still factors `γ/h J' + J` at the step start once per step
+    /// (not with [`Options::fixed_step`], which has no error estimate).
+    Full,
+}
+
 /// Integrator settings. `Options::default()` is a reasonable start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
-    /// Relative tolerance of the local error estimate.
+    /// Relative tolerance of the local error estimate. Must be at least
+    /// `100·ε ≈ 2.2e-14` (double precision cannot deliver more; smaller
+    /// values are refused with [`crate::IntegrateError::InvalidInput`]).
     pub rtol: f64,
-    /// Absolute tolerance of the local error estimate.
+    /// Absolute tolerance of the local error estimate (positive, finite).
+    /// Overridden component by component by [`Options::atol_components`].
     pub atol: f64,
+    /// Per-component absolute tolerances (length `dim`, each positive and
+    /// finite). When set they replace [`Options::atol`] in every error norm
+    /// (the error scale of component `i` is `atol_i + rtol·|y_i|`), in
+    /// Hairer's initial-step choice, in Radau5's transformed tolerances and
+    /// in the consistency check of [`crate::solve_implicit`]. A large
+    /// `atol_i` effectively removes component `i` from step-size control.
+    /// Default `None`.
+    pub atol_components: Option<Vec<f64>>,
     /// Fixed step size: required for RK4; for the embedded methods and
     /// Radau5 it turns step-size control off (used to measure convergence
     /// orders; Radau5 still iterates Newton to `newton_tol`).
@@ -76,8 +119,8 @@ pub struct Options {
     pub output: Vec<f64>,
     /// Keep the continuous extension of every step ([`crate::Dense`]).
     pub dense: bool,
-    /// [`Method::Radau5`] only: largest number of simplified Newton
-    /// iterations per step (RADAU5's `NIT`, `IWORK(3)`). Default 7.
+    /// [`Method::Radau5`] only: largest number of Newton iterations per
+    /// step, simplified or full (RADAU5's `NIT`, `IWORK(3)`). Default 7.
     pub newton_max_iter: usize,
     /// [`Method::Radau5`] only: the Newton iteration stops when its
     /// estimated remaining error `θ/(1 − θ)·‖ΔZ‖` is at most this, in units
@@ -96,6 +139,9 @@ pub struct Options {
     /// decompositions (RADAU5's `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`).
     /// Default `(1.0, 1.2)`.
     pub keep_step: (f64, f64),
+    /// [`Method::Radau5`] only: simplified (RADAU5, default) or full Newton
+    /// iteration on the stage equations; see [`RadauNewton`].
+    pub radau_newton: RadauNewton,
 }
 
 impl Default for Options {
@@ -103,6 +149,7 @@ impl Default for Options {
         Options {
             rtol: 1e-6,
             atol: 1e-6,
+            atol_components: None,
             fixed_step: None,
             h_init: None,
             h_max: None,
@@ -114,6 +161,7 @@ impl Default for Options {
             newton_tol: None,
             jacobian_reuse: 0.001,
             keep_step: (1.0, 1.2),
+            radau_newton: RadauNewton::Simplified,
         }
     }
 }

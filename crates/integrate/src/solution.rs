@@ -10,14 +10,30 @@ pub struct Stats {
     /// iteration matrix). `steps + rejected_steps` is the number of trial steps.
     pub rejected_steps: usize,
     /// Evaluations of `f` (of `F` for [`crate::solve_implicit`]), including
-    /// those of finite-difference Jacobians.
+    /// those of finite-difference Jacobians and those of
+    /// [`Stats::dense_rhs_evals`].
     pub rhs_evals: usize,
+    /// The part of `rhs_evals` spent only on the continuous extension: the
+    /// three extra stages of DOP853's order-7 dense output, computed for the
+    /// steps whose polynomial is needed (`Options::dense`, a guard, or an
+    /// output time inside the step). Zero for the other methods, whose
+    /// continuous extensions cost no evaluation. Work-precision comparisons
+    /// of the integrator proper use `rhs_evals − dense_rhs_evals`.
+    pub dense_rhs_evals: usize,
     /// Jacobian evaluations, analytic or by finite differences (zero for
-    /// explicit methods).
+    /// explicit methods). With `RadauNewton::Full` each iteration evaluates
+    /// three (one per stage point), and each step one more at its start for
+    /// the error estimate.
     pub jacobian_evals: usize,
     /// LU factorisations (zero for explicit methods). Radau5 factors a real
     /// and a complex matrix for each step size; the pair counts as one.
+    /// With `RadauNewton::Full` every iteration adds one factorisation of
+    /// the `3n × 3n` Newton matrix, and every step one of the `n × n`
+    /// matrix `γ/h J' + J` of the error estimate.
     pub lu_decompositions: usize,
+    /// Newton iterations of Radau5 (each costs 3 evaluations of `f`/`F`),
+    /// in converged and failed attempts alike; zero for explicit methods.
+    pub newton_iterations: usize,
     /// Newton iterations that failed to converge (diverged, too slow, or not
     /// converged within `Options::newton_max_iter`; zero for explicit methods).
     pub newton_failures: usize,

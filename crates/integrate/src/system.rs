@@ -28,6 +28,14 @@ pub trait OdeSystem {
     /// then returns `Ok(true)`, so that the integrator discards any value of
     /// `f` it would otherwise reuse. It may also just observe the state (to
     /// accumulate diagnostics) and return `Ok(false)`.
+    ///
+    /// **Order of calls** (a guaranteed contract of every method): within
+    /// one accepted step ending at `t`, `after_step(t, y)` is called first
+    /// and [`OdeSystem::guard`]`(t, y)` afterwards, on the state as
+    /// `after_step` left it. So a guard may rely on state that `after_step`
+    /// updated for this step (e.g. the sign convention of a signed guard).
+    /// Neither is called for rejected trial steps. Guard evaluations made
+    /// to locate a zero inside the step come after both.
     fn after_step(&mut self, _t: f64, _y: &mut [f64]) -> Result<bool, SystemError> {
         Ok(false)
     }
@@ -36,6 +44,13 @@ pub trait OdeSystem {
     /// is regular. The run stops with [`IntegrateError::Stopped`](crate::IntegrateError::Stopped) at the first
     /// time it reaches zero; that time is located on the continuous extension.
     /// `None` (the default) means there is nothing to watch.
+    ///
+    /// Called once at `t0` (before any step; a value `<= 0` stops the run at
+    /// once, `None` there switches the watch off for the run) and then once
+    /// per accepted step, **after** [`OdeSystem::after_step`] of that step,
+    /// with the (possibly projected) new state; then, only if the sign
+    /// changed from `> 0` to `<= 0`, at points of the step polynomial to
+    /// locate the zero.
     fn guard(&mut self, _t: f64, _y: &[f64]) -> Option<f64> {
         None
     }
@@ -84,11 +99,17 @@ pub trait ImplicitSystem {
 
     /// Called once after every accepted step; may modify `y` (projection),
     /// then returns `Ok(true)`. See [`OdeSystem::after_step`].
+    ///
+    /// **Order of calls**: as for [`OdeSystem::after_step`], within one
+    /// accepted step `after_step` comes first and [`ImplicitSystem::guard`]
+    /// afterwards, on the state `after_step` left.
     fn after_step(&mut self, _t: f64, _y: &mut [f64]) -> Result<bool, SystemError> {
         Ok(false)
     }
 
-    /// See [`OdeSystem::guard`].
+    /// See [`OdeSystem::guard`]: called at `t0`, then once per accepted step
+    /// **after** [`ImplicitSystem::after_step`] of that step, then (only on a
+    /// sign change) to locate the zero on the collocation polynomial.
     fn guard(&mut self, _t: f64, _y: &[f64]) -> Option<f64> {
         None
     }

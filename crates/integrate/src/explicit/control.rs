@@ -49,16 +49,18 @@ pub(crate) fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
-/// Scalar tolerances; the scale of component `i` is `atol + rtol·max(|y_i|, |y_new,i|)`.
+/// Tolerances; the scale of component `i` is `atol_i + rtol·max(|y_i|, |y_new,i|)`.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Tol {
+pub(crate) struct Tol<'a> {
     pub rtol: f64,
-    pub atol: f64,
+    /// Absolute tolerance of every component (length `dim`).
+    pub atol: &'a [f64],
 }
 
-impl Tol {
-    pub fn scale(&self, y: f64, y_new: f64) -> f64 {
-        self.atol + self.rtol * y.abs().max(y_new.abs())
+impl Tol<'_> {
+    /// Error scale of component `i` between the values `y` and `y_new`.
+    pub fn scale(&self, i: usize, y: f64, y_new: f64) -> f64 {
+        self.atol[i] + self.rtol * y.abs().max(y_new.abs())
     }
 }
 
@@ -179,13 +181,13 @@ pub(crate) fn hinit<S: OdeSystem + ?Sized>(
     f0: &[f64],
     order: i32,
     hmax: f64,
-    tol: Tol,
+    tol: Tol<'_>,
     y1: &mut [f64],
     f1: &mut [f64],
 ) -> f64 {
     let (mut dnf, mut dny) = (0.0, 0.0);
-    for (&yi, &fi) in y.iter().zip(f0) {
-        let sk = tol.atol + tol.rtol * yi.abs();
+    for (i, (&yi, &fi)) in y.iter().zip(f0).enumerate() {
+        let sk = tol.scale(i, yi, 0.0);
         dnf += (fi / sk) * (fi / sk);
         dny += (yi / sk) * (yi / sk);
     }
@@ -202,8 +204,8 @@ pub(crate) fn hinit<S: OdeSystem + ?Sized>(
         return h0;
     }
     let mut der2 = 0.0;
-    for ((&yi, &fa), &fb) in y.iter().zip(f0).zip(f1.iter()) {
-        let sk = tol.atol + tol.rtol * yi.abs();
+    for (i, ((&yi, &fa), &fb)) in y.iter().zip(f0).zip(f1.iter()).enumerate() {
+        let sk = tol.scale(i, yi, 0.0);
         der2 += ((fb - fa) / sk) * ((fb - fa) / sk);
     }
     let der2 = der2.sqrt() / h0;

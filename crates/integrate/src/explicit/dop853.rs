@@ -37,8 +37,9 @@
 //!
 //! **Counters.** `rhs_evals` adds up 1 at `t0`, 1 for `HINIT` (unless a
 //! step is given), 11 per trial step, 1 per accepted step (`f` at the new
-//! point), 3 per step with dense output and 1 per projected step (fewer when
-//! `f` fails on a stage); `rejected_steps` counts every rejection, also in
+//! point), 3 per step with dense output (counted again, apart, in
+//! `dense_rhs_evals`) and 1 per projected step (fewer when `f` fails on a
+//! stage); `rejected_steps` counts every rejection, also in
 //! the first step (`dop853.f` does not count those).
 
 use super::control::{ControlParams, Rhs, Tol, combine, stage, stage_time, stiffness_ratio};
@@ -88,7 +89,7 @@ impl Scheme for Dop853 {
         h: f64,
         t_new: f64,
         y_new: &mut [f64],
-        tol: Option<Tol>,
+        tol: Option<Tol<'_>>,
     ) -> Result<f64, SystemError> {
         let Start { t, y, f } = from;
         self.k[0].copy_from_slice(f);
@@ -106,7 +107,7 @@ impl Scheme for Dop853 {
         combine(&mut self.e3, &E3, &self.k[..12]);
         let (mut err5, mut err3) = (0.0, 0.0);
         for (i, (&y0, &y1)) in y.iter().zip(y_new.iter()).enumerate() {
-            let sk = tol.scale(y0, y1);
+            let sk = tol.scale(i, y0, y1);
             err5 += (self.e5[i] / sk) * (self.e5[i] / sk);
             err3 += (self.e3[i] / sk) * (self.e3[i] / sk);
         }

@@ -80,7 +80,7 @@ impl Scheme for Dopri5 {
         h: f64,
         t_new: f64,
         y_new: &mut [f64],
-        tol: Option<Tol>,
+        tol: Option<Tol<'_>>,
     ) -> Result<f64, SystemError> {
         let Start { t, y, f } = from;
         self.k[0].copy_from_slice(f);
@@ -97,8 +97,8 @@ impl Scheme for Dopri5 {
         };
         combine(&mut self.err, &E, &self.k);
         let mut sum = 0.0;
-        for ((&e, &y0), &y1) in self.err.iter().zip(y).zip(y_new.iter()) {
-            let r = h * e / tol.scale(y0, y1);
+        for (i, ((&e, &y0), &y1)) in self.err.iter().zip(y).zip(y_new.iter()).enumerate() {
+            let r = h * e / tol.scale(i, y0, y1);
             sum += r * r;
         }
         Ok((sum / y.len() as f64).sqrt())

@@ -11,11 +11,20 @@
 //!
 //! 1. `f(t0, y0)` is evaluated once; afterwards the derivative at the end of
 //!    each accepted step is the first stage of the next (FSAL). An error of
-//!    `f` at an accepted state is fatal: [`IntegrateError::System`].
+//!    `f` at an accepted state is fatal: [`IntegrateError::System`]; a
+//!    non-finite `f(t0, y0)` is [`IntegrateError::InvalidInput`] (naming
+//!    the component). A first step from `HINIT` that is zero or not finite
+//!    (its weighted norms overflowed, e.g. `|f| ~ 1e307`) ends the run
+//!    with [`IntegrateError::NonFinite`] at `t0`.
 //! 2. Budgets before each trial step: `max_steps` (accepted + rejected) →
 //!    `TooManySteps`; `max_wall_time_s`, checked every 8 trial steps →
-//!    `TimeBudgetExceeded`; `|h| < 16 ε max(|t|, 10⁻⁶ |t_end − t0|)` →
-//!    `StepSizeTooSmall`.
+//!    `TimeBudgetExceeded`; `|h| < h_min(t) = max(16 ε |t|, floor)` →
+//!    `StepSizeTooSmall`, or `NonFinite` if the last rejection was for a
+//!    non-finite stage, state or error estimate (the collapse is then
+//!    driven by overflow, not by accuracy). The absolute `floor =
+//!    16 ε min(10⁻⁶ |t_end − t0|, h_first)` only matters near `t = 0`: it is
+//!    positive (repeated shrinking near `t = 0` ends) and at most a
+//!    `3.6e-15` fraction of the first step whatever the span.
 //! 3. Adaptive methods reject a step whose error estimate exceeds 1 (Hairer's
 //!    controller), whose error estimate or new state is not finite (`h /= 4`),
 //!    or at one of whose later stages `f` failed (`h /= 4`; if that takes `h`
@@ -24,8 +33,12 @@
 //!    stage ends the run (`System`, `NonFinite`).
 //! 4. After an accepted step: the step polynomial is stored (if
 //!    `Options::dense`), [`OdeSystem::after_step`] may project the state
-//!    (then `f` is evaluated again there), the guard is evaluated, and
-//!    output samples inside the step are taken from the polynomial.
+//!    (then `f` is evaluated again there), then the guard is evaluated on
+//!    the projected state (always in this order), and output samples inside
+//!    the step are taken from the polynomial.
+//!
+//! Error norms use the scale `atol_i + rtol·max(|y_n,i|, |y_n+1,i|)` with
+//! `atol_i` from `Options::atol_components` if set, else `Options::atol`.
 //! 5. A guard that changes from `> 0` to `<= 0` across a step is located on
 //!    the step polynomial (Illinois iteration to `~1e-14` relative in `t`);
 //!    the run stops there with [`IntegrateError::Stopped`], `t_last` being
@@ -46,7 +59,7 @@ use std::mem::swap;
 use std::time::Instant;
 
 use crate::dense::eval_nested;
-use crate::driver::{Record, fixed_step_count, locate_root, validate};
+use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, locate_root, validate};
 use crate::{
     Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, SystemError,
 };
@@ -90,7 +103,7 @@ trait Scheme {
         h: f64,
         t_new: f64,
         y_new: &mut [f64],
-        tol: Option<Tol>,
+        tol: Option<Tol<'_>>,
     ) -> Result<f64, SystemError>;
 
     /// Writes `f(t_new, y_new)` of the last trial step into `f_new`.
@@ -162,6 +175,8 @@ struct Work<M> {
     f_new: Vec<f64>,
     /// Coefficients of the current step polynomial.
     coef: Vec<f64>,
+    /// Evaluations of `f` spent on dense output only (`Stats::dense_rhs_evals`).
+    dense_evals: usize,
 }
 
 impl<M: Scheme> Work<M> {
@@ -172,7 +187,7 @@ impl<M: Scheme> Work<M> {
         from: Start<'_>,
         h: f64,
         t_new: f64,
-        tol: Option<Tol>,
+        tol: Option<Tol<'_>>,
         need_dense: bool,
     ) -> Attempt {
         let err = match self.scheme.step(rhs, from, h, t_new, &mut self.y_new, tol) {
@@ -203,7 +218,10 @@ impl<M: Scheme> Work<M> {
                 y_new: &self.y_new,
                 f_new: &self.f_new,
             };
-            if let Err(e) = self.scheme.dense(rhs, step, &mut self.coef) {
+            let before = rhs.evals;
+            let res = self.scheme.dense(rhs, step, &mut self.coef);
+            self.dense_evals += rhs.evals - before;
+            if let Err(e) = res {
                 return Attempt::Rhs(e);
             }
             if !all_finite(&self.coef) {
@@ -255,6 +273,7 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
         y_new: vec![0.0; dim],
         f_new: vec![0.0; dim],
         coef: vec![0.0; M::NCOEF * dim],
+        dense_evals: 0,
     };
 
     rec.emit(t0, &y, None, &mut buf);
@@ -271,18 +290,21 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
         let ev = rhs.evals;
         return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
     }
-    if !all_finite(&f) {
+    if let Some(i) = f.iter().position(|v| !v.is_finite()) {
+        let msg = format!(
+            "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
+            f[i]
+        );
         let ev = rhs.evals;
-        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+        return Err(rec.fail(IntegrateError::InvalidInput(msg), t, &y, ev));
     }
 
     let span = t_end - t0;
-    let t_scale = 1e-6 * span;
-    let h_min = |t: f64| 16.0 * f64::EPSILON * t.abs().max(t_scale);
     let hmax = opts.h_max.unwrap_or(span);
+    let atol = atol_vector(opts, dim);
     let tol = Tol {
         rtol: opts.rtol,
-        atol: opts.atol,
+        atol: &atol,
     };
     // Fixed step: (h, number of steps); adaptive: controller and stiffness test.
     let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
@@ -309,7 +331,18 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
         }
         (None, None) => unreachable!("validated: this method needs a fixed step"),
     };
+    if !(h > 0.0 && h.is_finite()) {
+        // Only HINIT can get here (the other steps are validated): its
+        // weighted norms of f overflowed although f(t0, y0) is finite.
+        let ev = rhs.evals;
+        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+    }
+    let floor = StepFloor::new(span, h);
+    let h_min = |t: f64| floor.at(t);
     let mut reject = false;
+    // The last rejection was caused by a non-finite stage, state or error
+    // estimate: a step-size collapse then is reported as `NonFinite`.
+    let mut nonfinite_reject = false;
     let mut last = false;
 
     loop {
@@ -339,8 +372,13 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
             }
             None => {
                 if h.abs() < h_min(t) {
+                    let e = if nonfinite_reject {
+                        IntegrateError::NonFinite { t }
+                    } else {
+                        IntegrateError::StepSizeTooSmall { t, h }
+                    };
                     let ev = rhs.evals;
-                    return Err(rec.fail(IntegrateError::StepSizeTooSmall { t, h }, t, &y, ev));
+                    return Err(rec.fail(e, t, &y, ev));
                 }
                 if t + 1.01 * h - t_end > 0.0 {
                     h = t_end - t;
@@ -354,7 +392,9 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
             opts.dense || guard_active || rec.next_time().is_some_and(|tau| tau < t_new);
         let from = Start { t, y: &y, f: &f };
         let trial_tol = ctrl.is_some().then_some(tol);
-        let err = match w.attempt(&mut rhs, from, h, t_new, trial_tol, need_dense) {
+        let attempt = w.attempt(&mut rhs, from, h, t_new, trial_tol, need_dense);
+        rec.stats.dense_rhs_evals = w.dense_evals;
+        let err = match attempt {
             Attempt::Done(err) => err,
             Attempt::Rhs(source) => {
                 if ctrl.is_none() || h.abs() / 4.0 < h_min(t) {
@@ -363,6 +403,7 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (h / 4.0, true, false);
+                nonfinite_reject = false;
                 continue;
             }
             Attempt::NonFinite => {
@@ -372,6 +413,7 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (h / 4.0, true, false);
+                nonfinite_reject = true;
                 continue;
             }
         };
@@ -380,10 +422,12 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
             if err > 1.0 {
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (c.rejected(h, err), true, false);
+                nonfinite_reject = false;
                 continue;
             }
             h_next = c.accepted(h, err);
         }
+        nonfinite_reject = false;
 
         // The step is accepted.
         rec.stats.steps += 1;

@@ -46,7 +46,7 @@ impl Scheme for Rk4 {
         h: f64,
         t_new: f64,
         y_new: &mut [f64],
-        _tol: Option<Tol>,
+        _tol: Option<Tol<'_>>,
     ) -> Result<f64, SystemError> {
         let Start { t, y, f } = from;
         self.k[0].copy_from_slice(f);

@@ -69,6 +69,39 @@
 //!   rejection `J` is recomputed only if it was not taken at the current
 //!   state.
 //!
+//! **Full Newton iteration** (`Options::radau_newton =`
+//! [`RadauNewton::Full`]). The same stage equations, unknowns `Z`, same
+//! starting values; each iteration evaluates `J_k`, `J'_k` at the three
+//! stage points `(t_n + c_k h, y_n + Z_k, Y'_k)`, `Y'_k = h⁻¹ Σ_j (A⁻¹)_kj Z_j`
+//! (`A⁻¹ = T Λ T⁻¹`), forms the `3n × 3n` matrix
+//!
+//! ```text
+//! ∂G_k/∂Z_j = δ_kj J_k + h⁻¹ (A⁻¹)_kj J'_k        (J'_k = I for an ODE)
+//! ```
+//!
+//! and solves `(∂G/∂Z) ΔZ = −G(Z)` by real LU with partial pivoting (its
+//! workspace allocated once per run). With a fixed step there is no error
+//! estimate, hence no step-start Jacobian nor `n × n` factorisation. For an ODE without
+//! [`OdeSystem::jacobian`] the stage Jacobians come from forward
+//! differences around `f(Y_k) = Y'_k − G_k`. The monitor above is applied
+//! unchanged to `ΔW = (T⁻¹ ⊗ I) ΔZ` in the same norm, so `θ`, `η`,
+//! `newton_tol` and `newton_max_iter` mean the same; convergence is
+//! quadratic near the solution. A singular `3n × 3n` matrix is handled as
+//! a singular iteration matrix (`h/2`, at most 5 in a row). Jacobian reuse
+//! and `keep_step` do not apply: after every accepted step `J`, `J'` are
+//! evaluated anew at the step start and `γ/h J' + J` is factored for the
+//! error estimate below (the complex matrix is not needed).
+//!
+//! Why: for fully implicit index-3 systems outside Hessenberg form (λ or
+//! accelerations in the position-level equations, state-dependent
+//! singular `∂F/∂y'`), the change of the Jacobian across the step, `O(h)`,
+//! is amplified by the inverse of the iteration matrix so that the
+//! simplified iteration's contraction factor does not decrease with `h`
+//! and can reach 1 (measured in `tests/radau.rs` on a pendulum whose
+//! equations are mixed by a state-dependent matrix: the simplified
+//! iteration fails at every step size, the full one converges in 1–2
+//! iterations).
+//!
 //! # Error estimate
 //!
 //! RADAU5 (`ESTRAD`; Hairer & Wanner (IV.8.19)–(IV.8.20)) estimates for
@@ -117,7 +150,9 @@
 //! index-2 variables, which accumulate into the positions: on the
 //! Cartesian pendulum at tol 1e-8 the positions are off by 7.6e-6 with the
 //! default `newton_tol`, by 2.5e-9 at tol 1e-10 with `newton_tol = 1e-6`.
-//! Tighten `newton_tol` when positions must meet the tolerance.
+//! Tighten `newton_tol` when positions must meet the tolerance. (The full
+//! Newton iteration, converging quadratically, overshoots its stopping
+//! test: 1.1e-7 at tol 1e-8 with the default `newton_tol`.)
 //!
 //! # Step-size control
 //!
@@ -164,6 +199,8 @@
 //! | `newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
 //! | `jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
 //! | `keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
+//! | `radau_newton` | simplified (RADAU5) or full Newton iteration | `Simplified` |
+//! | `atol_components` | per-component `atol` (transformed like `atol`) | `None` |
 //!
 //! # Counters ([`Stats`])
 //!
@@ -180,8 +217,15 @@
 //! - `jacobian_evals`: evaluations of `J` (and `J'`), analytic or by finite
 //!   differences. ODEs without [`OdeSystem::jacobian`] use forward
 //!   differences with RADAU5's increment `sqrt(uround·max(1e-5, |y_j|))`.
+//!   Full Newton: 3 per iteration (stage points) plus 1 per accepted step
+//!   (step start, for the error estimate; none with a fixed step).
 //! - `lu_decompositions`: factorisations of the pair — the real and the
-//!   complex matrix together count once (RADAU5's `NDEC`).
+//!   complex matrix together count once (RADAU5's `NDEC`). Full Newton: 1
+//!   per iteration (the `3n × 3n` matrix) plus 1 per step size and
+//!   step-start Jacobian (`γ/h J' + J`, error estimate; none with a fixed
+//!   step).
+//! - `newton_iterations`: all Newton iterations, converged or not.
+//! - `dense_rhs_evals`: 0 (the collocation polynomial costs nothing).
 //! - `newton_failures`: trial steps given up by the Newton iteration
 //!   (divergence, no convergence in `newton_max_iter` iterations, or
 //!   predicted too slow); each is also a rejected step, except in fixed-step
@@ -198,24 +242,29 @@
 //!   `jacobian_reuse >= 1`, `keep_step` not around 1, `y'0` of the wrong
 //!   length or not finite, a `variable_index` outside 1–3, and — after one
 //!   evaluation of `F` — inconsistent initial values: some
-//!   `|F_i(t0, y0, y'0)| > atol + rtol·|y0_i|` (equation `i` paired with
+//!   `|F_i(t0, y0, y'0)| > atol_i + rtol·|y0_i|` (equation `i` paired with
 //!   variable `i`, as in semi-explicit systems); the message names the
-//!   component with the largest ratio.
+//!   component with the largest ratio. For an ODE, a non-finite `f(t0, y0)`.
 //! - [`IntegrateError::Stopped`]: the guard changed from `> 0` to `<= 0`
 //!   across a step; located on the collocation polynomial as for the
 //!   explicit methods.
-//! - [`IntegrateError::StepSizeTooSmall`]: `h < 16 ε max(|t|, 1e-6 (t_end − t0))`
-//!   after rejections (e.g. at a singularity of the solution).
+//! - [`IntegrateError::StepSizeTooSmall`]: `h < max(16 ε |t|, floor)`,
+//!   `floor = 16 ε min(1e-6 (t_end − t0), h_first)` (as for the explicit
+//!   methods) after rejections (e.g. at a singularity of the solution).
 //! - [`IntegrateError::TooManySteps`], [`IntegrateError::TimeBudgetExceeded`].
 //! - [`IntegrateError::NonFinite`]: the new state, `f` there, or a Jacobian
 //!   is not finite; with a fixed step also a stage. (With step control a
-//!   non-finite stage or estimate only rejects the step, `h/2`.)
+//!   non-finite stage or estimate only rejects the step, `h/2`; if the step
+//!   size then falls below the floor right after such a rejection, the run
+//!   ends with `NonFinite` rather than `StepSizeTooSmall`.) Also a zero or
+//!   non-finite initial step from `HINIT` (its weighted norms overflowed).
 //! - [`IntegrateError::System`]: `f`/`F` or the Jacobian fails at an
 //!   accepted state, `after_step` fails, a stage keeps failing down to the
 //!   smallest step (each failure halves `h`) or fails with a fixed step; the
 //!   iteration matrix is singular 5 times in a row (once with a fixed step;
 //!   otherwise each time `h/2`), or the Newton iteration does not converge
-//!   with a fixed step even with a fresh Jacobian.
+//!   with a fixed step even with a fresh Jacobian (full Newton: at once,
+//!   a fresh Jacobian would change nothing).
 //!
 //! **Projection** ([`OdeSystem::after_step`], [`ImplicitSystem::after_step`]):
 //! for ODEs `f` is evaluated at the projected state anyway (it is the next
@@ -225,8 +274,11 @@
 //! projected point), and `F(t, y_projected, y')`, evaluated as at every
 //! accepted state, carries the inconsistency into the next error estimate.
 //!
-//! Workspaces (Jacobians, both factorisations, stage vectors) are allocated
-//! once per run; the step loop allocates only when it stores samples and
+//! **Order of calls** after an accepted step: `after_step` first, then the
+//! guard on the state it left (the contract stated on the traits).
+//!
+//! Workspaces (Jacobians, both factorisations, the full-Newton matrix, stage
+//! vectors) are allocated once per run; the step loop allocates only when it stores samples and
 //! step polynomials.
 
 mod linalg;
@@ -236,11 +288,11 @@ mod tableau;
 use std::time::Instant;
 
 use crate::dense::eval_nested;
-use crate::driver::{Record, fixed_step_count, locate_root, validate};
+use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, locate_root, validate};
 use crate::explicit::control::{Tol, all_finite};
 use crate::{
-    Dense, Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, Solution, Stats,
-    SystemError,
+    Dense, Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton,
+    Solution, Stats, SystemError,
 };
 use linalg::{ComplexLu, RealLu};
 use problem::{Dae, Ode, Problem, UROUND};
@@ -273,7 +325,7 @@ pub(crate) fn solve_implicit<S: ImplicitSystem + ?Sized>(
 /// nested form of [`Dense`].
 const NCOEF: usize = 4;
 
-/// Settings of the simplified Newton iteration.
+/// Settings of the Newton iteration.
 #[derive(Debug, Clone, Copy)]
 struct NewtonParams {
     /// `NIT`.
@@ -285,9 +337,11 @@ struct NewtonParams {
     /// Fixed step: no step-size reduction is possible, so the prediction
     /// "will not converge in time" (`DYTH >= 1`) does not stop the iteration.
     fixed: bool,
+    /// Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
+    full: bool,
 }
 
-/// Outcome of the simplified Newton iteration of a trial step.
+/// Outcome of the Newton iteration of a trial step.
 enum Newton {
     /// Converged after this many iterations.
     Converged(usize),
@@ -298,8 +352,33 @@ enum Newton {
     Failed,
     /// `F` could not be evaluated at a stage.
     Stage(SystemError),
-    /// A residual or a Newton correction is not finite.
+    /// A residual or a Newton correction is not finite (full Newton: also
+    /// a stage Jacobian).
     NonFinite,
+    /// Full Newton: the `3n × 3n` matrix is singular.
+    Singular,
+}
+
+/// Workspaces of the full Newton iteration (`RadauNewton::Full`).
+struct FullNewton {
+    /// `∂G/∂Z`, `3n × 3n`, row block `k` = stage equation `k`, column
+    /// block `j` = `Z_j`; factored in place.
+    lu: RealLu,
+    /// `J_k`, `J'_k` at the current stage point.
+    jy: Vec<f64>,
+    jyp: Vec<f64>,
+    /// `−G(Z)`, then the correction `ΔZ` (stage-major, length `3n`).
+    rhs: Vec<f64>,
+}
+
+/// RADAU5's convergence monitor of one Newton iteration.
+struct Monitor {
+    /// Corrections computed so far.
+    newt: usize,
+    /// Norm of the previous correction.
+    dynold: f64,
+    /// Previous quotient of successive norms.
+    thqold: f64,
 }
 
 /// Workspaces and the per-run state of the core, allocated once per run.
@@ -336,10 +415,12 @@ struct Work {
     faccon: f64,
     /// `θ`, the contraction rate of the last Newton iteration.
     theta: f64,
+    /// Full Newton workspaces (`None` in simplified mode).
+    full: Option<FullNewton>,
 }
 
 impl Work {
-    fn new(n: usize, identity_jp: bool) -> Self {
+    fn new(n: usize, identity_jp: bool, full: bool) -> Self {
         let v = || vec![0.0; n];
         Work {
             n,
@@ -364,30 +445,48 @@ impl Work {
             yp_new: v(),
             faccon: 1.0,
             theta: 0.0,
+            full: full.then(|| FullNewton {
+                lu: RealLu::new(3 * n),
+                jy: vec![0.0; n * n],
+                jyp: vec![0.0; n * n],
+                rhs: vec![0.0; 3 * n],
+            }),
         }
     }
 
-    /// Forms `γ/h J' + J` and `(α + iβ)/h J' + J` and factors them.
+    /// Forms `γ/h J' + J` and `(α + iβ)/h J' + J` and factors them; in full
+    /// Newton mode only the first, which the error estimate needs.
     fn factor(&mut self, h: f64, identity_jp: bool) -> Result<(), usize> {
         let n = self.n;
         let (g, a, b) = (self.tab.gamma / h, self.tab.alpha / h, self.tab.beta / h);
+        let complex = self.full.is_none();
         self.e1.a.copy_from_slice(&self.jy);
+        if identity_jp {
+            for i in 0..n {
+                self.e1.a[i * n + i] += g;
+            }
+        } else {
+            for (k, &m) in self.jyp.iter().enumerate() {
+                self.e1.a[k] += g * m;
+            }
+        }
+        self.e1.factor()?;
+        if !complex {
+            return Ok(());
+        }
         self.e2.re.copy_from_slice(&self.jy);
         if identity_jp {
             self.e2.im.fill(0.0);
             for i in 0..n {
-                self.e1.a[i * n + i] += g;
                 self.e2.re[i * n + i] += a;
                 self.e2.im[i * n + i] = b;
             }
         } else {
             for (k, &m) in self.jyp.iter().enumerate() {
-                self.e1.a[k] += g * m;
                 self.e2.re[k] += a * m;
                 self.e2.im[k] = b * m;
             }
         }
-        self.e1.factor()?;
         self.e2.factor()
     }
 
@@ -426,6 +525,65 @@ impl Work {
         }
     }
 
+    /// Starts a Newton iteration: RADAU5's `FACCON` for the first
+    /// correction, `θ` reset.
+    fn begin_newton(&mut self, np: NewtonParams) -> Monitor {
+        self.faccon = self.faccon.max(UROUND).powf(0.8);
+        self.theta = np.thet.abs();
+        Monitor {
+            newt: 0,
+            dynold: 1.0,
+            thqold: 1.0,
+        }
+    }
+
+    /// The scaled RMS norm of the correction `ΔW` in `dw` over the `3n`
+    /// components (RADAU5's `DYNO`).
+    fn correction_norm(&self) -> f64 {
+        let n = self.n;
+        let [d0, d1, d2] = &self.dw;
+        let mut dyno = 0.0;
+        for i in 0..n {
+            let s = self.scal[i];
+            dyno += (d0[i] / s).powi(2) + (d1[i] / s).powi(2) + (d2[i] / s).powi(2);
+        }
+        (dyno / (3 * n) as f64).sqrt()
+    }
+
+    /// RADAU5's monitor after correction number `m.newt` of norm `dyno`:
+    /// updates `θ` and `η = FACCON`; `Some` ends the iteration (divergence,
+    /// predicted too slow, not finite) before the correction is applied.
+    fn monitor(&mut self, m: &mut Monitor, dyno: f64, np: NewtonParams) -> Option<Newton> {
+        if !dyno.is_finite() {
+            return Some(Newton::NonFinite);
+        }
+        let newt = m.newt;
+        if newt > 1 && newt < np.nit {
+            let thq = dyno / m.dynold;
+            self.theta = if newt == 2 {
+                thq
+            } else {
+                (thq * m.thqold).sqrt()
+            };
+            m.thqold = thq;
+            if self.theta < 0.99 {
+                self.faccon = self.theta / (1.0 - self.theta);
+                let left = (np.nit - 1 - newt) as i32;
+                let dyth = self.faccon * dyno * self.theta.powi(left) / np.fnewt;
+                if dyth >= 1.0 && !np.fixed {
+                    let qnewt = dyth.clamp(1e-4, 20.0);
+                    return Some(Newton::Slow(
+                        0.8 * qnewt.powf(-1.0 / (4.0 + f64::from(left))),
+                    ));
+                }
+            } else {
+                return Some(Newton::Failed);
+            }
+        }
+        m.dynold = dyno.max(UROUND);
+        None
+    }
+
     /// The simplified Newton iteration for the stage equations of the step
     /// `[t, t_new]` of size `h` from `y` (starting values set by [`Work::start`]).
     fn newton<P: Problem>(
@@ -436,6 +594,7 @@ impl Work {
         h: f64,
         t_new: f64,
         np: NewtonParams,
+        stats: &mut Stats,
     ) -> Newton {
         let n = self.n;
         let Tableau {
@@ -447,12 +606,9 @@ impl Work {
             ti,
             ..
         } = self.tab;
-        let mut newt = 0;
-        self.faccon = self.faccon.max(UROUND).powf(0.8);
-        self.theta = np.thet.abs();
-        let (mut dynold, mut thqold) = (1.0, 1.0);
+        let mut m = self.begin_newton(np);
         loop {
-            if newt >= np.nit {
+            if m.newt >= np.nit {
                 return Newton::Failed;
             }
             // Residuals G_k = F(t + c_k h, y + Z_k, h⁻¹ (T Λ W)_k).
@@ -478,37 +634,12 @@ impl Work {
             }
             self.e1.solve(d0);
             self.e2.solve(d1, d2);
-            newt += 1;
-            let mut dyno = 0.0;
-            for i in 0..n {
-                let s = self.scal[i];
-                dyno += (d0[i] / s).powi(2) + (d1[i] / s).powi(2) + (d2[i] / s).powi(2);
+            m.newt += 1;
+            stats.newton_iterations += 1;
+            let dyno = self.correction_norm();
+            if let Some(out) = self.monitor(&mut m, dyno, np) {
+                return out;
             }
-            let dyno = (dyno / (3 * n) as f64).sqrt();
-            if !dyno.is_finite() {
-                return Newton::NonFinite;
-            }
-            if newt > 1 && newt < np.nit {
-                let thq = dyno / dynold;
-                self.theta = if newt == 2 {
-                    thq
-                } else {
-                    (thq * thqold).sqrt()
-                };
-                thqold = thq;
-                if self.theta < 0.99 {
-                    self.faccon = self.theta / (1.0 - self.theta);
-                    let left = (np.nit - 1 - newt) as i32;
-                    let dyth = self.faccon * dyno * self.theta.powi(left) / np.fnewt;
-                    if dyth >= 1.0 && !np.fixed {
-                        let qnewt = dyth.clamp(1e-4, 20.0);
-                        return Newton::Slow(0.8 * qnewt.powf(-1.0 / (4.0 + f64::from(left))));
-                    }
-                } else {
-                    return Newton::Failed;
-                }
-            }
-            dynold = dyno.max(UROUND);
             for i in 0..n {
                 let w1 = self.w[0][i] + self.dw[0][i];
                 let w2 = self.w[1][i] + self.dw[1][i];
@@ -527,7 +658,120 @@ impl Work {
                     let v = [gamma * w1, alpha * w2 - beta * w3, beta * w2 + alpha * w3];
                     self.yp_new[i] = (tm[2][0] * v[0] + tm[2][1] * v[1] + tm[2][2] * v[2]) / h;
                 }
-                return Newton::Converged(newt);
+                return Newton::Converged(m.newt);
+            }
+        }
+    }
+
+    /// The full Newton iteration for the stage equations of the step
+    /// `[t, t_new]` of size `h` from `y` (starting values set by
+    /// [`Work::start`]): each iteration evaluates `J_k`, `J'_k` at the three
+    /// stage points `(t + c_k h, y + Z_k, h⁻¹ (A⁻¹ Z)_k)`, forms
+    /// `∂G_k/∂Z_j = δ_kj J_k + h⁻¹ (A⁻¹)_kj J'_k`, factors it and solves
+    /// for `ΔZ`. The monitor sees `ΔW = (T⁻¹ ⊗ I) ΔZ` in the same norm as
+    /// the simplified iteration, so `newton_tol` means the same in both.
+    fn newton_full<P: Problem>(
+        &mut self,
+        p: &mut P,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        t_new: f64,
+        np: NewtonParams,
+        stats: &mut Stats,
+    ) -> Newton {
+        let n = self.n;
+        let nn = 3 * n;
+        let Tableau { c, ti, ainv, .. } = self.tab;
+        let mut m = self.begin_newton(np);
+        loop {
+            if m.newt >= np.nit {
+                return Newton::Failed;
+            }
+            let full = self.full.as_mut().expect("full Newton workspace");
+            for k in 0..3 {
+                let tk = if k == 2 { t_new } else { t + c[k] * h };
+                for i in 0..n {
+                    let s = ainv[k][0] * self.z[0][i]
+                        + ainv[k][1] * self.z[1][i]
+                        + ainv[k][2] * self.z[2][i];
+                    self.yps[i] = s / h;
+                    self.ys[i] = y[i] + self.z[k][i];
+                }
+                let gk = &mut self.dw[k];
+                if let Err(e) = p.residual(tk, &self.ys, &self.yps, gk) {
+                    return Newton::Stage(e);
+                }
+                if !all_finite(gk) {
+                    return Newton::NonFinite;
+                }
+                stats.jacobian_evals += 1;
+                let res = p.jacobians(tk, &self.ys, &self.yps, gk, &mut full.jy, &mut full.jyp);
+                if let Err(e) = res {
+                    return Newton::Stage(e);
+                }
+                if !all_finite(&full.jy) || (!P::IDENTITY_JP && !all_finite(&full.jyp)) {
+                    return Newton::NonFinite;
+                }
+                // Row block k: [h⁻¹ (A⁻¹)_k1 J'_k, h⁻¹ (A⁻¹)_k2 J'_k, h⁻¹ (A⁻¹)_k3 J'_k] + J_k
+                // in column block k.
+                for i in 0..n {
+                    let r = k * n + i;
+                    let row = &mut full.lu.a[r * nn..(r + 1) * nn];
+                    for (j, blk) in row.chunks_exact_mut(n).enumerate() {
+                        let a = ainv[k][j] / h;
+                        if P::IDENTITY_JP {
+                            blk.fill(0.0);
+                            blk[i] = a;
+                        } else {
+                            for (b, &jp) in blk.iter_mut().zip(&full.jyp[i * n..(i + 1) * n]) {
+                                *b = a * jp;
+                            }
+                        }
+                        if j == k {
+                            for (b, &jv) in blk.iter_mut().zip(&full.jy[i * n..(i + 1) * n]) {
+                                *b += jv;
+                            }
+                        }
+                    }
+                    full.rhs[r] = -gk[i];
+                }
+            }
+            stats.lu_decompositions += 1;
+            if full.lu.factor().is_err() {
+                return Newton::Singular;
+            }
+            full.lu.solve(&mut full.rhs);
+            // ΔW = (T⁻¹ ⊗ I) ΔZ for the monitor.
+            let dz = &full.rhs;
+            for i in 0..n {
+                let (a, b, cc) = (dz[i], dz[n + i], dz[2 * n + i]);
+                for k in 0..3 {
+                    self.dw[k][i] = ti[k][0] * a + ti[k][1] * b + ti[k][2] * cc;
+                }
+            }
+            m.newt += 1;
+            stats.newton_iterations += 1;
+            let dyno = self.correction_norm();
+            if let Some(out) = self.monitor(&mut m, dyno, np) {
+                return out;
+            }
+            let dz = &self.full.as_ref().expect("full Newton workspace").rhs;
+            for k in 0..3 {
+                for i in 0..n {
+                    self.z[k][i] += dz[k * n + i];
+                    self.w[k][i] += self.dw[k][i];
+                }
+            }
+            if self.faccon * dyno <= np.fnewt {
+                // y' at the end of the step, h⁻¹ (A⁻¹ Z)_3.
+                for i in 0..n {
+                    let s = ainv[2][0] * self.z[0][i]
+                        + ainv[2][1] * self.z[1][i]
+                        + ainv[2][2] * self.z[2][i];
+                    self.yp_new[i] = s / h;
+                }
+                return Newton::Converged(m.newt);
             }
         }
     }
@@ -660,10 +904,10 @@ fn validate_radau(opts: &Options, yp0: Option<&[f64]>, index: &[u8]) -> Result<(
 
 /// `Some(message)` if `F(t0, y0, y'0) = res` is not zero within the
 /// tolerances: `|F_i| <= atol + rtol·|y0_i|` for every `i`.
-fn inconsistency(res: &[f64], y0: &[f64], opts: &Options) -> Option<String> {
+fn inconsistency(res: &[f64], y0: &[f64], atol: &[f64], rtol: f64) -> Option<String> {
     let mut worst: Option<(usize, f64)> = None;
     for (i, (&r, &y)) in res.iter().zip(y0).enumerate() {
-        let q = r.abs() / (opts.atol + opts.rtol * y.abs());
+        let q = r.abs() / (atol[i] + rtol * y.abs());
         if !q.is_finite() {
             return Some(format!(
                 "inconsistent initial values: F[{i}](t0, y0, y'0) = {r} is not finite"
@@ -679,7 +923,7 @@ fn inconsistency(res: &[f64], y0: &[f64], opts: &Options) -> Option<String> {
             "inconsistent initial values: |F[{i}](t0, y0, y'0)| = {:e} exceeds atol + rtol·|y0[{i}]| = {:e} \
              (the largest residual component relative to its tolerance)",
             res[i].abs(),
-            opts.atol + opts.rtol * y0[i].abs()
+            atol[i] + rtol * y0[i].abs()
         )
     })
 }
@@ -719,13 +963,14 @@ fn run<P: Problem>(
     // F(t_n, y_n, y'_n) at the current state (zero for explicit ODEs).
     let mut res = vec![0.0; n];
     let mut buf = vec![0.0; n];
+    let atol_user = atol_vector(opts, n);
     if let Some(yp0) = yp0 {
         yp.copy_from_slice(yp0);
         if let Err(source) = p.residual(t0, y0, yp0, &mut res) {
             let e = IntegrateError::System { t: t0, source };
             return Err(rec.fail(e, t0, y0, p.evals()));
         }
-        if let Some(msg) = inconsistency(&res, y0, opts) {
+        if let Some(msg) = inconsistency(&res, y0, &atol_user, opts.rtol) {
             return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, p.evals()));
         }
     }
@@ -749,8 +994,12 @@ fn run<P: Problem>(
     if yp0.is_none() {
         let error = match p.accepted_state(t, &y, &mut yp, &mut res) {
             Err(source) => Some(IntegrateError::System { t, source }),
-            Ok(()) if !all_finite(&yp) => Some(IntegrateError::NonFinite { t }),
-            Ok(()) => None,
+            Ok(()) => yp.iter().position(|v| !v.is_finite()).map(|i| {
+                IntegrateError::InvalidInput(format!(
+                    "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
+                    yp[i]
+                ))
+            }),
         };
         if let Some(e) = error {
             let ev = p.evals();
@@ -758,12 +1007,11 @@ fn run<P: Problem>(
         }
     }
 
-    // RADAU5's internal tolerances: rtol' = 0.1 rtol^(2/3), atol' = rtol'·atol/rtol.
+    // RADAU5's internal tolerances: rtol' = 0.1 rtol^(2/3), atol' = rtol'·atol/rtol
+    // (component by component).
     let rtol = 0.1 * opts.rtol.powf(2.0 / 3.0);
-    let tol = Tol {
-        rtol,
-        atol: rtol * opts.atol / opts.rtol,
-    };
+    let atol: Vec<f64> = atol_user.iter().map(|a| rtol * a / opts.rtol).collect();
+    let tol = Tol { rtol, atol: &atol };
     let np = NewtonParams {
         nit: opts.newton_max_iter,
         fnewt: opts
@@ -771,6 +1019,7 @@ fn run<P: Problem>(
             .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
         thet: opts.jacobian_reuse,
         fixed: opts.fixed_step.is_some(),
+        full: opts.radau_newton == RadauNewton::Full,
     };
     let (quot1, quot2) = opts.keep_step;
     // Step-size controller of RADAU5: SAFE, FACL, FACR, CFAC.
@@ -778,18 +1027,24 @@ fn run<P: Problem>(
     let cfac = safe * (1 + 2 * np.nit) as f64;
 
     let span = t_end - t0;
-    let t_scale = 1e-6 * span;
-    let h_min = |t: f64| 16.0 * f64::EPSILON * t.abs().max(t_scale);
     let hmax = opts.h_max.unwrap_or(span);
     let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
-    let mut w = Work::new(n, P::IDENTITY_JP);
+    let mut w = Work::new(n, P::IDENTITY_JP, np.full);
     let mut h = match (fixed, opts.h_init) {
         (Some((h, _)), _) => h,
         (None, Some(h)) => h.min(hmax),
         (None, None) => p.initial_step(t, &y, &yp, hmax, tol, &mut w.ys, &mut w.yps),
     };
+    if !(h > 0.0 && h.is_finite()) {
+        // Only the initial-step choice can get here: its weighted norms of
+        // y'0 overflowed although y'0 is finite.
+        let ev = p.evals();
+        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+    }
+    let floor = StepFloor::new(span, h);
+    let h_min = |t: f64| floor.at(t);
     // Base error scale atol' + rtol'·|y_n| of the current state.
-    let mut sk: Vec<f64> = y.iter().map(|v| tol.atol + tol.rtol * v.abs()).collect();
+    let mut sk: Vec<f64> = (0..n).map(|i| tol.scale(i, y[i], 0.0)).collect();
 
     let mut need_jac = true;
     // The Jacobian was evaluated at the current state (RADAU5's CALJAC).
@@ -799,6 +1054,9 @@ fn run<P: Problem>(
     let mut nsing = 0;
     let mut first = true;
     let mut reject = false;
+    // The last rejection was caused by a non-finite stage, correction or
+    // error estimate: a step-size collapse then is reported as `NonFinite`.
+    let mut nonfinite_reject = false;
     let mut last = false;
     let mut hold = h;
     let (mut hacc, mut erracc) = (h, 1e-2);
@@ -830,8 +1088,13 @@ fn run<P: Problem>(
             }
             None => {
                 if h.abs() < h_min(t) {
+                    let e = if nonfinite_reject {
+                        IntegrateError::NonFinite { t }
+                    } else {
+                        IntegrateError::StepSizeTooSmall { t, h }
+                    };
                     let ev = p.evals();
-                    return Err(rec.fail(IntegrateError::StepSizeTooSmall { t, h }, t, &y, ev));
+                    return Err(rec.fail(e, t, &y, ev));
                 }
                 if t + 1.0001 * h - t_end >= 0.0 {
                     h = t_end - t;
@@ -841,10 +1104,12 @@ fn run<P: Problem>(
             }
         };
 
-        if need_jac {
+        // Full Newton with a fixed step needs neither: no error estimate.
+        let step_start_matrix = !(np.full && fixed.is_some());
+        if need_jac && step_start_matrix {
             rec.stats.jacobian_evals += 1;
-            let res = p.jacobians(t, &y, &yp, &mut w.jy, &mut w.jyp);
-            let error = match res {
+            let jac = p.jacobians(t, &y, &yp, &res, &mut w.jy, &mut w.jyp);
+            let error = match jac {
                 Err(source) => Some(IntegrateError::System { t, source }),
                 Ok(()) if !all_finite(&w.jy) || !all_finite(&w.jyp) => {
                     Some(IntegrateError::NonFinite { t })
@@ -859,7 +1124,7 @@ fn run<P: Problem>(
             h_lu = f64::NAN;
         }
         // NaN (no factorisation) compares false: factor.
-        let factored = (h - h_lu).abs() <= 1e-12 * h.abs();
+        let factored = !step_start_matrix || (h - h_lu).abs() <= 1e-12 * h.abs();
         if !factored {
             rec.stats.lu_decompositions += 1;
             if w.factor(h, P::IDENTITY_JP).is_err() {
@@ -874,6 +1139,7 @@ fn run<P: Problem>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = false;
                 h_lu = f64::NAN;
                 need_jac = !caljac;
                 continue;
@@ -883,7 +1149,12 @@ fn run<P: Problem>(
 
         w.set_scale(&sk, &index, h);
         w.start(h, (!first).then_some(hold));
-        let newt = match w.newton(p, t, &y, h, t_new, np) {
+        let outcome = if np.full {
+            w.newton_full(p, t, &y, h, t_new, np, &mut rec.stats)
+        } else {
+            w.newton(p, t, &y, h, t_new, np, &mut rec.stats)
+        };
+        let newt = match outcome {
             Newton::Converged(newt) => newt,
             Newton::Stage(source) => {
                 if fixed.is_some() || 0.5 * h.abs() < h_min(t) {
@@ -892,6 +1163,7 @@ fn run<P: Problem>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = false;
                 need_jac = !caljac;
                 continue;
             }
@@ -902,15 +1174,34 @@ fn run<P: Problem>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = true;
+                need_jac = !caljac;
+                continue;
+            }
+            Newton::Singular => {
+                nsing += 1;
+                if nsing >= 5 || fixed.is_some() {
+                    let source = SystemError::new(format!(
+                        "Radau5: the full Newton matrix ∂G/∂Z of the stage equations is \
+                         singular (h = {h:e}, {nsing} time(s) in a row)"
+                    ));
+                    let ev = p.evals();
+                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+                }
+                rec.stats.rejected_steps += 1;
+                (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = false;
                 need_jac = !caljac;
                 continue;
             }
             Newton::Failed => {
                 rec.stats.newton_failures += 1;
                 if fixed.is_some() {
-                    if caljac {
+                    // A fresh Jacobian cannot change a full Newton iteration.
+                    if caljac || np.full {
+                        let kind = if np.full { "full" } else { "simplified" };
                         let source = SystemError::new(format!(
-                            "Radau5: the simplified Newton iteration does not converge \
+                            "Radau5: the {kind} Newton iteration does not converge \
                              with the fixed step h = {h:e}"
                         ));
                         let ev = p.evals();
@@ -922,6 +1213,7 @@ fn run<P: Problem>(
                 }
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = false;
                 need_jac = !caljac;
                 continue;
             }
@@ -929,6 +1221,7 @@ fn run<P: Problem>(
                 rec.stats.newton_failures += 1;
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (fac * h, true, false);
+                nonfinite_reject = false;
                 need_jac = !caljac;
                 continue;
             }
@@ -941,6 +1234,7 @@ fn run<P: Problem>(
             if !err.is_finite() {
                 rec.stats.rejected_steps += 1;
                 (h, reject, last) = (0.5 * h, true, false);
+                nonfinite_reject = true;
                 need_jac = !caljac;
                 continue;
             }
@@ -952,6 +1246,7 @@ fn run<P: Problem>(
                 rec.stats.rejected_steps += 1;
                 h = if first { 0.1 * h } else { h_new };
                 (reject, last) = (true, false);
+                nonfinite_reject = false;
                 need_jac = !caljac;
                 continue;
             }
@@ -969,6 +1264,7 @@ fn run<P: Problem>(
         // The step is accepted.
         rec.stats.steps += 1;
         first = false;
+        nonfinite_reject = false;
         nsing = 0;
         w.polynomial(&y);
         if let Some(d) = rec.dense.as_mut() {
@@ -1004,8 +1300,8 @@ fn run<P: Problem>(
             return Err(rec.fail(e, t, &y, ev));
         }
         caljac = false;
-        for (s, v) in sk.iter_mut().zip(&y) {
-            *s = tol.atol + tol.rtol * v.abs();
+        for (i, (s, &v)) in sk.iter_mut().zip(&y).enumerate() {
+            *s = tol.scale(i, v, 0.0);
         }
 
         if let Some(gp) = g_prev {
@@ -1041,7 +1337,9 @@ fn run<P: Problem>(
             let ev = p.evals();
             return Ok(rec.finish(t, &y, ev));
         }
-        let theta_ok = w.theta <= np.thet;
+        // Full Newton: a new step-start Jacobian for the error estimate after
+        // every accepted step, and no step keeping (nothing to save).
+        let theta_ok = !np.full && w.theta <= np.thet;
         if fixed.is_none() {
             h_new = h_new.min(hmax);
             if reject {
@@ -1079,7 +1377,7 @@ mod tests {
 
     #[test]
     fn nested_form_is_radau5_collocation_polynomial() {
-        let mut w = Work::new(1, true);
+        let mut w = Work::new(1, true, false);
         let c = w.tab.c;
         let y = [0.7];
         w.z = [vec![0.31], vec![-0.42], vec![0.125]];

@@ -34,12 +34,16 @@ pub(super) trait Problem {
     ) -> Result<(), SystemError>;
 
     /// `J = ∂F/∂y` into `jy` and (unless [`Problem::IDENTITY_JP`]) `J' =
-    /// ∂F/∂y'` into `jyp` at a consistent point `(t, y, y')`.
+    /// ∂F/∂y'` into `jyp` at the point `(t, y, y')`, where `F(t, y, y') =
+    /// res` is known (zero at an accepted state of an explicit ODE; the
+    /// stage residual inside a full Newton iteration). The finite
+    /// differences of an ODE take `f(t, y) = y' − res` from it.
     fn jacobians(
         &mut self,
         t: f64,
         y: &[f64],
         yp: &[f64],
+        res: &[f64],
         jy: &mut [f64],
         jyp: &mut [f64],
     ) -> Result<(), SystemError>;
@@ -66,7 +70,7 @@ pub(super) trait Problem {
         y: &[f64],
         yp: &[f64],
         hmax: f64,
-        tol: Tol,
+        tol: Tol<'_>,
         y1: &mut [f64],
         f1: &mut [f64],
     ) -> f64;
@@ -85,9 +89,11 @@ pub(super) struct Ode<'a, S: ?Sized> {
     pub evals: usize,
     /// Whether [`OdeSystem::jacobian`] provides the Jacobian (`None`: not asked yet).
     analytic: Option<bool>,
-    /// Workspaces of the finite-difference Jacobian.
+    /// Workspaces of the finite-difference Jacobian: `f(t, y + δ e_j)`,
+    /// `y + δ e_j`, and `f(t, y)`.
     f: Vec<f64>,
     y: Vec<f64>,
+    f0: Vec<f64>,
 }
 
 impl<'a, S: OdeSystem + ?Sized> Ode<'a, S> {
@@ -99,6 +105,7 @@ impl<'a, S: OdeSystem + ?Sized> Ode<'a, S> {
             analytic: None,
             f: vec![0.0; n],
             y: vec![0.0; n],
+            f0: vec![0.0; n],
         }
     }
 }
@@ -131,12 +138,14 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
 
     /// `J = −∂f/∂y`. Forward differences when the system has no Jacobian:
     /// column `j` from `f(t, y + δ_j e_j)` with RADAU5's increment
-    /// `δ_j = sqrt(UROUND·max(1e-5, |y_j|))` and `f(t, y) = yp`.
+    /// `δ_j = sqrt(UROUND·max(1e-5, |y_j|))` and `f(t, y) = yp − res`
+    /// (`= yp` at an accepted state, where `res` is zero).
     fn jacobians(
         &mut self,
         t: f64,
         y: &[f64],
         yp: &[f64],
+        res: &[f64],
         jy: &mut [f64],
         _jyp: &mut [f64],
     ) -> Result<(), SystemError> {
@@ -150,6 +159,9 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
             }
         }
         self.y.copy_from_slice(y);
+        for ((f0, &d), &r) in self.f0.iter_mut().zip(yp).zip(res) {
+            *f0 = d - r;
+        }
         for j in 0..n {
             let ysafe = y[j];
             let delt = (UROUND * ysafe.abs().max(1e-5)).sqrt();
@@ -159,7 +171,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
             self.y[j] = ysafe;
             res?;
             for i in 0..n {
-                jy[i * n + j] = -(self.f[i] - yp[i]) / delt;
+                jy[i * n + j] = -(self.f[i] - self.f0[i]) / delt;
             }
         }
         Ok(())
@@ -184,7 +196,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
         y: &[f64],
         yp: &[f64],
         hmax: f64,
-        tol: Tol,
+        tol: Tol<'_>,
         y1: &mut [f64],
         f1: &mut [f64],
     ) -> f64 {
@@ -247,6 +259,7 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
         t: f64,
         y: &[f64],
         yp: &[f64],
+        _res: &[f64],
         jy: &mut [f64],
         jyp: &mut [f64],
     ) -> Result<(), SystemError> {
@@ -273,13 +286,13 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
         y: &[f64],
         yp: &[f64],
         hmax: f64,
-        tol: Tol,
+        tol: Tol<'_>,
         _y1: &mut [f64],
         _f1: &mut [f64],
     ) -> f64 {
         let (mut dnf, mut dny) = (0.0, 0.0);
-        for (&yi, &fi) in y.iter().zip(yp) {
-            let sk = tol.atol + tol.rtol * yi.abs();
+        for (i, (&yi, &fi)) in y.iter().zip(yp).enumerate() {
+            let sk = tol.scale(i, yi, 0.0);
             dnf += (fi / sk) * (fi / sk);
             dny += (yi / sk) * (yi / sk);
         }

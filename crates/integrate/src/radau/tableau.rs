@@ -29,6 +29,8 @@ pub(super) struct Tableau {
     pub ti: [[f64; 3]; 3],
     /// Error-estimate weights: `y'_n + h⁻¹ Σ dd_i Z_i` is `O(h³)`.
     pub dd: [f64; 3],
+    /// `A⁻¹ = T Λ T⁻¹` (full Newton iteration: `Y'_k = h⁻¹ Σ_j (A⁻¹)_kj Z_j`).
+    pub ainv: [[f64; 3]; 3],
 }
 
 impl Tableau {
@@ -42,7 +44,7 @@ impl Tableau {
         let alph = (12.0 - cbrt81 + cbrt9) / 60.0;
         let beta = (cbrt81 + cbrt9) * 3f64.sqrt() / 60.0;
         let cno = alph * alph + beta * beta;
-        Tableau {
+        let mut tab = Tableau {
             c: [(4.0 - sq6) / 10.0, (4.0 + sq6) / 10.0, 1.0],
             gamma: 1.0 / u1,
             alpha: alph / cno,
@@ -82,7 +84,24 @@ impl Tableau {
                 (-13.0 + 7.0 * sq6) / 3.0,
                 -1.0 / 3.0,
             ],
+            ainv: [[0.0; 3]; 3],
+        };
+        // A⁻¹ = T Λ T⁻¹ with Λ = [[γ, 0, 0], [0, α, −β], [0, β, α]], from
+        // the same digits as the simplified iteration, which forms
+        // Y' = h⁻¹ (T Λ W) with W = T⁻¹ Z.
+        let (g, a, b) = (tab.gamma, tab.alpha, tab.beta);
+        let lam = [[g, 0.0, 0.0], [0.0, a, -b], [0.0, b, a]];
+        for i in 0..3 {
+            for j in 0..3 {
+                tab.ainv[i][j] = (0..3)
+                    .map(|k| {
+                        let tl: f64 = (0..3).map(|m| tab.t[i][m] * lam[m][k]).sum();
+                        tl * tab.ti[k][j]
+                    })
+                    .sum();
+            }
         }
+        tab
     }
 
     /// The Butcher matrix `A` (weights `b` = last row: stiffly accurate).
@@ -192,6 +211,9 @@ mod tests {
         // The eigenvalues: det(A⁻¹ − γI) = 0, trace = γ + 2α.
         let tr = ainv[0][0] + ainv[1][1] + ainv[2][2];
         assert!((tr - (tab.gamma + 2.0 * tab.alpha)).abs() < 1e-13);
+        // The stored A⁻¹ (full Newton) is A's inverse.
+        let dev = max_dev(&tab.ainv, &ainv);
+        assert!(dev < 1e-13, "A⁻¹ = {:?}, deviation {dev:e}", tab.ainv);
     }
 
     #[test]

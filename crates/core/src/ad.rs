@@ -19,7 +19,7 @@
 //! for second derivatives along a time jet `(q + q̇τ, t + τ)`. Scalar
 //! directional passes avoid the heap (vector duals of runtime size allocate)
 //! and were the fastest option measured for these small systems
-//! (`../shared/deps.md`; see `docs/performance.md` for the figures here).
+//! (`../shared/deps.md`).
 //! [`Jet`] owns the seed buffers, so no evaluation allocates.
 //!
 //! The base scalar `T` is `f64` for values, or itself a dual number: with

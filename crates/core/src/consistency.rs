@@ -6,13 +6,14 @@ use crate::init::Initial;
 use crate::project::{Projection, Projector};
 use crate::scene::Scene;
 
-/// Largest accepted constraint residual of initial data, relative to
-/// `max(1, |q|∞, |q̇|∞)`. Initial data typed by hand to a few digits are
-/// rejected; data computed from the scene's convenience values pass.
+/// Largest accepted distance of initial data from the constraints, relative
+/// to `max(1, |q|∞)` for positions (`|f_i|/‖F_i‖`) and `max(1, |q̇|∞)` for
+/// velocities (`|g_i|/‖G_i‖`, `|ḟ_i|/‖F_i‖`). Initial data typed by hand to a
+/// few digits are rejected; data computed from the scene's convenience
+/// values pass.
 pub const INIT_TOL: f64 = 1e-9;
 
-/// Residual reached by projection, relative to `max(1, |q|∞)` for `f` and
-/// `max(1, |q̇|∞)` for `g`, `ḟ`.
+/// Distance reached by projection, relative to the same scales.
 pub const PROJECT_TOL: f64 = 1e-14;
 
 /// What `--project-init` did to the initial data.
@@ -23,8 +24,8 @@ pub struct InitProjection {
     pub projection: Projection,
 }
 
-fn scale(q: &[f64], qd: &[f64]) -> f64 {
-    q.iter().chain(qd).fold(1.0f64, |m, v| m.max(v.abs()))
+fn scale(v: &[f64]) -> f64 {
+    v.iter().fold(1.0f64, |m, x| m.max(x.abs()))
 }
 
 /// Checks `init` against the scene's constraints. With `project`, moves `q0`
@@ -41,7 +42,6 @@ pub fn check_or_project<S: Scene>(
         return Ok(None);
     }
     let mut p = Projector::new(scene);
-    let sc = scale(&init.q, &init.qd);
     if project {
         let (q_before, qd_before) = (init.q.clone(), init.qd.clone());
         let r = p
@@ -53,9 +53,10 @@ pub fn check_or_project<S: Scene>(
             projection: r,
         }));
     }
-    let (v, pos) = p.residuals(scene, init.t0, &init.q, &init.qd);
-    let tol = INIT_TOL * sc;
-    if pos > tol {
+    p.residuals(scene, init.t0, &init.q, &init.qd);
+    let (pos, v) = (p.cs.position_distance(), p.cs.velocity_distance());
+    let tol = INIT_TOL * scale(&init.q);
+    if pos.is_nan() || pos > tol {
         let list = info
             .holonomic
             .iter()
@@ -64,11 +65,13 @@ pub fn check_or_project<S: Scene>(
             .collect::<Vec<_>>()
             .join("; ");
         return Err(Error::InconsistentInit(format!(
-            "the initial positions violate the holonomic constraints ({list}; tolerance {tol:.1e}); \
+            "the initial positions violate the holonomic constraints ({list}; distance {pos:.3e}, \
+             tolerance {tol:.1e}); \
              give consistent positions or pass --project-init to move them onto the constraints"
         )));
     }
-    if v > tol {
+    let tol = INIT_TOL * scale(&init.qd);
+    if v.is_nan() || v > tol {
         let mut list: Vec<String> = info
             .nonholonomic
             .iter()
@@ -82,7 +85,7 @@ pub fn check_or_project<S: Scene>(
                 .map(|(f, r)| format!("d/dt of {f}: residual {r:.3e}")),
         );
         return Err(Error::InconsistentInit(format!(
-            "the initial velocities violate the constraints ({}; tolerance {tol:.1e}); \
+            "the initial velocities violate the constraints ({}; distance {v:.3e}, tolerance {tol:.1e}); \
              give consistent velocities or pass --project-init to move q̇0 to the nearest \
              consistent velocity",
             list.join("; ")

@@ -75,16 +75,54 @@ impl<T: Scalar> ConstraintState<T> {
         }
     }
 
-    /// Largest velocity-level residual `max(|g|, |ḟ|)`.
+    /// Largest velocity-level residual `max(|g|, |ḟ|)` (of the real parts).
     pub fn velocity_residual(&self) -> f64 {
         self.g
             .iter()
             .chain(&self.f_rate)
-            .fold(0.0, |m, v| m.max(v.re().abs()))
+            .fold(0.0, |m, v| nan_max(m, v.re().abs()))
     }
 
-    /// Largest position-level residual `|f|`.
+    /// Largest position-level residual `|f|` (of the real parts).
     pub fn position_residual(&self) -> f64 {
-        self.f.iter().fold(0.0, |m, v| m.max(v.re().abs()))
+        self.f.iter().fold(0.0, |m, v| nan_max(m, v.re().abs()))
+    }
+
+    /// Euclidean norm of row `r` of `[G; F]` (real parts).
+    fn row_norm(&self, r: usize) -> f64 {
+        (0..self.jac.ncols())
+            .map(|j| self.jac[(r, j)].re().powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Largest distance, in velocity units, from the velocity-level
+    /// constraints: `|g_i|/‖G_i‖` and `|ḟ_i|/‖F_i‖` (exact for constraints
+    /// linear in q̇). Independent of how each constraint is scaled.
+    pub fn velocity_distance(&self) -> f64 {
+        let s = self.s;
+        (0..s + self.k)
+            .map(|r| {
+                let v = if r < s { self.g[r] } else { self.f_rate[r - s] };
+                v.re().abs() / self.row_norm(r).max(f64::MIN_POSITIVE)
+            })
+            .fold(0.0, nan_max)
+    }
+
+    /// Largest distance, in coordinate units, from the holonomic constraints:
+    /// `|f_i|/‖F_i‖` (first-order distance to the surface `f_i = 0`).
+    pub fn position_distance(&self) -> f64 {
+        (0..self.k)
+            .map(|i| self.f[i].re().abs() / self.row_norm(self.s + i).max(f64::MIN_POSITIVE))
+            .fold(0.0, nan_max)
+    }
+}
+
+/// `max` that propagates NaN (a NaN residual must not be hidden).
+pub fn nan_max(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
     }
 }

@@ -122,7 +122,7 @@ pub fn resolve<S: Scene>(
         {
             qd_given[i] = Some(parse_value(name, text, "")?);
         } else if let Some(i) = info.velocity_chart.iter().position(|c| c.name == name) {
-            chart[i] = parse_value(name, text, "")?;
+            chart[i] = parse_value(name, text, info.velocity_chart[i].unit)?;
             chart_given.push(info.velocity_chart[i].name);
         } else if let Some(e) = extra.iter().find(|e| &e.name == name) {
             extra_values.push((name.clone(), parse_value(name, text, e.unit)?));

@@ -10,16 +10,18 @@
 //! ```
 //!
 //! B reads `μ = (−λ, −ν)`; C reads `μ_g = λ̇` and `μ_f = −ν`. The gains are
-//! those of Baumgarte stabilisation, zero otherwise. One LU with partial
-//! pivoting per solve, in a reused workspace; over `T = Dual64` the same
-//! solve yields directional derivatives (Jacobian columns, time derivatives).
+//! those of Baumgarte stabilisation, zero otherwise. The matrix is
+//! equilibrated (so that singularity is judged independently of units), then
+//! factorised by LU with partial pivoting, in a reused workspace; over
+//! `T = Dual64` the same solve yields directional derivatives (Jacobian
+//! columns, time derivatives).
 
 use nalgebra::DMatrix;
 use nonholo_integrate::SystemError;
 
 use crate::ad::Jet;
 use crate::constraints::ConstraintState;
-use crate::linalg::Lu;
+use crate::linalg::{Lu, equilibrate};
 use crate::scene::{Scalar, ScalarField, Scene};
 use crate::stab::Stabilisation;
 
@@ -31,6 +33,8 @@ pub struct Kkt<T: Scalar = f64> {
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
+    /// Equilibration of the last solve (see [`equilibrate`]).
+    scale: Vec<f64>,
     /// Right-hand side, then solution `(q̈, μ_g, μ_f)`.
     pub sol: Vec<T>,
 }
@@ -43,6 +47,7 @@ impl<T: Scalar> Kkt<T> {
             cs: ConstraintState::new(n, s, k),
             matrix: DMatrix::from_element(n + s + k, n + s + k, T::from(0.0)),
             lu: Lu::new(n + s + k),
+            scale: vec![1.0; n + s + k],
             sol: vec![T::from(0.0); n + s + k],
         }
     }
@@ -102,6 +107,10 @@ impl<T: Scalar> Kkt<T> {
                     - self.cs.f[i] * (beta * beta);
             }
         }
+        equilibrate(&mut self.matrix, n, &mut self.scale);
+        for (x, d) in self.sol.iter_mut().zip(&self.scale) {
+            *x *= *d;
+        }
         self.lu.factor(&mut self.matrix).map_err(|e| {
             SystemError::new(format!(
                 "KKT system of {what} singular ({e}): constraints dependent, \
@@ -109,6 +118,9 @@ impl<T: Scalar> Kkt<T> {
             ))
         })?;
         self.lu.solve(&self.matrix, &mut self.sol);
+        for (x, d) in self.sol.iter_mut().zip(&self.scale) {
+            *x *= *d;
+        }
         Ok(())
     }
 }

@@ -114,6 +114,32 @@ impl Lu {
     }
 }
 
+/// Scales a saddle-point matrix `[M Cᵀ; C 0]` (primal block of size `n`)
+/// symmetrically, `a ← D a D`, and returns the scaling `d` (length of `a`):
+/// `d_i = 1/√|M_ii|` on the primal block, and on each constraint row the
+/// inverse of the largest entry of that row of `C D`. The scaled matrix has
+/// entries of order one whatever the units (masses of 1e8 or 1e-8), so the
+/// pivot test of [`Lu::factor`] means the same thing for every scene. The
+/// caller scales the right-hand side by `d` before solving and the solution
+/// by `d` after.
+pub fn equilibrate<T: Scalar>(a: &mut DMatrix<T>, n: usize, d: &mut [f64]) {
+    let size = a.nrows();
+    let diag_max = (0..n).fold(0.0f64, |m, i| m.max(a[(i, i)].re().abs()));
+    let floor = (f64::EPSILON * diag_max).max(f64::MIN_POSITIVE);
+    for i in 0..n {
+        d[i] = 1.0 / a[(i, i)].re().abs().max(floor).sqrt();
+    }
+    for r in n..size {
+        let row = (0..n).fold(0.0f64, |m, j| m.max((a[(r, j)].re() * d[j]).abs()));
+        d[r] = if row > 0.0 { 1.0 / row } else { 1.0 };
+    }
+    for j in 0..size {
+        for i in 0..size {
+            a[(i, j)] *= d[i] * d[j];
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,6 +180,33 @@ mod tests {
         let (xx, yy, zz): (f64, f64, f64) = (0.1, 0.4, 0.8);
         assert!(
             (x[0] - xx).abs() < 1e-15 && (x[1] - yy).abs() < 1e-15 && (x[2] - zz).abs() < 1e-15
+        );
+    }
+
+    /// A KKT matrix with masses 1e8 is singular to the raw pivot test but
+    /// regular after equilibration, and the solution is unchanged.
+    #[test]
+    fn equilibration_removes_units() {
+        let m = 1e8;
+        // [m 0 1; 0 m 1; 1 1 0]: x + y constrained, masses m.
+        let a0 = DMatrix::from_row_slice(3, 3, &[m, 0.0, 1.0, 0.0, m, 1.0, 1.0, 1.0, 0.0]);
+        let b = [m * 1.0, m * 3.0, 0.0];
+        let mut a = a0.clone();
+        let mut d = [0.0; 3];
+        equilibrate(&mut a, 2, &mut d);
+        let mut lu = Lu::new(3);
+        lu.factor(&mut a).unwrap();
+        let mut x: Vec<f64> = b.iter().zip(&d).map(|(v, s)| v * s).collect();
+        lu.solve(&a, &mut x);
+        for (v, s) in x.iter_mut().zip(&d) {
+            *v *= s;
+        }
+        // Exact: x = −1, y = 1, μ = 2m.
+        assert!(
+            (x[0] + 1.0).abs() < 1e-12
+                && (x[1] - 1.0).abs() < 1e-12
+                && (x[2] / m - 2.0).abs() < 1e-12,
+            "{x:?}"
         );
     }
 

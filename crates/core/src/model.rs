@@ -4,7 +4,7 @@
 //! `(t, q, q̇)` plus its multipliers, so code that compares runs never
 //! special-cases a formulation.
 
-use nonholo_integrate::{ImplicitSystem, OdeSystem, SystemError};
+use nonholo_integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
 
 use crate::Error;
 use crate::consistency::InitProjection;
@@ -58,6 +58,12 @@ pub trait Model: Send {
     /// The implicit form, if the formulation has one.
     fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
         None
+    }
+    /// The Newton iteration Radau IIA should use on the implicit form: full
+    /// Newton for systems outside Hessenberg form, where the simplified
+    /// iteration (one Jacobian per step) does not converge.
+    fn radau_newton(&self) -> RadauNewton {
+        RadauNewton::Simplified
     }
     /// Consistent `y'(t0)` for the implicit form, after [`Model::initial_state`].
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {

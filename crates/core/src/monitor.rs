@@ -4,6 +4,7 @@
 use num_dual::Dual64;
 
 use crate::ad::Jet;
+use crate::constraints::nan_max;
 use crate::scene::{Lagrangian, Scene};
 
 /// Drift of one scene invariant.
@@ -77,8 +78,8 @@ impl Monitor {
         let d = &mut self.diag;
         if info.s() > 0 {
             scene.nonholonomic(t, q, qd, &mut self.g);
-            let r = self.g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            d.nonholonomic_residual_max = d.nonholonomic_residual_max.max(r);
+            let r = self.g.iter().fold(0.0f64, |m, v| nan_max(m, v.abs()));
+            d.nonholonomic_residual_max = nan_max(d.nonholonomic_residual_max, r);
         }
         if info.k() > 0 {
             // One dual pass along q̇ gives f and ḟ.
@@ -87,15 +88,15 @@ impl Monitor {
             }
             scene.holonomic(Dual64::new(t, 1.0), &self.qdual, &mut self.fd);
             let (rf, rfd) = self.fd.iter().fold((0.0f64, 0.0f64), |(a, b), v| {
-                (a.max(v.re.abs()), b.max(v.eps.abs()))
+                (nan_max(a, v.re.abs()), nan_max(b, v.eps.abs()))
             });
-            d.holonomic_residual_max = d.holonomic_residual_max.max(rf);
-            d.holonomic_velocity_residual_max = d.holonomic_velocity_residual_max.max(rfd);
+            d.holonomic_residual_max = nan_max(d.holonomic_residual_max, rf);
+            d.holonomic_velocity_residual_max = nan_max(d.holonomic_velocity_residual_max, rfd);
         }
-        d.constraint_residual_max = d
-            .nonholonomic_residual_max
-            .max(d.holonomic_residual_max)
-            .max(d.holonomic_velocity_residual_max);
+        d.constraint_residual_max = nan_max(
+            nan_max(d.nonholonomic_residual_max, d.holonomic_residual_max),
+            d.holonomic_velocity_residual_max,
+        );
 
         let e = self.jet.energy(&Lagrangian(scene), t, q, qd, &[]);
         if d.states_checked == 0 {
@@ -104,10 +105,10 @@ impl Monitor {
                 inv.initial = scene.invariant(i, t, q, qd);
             }
         } else {
-            d.energy_drift_max = d.energy_drift_max.max((e - d.energy_initial).abs());
+            d.energy_drift_max = nan_max(d.energy_drift_max, (e - d.energy_initial).abs());
             for (i, inv) in d.invariants.iter_mut().enumerate() {
                 let v = scene.invariant(i, t, q, qd);
-                inv.drift_max = inv.drift_max.max((v - inv.initial).abs());
+                inv.drift_max = nan_max(inv.drift_max, (v - inv.initial).abs());
             }
         }
         d.energy_final = e;
@@ -116,18 +117,5 @@ impl Monitor {
 
     pub fn diagnostics(&self) -> &Diagnostics {
         &self.diag
-    }
-
-    /// Forgets everything recorded (a model reused for a new run).
-    pub fn reset(&mut self) {
-        self.diag.states_checked = 0;
-        self.diag.constraint_residual_max = 0.0;
-        self.diag.nonholonomic_residual_max = 0.0;
-        self.diag.holonomic_residual_max = 0.0;
-        self.diag.holonomic_velocity_residual_max = 0.0;
-        self.diag.energy_drift_max = 0.0;
-        for inv in &mut self.diag.invariants {
-            inv.drift_max = 0.0;
-        }
     }
 }

@@ -123,14 +123,34 @@ impl ParamSpec {
                     what: what.to_string(),
                     name: self.name.to_string(),
                     value: text.to_string(),
-                    expected: if self.unit == "rad" {
-                        "a real number (or degrees with a `deg` suffix)".to_string()
-                    } else {
-                        "a real number".to_string()
-                    },
+                    expected: format!(
+                        "a real number{} in {}",
+                        if self.unit == "rad" {
+                            " (or degrees with a `deg` suffix)"
+                        } else {
+                            ""
+                        },
+                        self.range_text()
+                    ),
                 })?;
                 let x = x * scale;
-                self.check(Value::Real(x), what)?;
+                // Report the value as typed (not `inf` for 1e400, not radians for `90deg`).
+                self.check(Value::Real(x), what).map_err(|e| match e {
+                    Error::OutOfRange {
+                        what,
+                        name,
+                        range,
+                        description,
+                        ..
+                    } => Error::OutOfRange {
+                        what,
+                        name,
+                        value: text.to_string(),
+                        range,
+                        description,
+                    },
+                    other => other,
+                })?;
                 Ok(Value::Real(x))
             }
             Kind::Choice(choices) => choices

@@ -23,7 +23,7 @@ use nalgebra::DMatrix;
 
 use crate::ad::Jet;
 use crate::constraints::ConstraintState;
-use crate::linalg::Lu;
+use crate::linalg::{Lu, equilibrate};
 use crate::scene::{Lagrangian, Scene};
 
 /// Newton iterations allowed per projection.
@@ -55,6 +55,7 @@ pub struct Projector {
     kkt_vel: DMatrix<f64>,
     lu_vel: Lu,
     rhs: Vec<f64>,
+    scale: Vec<f64>,
     q0: Vec<f64>,
     qd0: Vec<f64>,
 }
@@ -79,6 +80,7 @@ impl Projector {
             kkt_vel: DMatrix::zeros(n + s + k, n + s + k),
             lu_vel: Lu::new(n + s + k),
             rhs: vec![0.0; n + s + k],
+            scale: vec![1.0; n + s + k],
             q0: vec![0.0; n],
             qd0: vec![0.0; n],
         }
@@ -122,6 +124,7 @@ impl Projector {
                 kkt[(j, n + a)] = c;
             }
         }
+        equilibrate(kkt, n, &mut self.scale[..size]);
         lu.factor(kkt)
             .map_err(|e| format!("projection KKT system singular: {e}"))?;
         let rhs = &mut self.rhs[..size];
@@ -138,13 +141,21 @@ impl Projector {
                 }
             }
         }
+        for (x, d) in rhs.iter_mut().zip(&self.scale) {
+            *x *= d;
+        }
         lu.solve(kkt, rhs);
+        for (x, d) in rhs.iter_mut().zip(&self.scale) {
+            *x *= d;
+        }
         Ok(())
     }
 
     /// Projects `q` onto `f = 0` (if the scene has holonomic constraints) and
-    /// then `q̇` onto `g = 0, ḟ = 0`, until `|f| ≤ rtol·max(1, |q|∞)` and
-    /// `max(|g|, |ḟ|) ≤ rtol·max(1, |q̇|∞)`.
+    /// then `q̇` onto `g = 0, ḟ = 0`, until the distances to the constraints
+    /// (see [`ConstraintState::position_distance`]) are at most
+    /// `rtol·max(1, |q|∞)` and `rtol·max(1, |q̇|∞)`, or stop improving within
+    /// a thousand times that (the round-off floor).
     pub fn project<S: Scene>(
         &mut self,
         scene: &S,
@@ -153,45 +164,59 @@ impl Projector {
         qd: &mut [f64],
         rtol: f64,
     ) -> Result<Projection, String> {
-        let n = self.n;
         let scale = |v: &[f64]| v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-        let tol = rtol * scale(q);
         self.q0.copy_from_slice(q);
         self.qd0.copy_from_slice(qd);
         let (v_before, p_before) = self.residuals(scene, t, q, qd);
         let mut iterations = 0;
 
-        let mut res = p_before;
-        while res > tol {
-            if iterations == MAX_ITER {
+        let tol = rtol * scale(q);
+        let mut dist = self.cs.position_distance();
+        let mut count = 0;
+        while dist > tol {
+            if count == MAX_ITER {
                 return Err(format!(
-                    "projection onto f = 0 did not converge: |f| = {res:.3e} after {MAX_ITER} iterations"
+                    "projection onto f = 0 did not converge: distance {dist:.3e} after {MAX_ITER} iterations"
                 ));
             }
             self.newton_step(scene, t, q, qd, Level::Position)?;
-            for (x, d) in q.iter_mut().zip(&self.rhs[..n]) {
+            for (x, d) in q.iter_mut().zip(&self.rhs[..self.n]) {
                 *x += d;
             }
             iterations += 1;
-            res = self.residuals(scene, t, q, qd).1;
+            count += 1;
+            self.residuals(scene, t, q, qd);
+            let new = self.cs.position_distance();
+            if new > 0.5 * dist && new <= 1e3 * tol {
+                break;
+            }
+            dist = new;
         }
 
         let tol = rtol * scale(qd);
-        let mut res = self.residuals(scene, t, q, qd).0;
-        let first_velocity_iteration = iterations;
-        while res > tol {
-            if iterations - first_velocity_iteration == MAX_ITER {
+        self.residuals(scene, t, q, qd);
+        let mut dist = self.cs.velocity_distance();
+        let mut count = 0;
+        while dist > tol {
+            if count == MAX_ITER {
                 return Err(format!(
-                    "projection onto the velocity constraints did not converge: residual {res:.3e} after {MAX_ITER} iterations"
+                    "projection onto the velocity constraints did not converge: distance {dist:.3e} after {MAX_ITER} iterations"
                 ));
             }
             self.newton_step(scene, t, q, qd, Level::Velocity)?;
-            for (x, d) in qd.iter_mut().zip(&self.rhs[..n]) {
+            for (x, d) in qd.iter_mut().zip(&self.rhs[..self.n]) {
                 *x += d;
             }
             iterations += 1;
-            res = self.residuals(scene, t, q, qd).0;
+            count += 1;
+            self.residuals(scene, t, q, qd);
+            let new = self.cs.velocity_distance();
+            if new > 0.5 * dist && new <= 1e3 * tol {
+                break;
+            }
+            dist = new;
         }
+        let res = self.cs.velocity_residual();
         let (v_after, p_after) = (res, self.cs.position_residual());
         let dist = |a: &[f64], b: &[f64]| {
             a.iter()

@@ -1,7 +1,9 @@
 //! One run: initial data, a model, an integrator; the physical trajectory
 //! on the output grid, the continuous extension, diagnostics and counters.
 
-use nonholo_integrate::{IntegrateError, Method, Options, Solution, solve, solve_implicit};
+use nonholo_integrate::{
+    IntegrateError, Method, Options, RadauNewton, Solution, solve, solve_implicit,
+};
 
 use crate::Error;
 use crate::consistency::InitProjection;
@@ -50,13 +52,25 @@ impl std::fmt::Debug for Run {
 
 impl Run {
     /// Physical state at any time in the integrated span, from the
-    /// continuous extension (requires `options.dense`).
+    /// continuous extension (requires `options.dense`). Times past the end
+    /// of a run that stopped early are refused, even inside the last step.
     pub fn observe_at(&mut self, t: f64, obs: &mut Observation) -> Result<(), String> {
         let dense = self
             .solution
             .dense
             .as_ref()
             .ok_or("the run kept no continuous extension (dense output off)")?;
+        if t > self.solution.t_last {
+            return Err(format!(
+                "t = {t} is beyond the end of the run (t = {}{})",
+                self.solution.t_last,
+                if self.failure.is_some() {
+                    ", where it stopped"
+                } else {
+                    ""
+                }
+            ));
+        }
         let mut y = vec![0.0; dense.dim()];
         if !dense.eval(t, &mut y) {
             let (a, b) = dense.span().unwrap_or((f64::NAN, f64::NAN));
@@ -88,8 +102,12 @@ pub fn simulate(
     let formulation = model.formulation().name;
     let result = if config.method.is_implicit() && model.implicit().is_some() {
         let yp0 = model.initial_slope()?;
+        let mut options = config.options.clone();
+        if options.radau_newton == RadauNewton::Simplified {
+            options.radau_newton = model.radau_newton();
+        }
         let sys = model.implicit().expect("checked above");
-        solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &config.options)
+        solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &options)
     } else if let Some(sys) = model.ode() {
         solve(
             config.method,

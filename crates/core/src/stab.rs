@@ -138,6 +138,32 @@ impl StepHooks {
         Ok(changed)
     }
 
+    /// Refuses a stage state on the far side of the singular set (the
+    /// direction of `r` reversed relative to the start of the step): the
+    /// right-hand side is not defined across it, and evaluating it there would
+    /// put a wrong polynomial under the crossing. Adaptive methods reject the
+    /// step and approach the set from before; fixed steps stop with this reason.
+    pub fn check_stage<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+    ) -> Result<(), SystemError> {
+        let p = scene.constraint_singularity(t, q, qd, &mut self.r);
+        if p > 0 && self.guard.value(&self.r, p) + self.guard.tol < 0.0 {
+            return Err(SystemError::new(format!(
+                "a stage crossed the singular set of the constraints of `{}`: {}",
+                scene.info().name,
+                scene
+                    .info()
+                    .constraint_singular_set
+                    .unwrap_or("constraint singular")
+            )));
+        }
+        Ok(())
+    }
+
     /// Signed distance from the constraints' singular set (see [`crate::guard`]).
     pub fn guard<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) -> Option<f64> {
         let p = scene.constraint_singularity(t, q, qd, &mut self.r);

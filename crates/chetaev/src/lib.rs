@@ -127,6 +127,7 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
         let (q, qd) = y.split_at(n);
+        self.hooks.check_stage(&self.scene, t, q, qd)?;
         let (dq, dqd) = dy.split_at_mut(n);
         dq.copy_from_slice(qd);
         self.accelerations(t, q, qd, dqd, &mut [])
@@ -223,8 +224,23 @@ impl<S: Scene> Model for Chetaev<S> {
         let (q, qd) = y.split_at(n);
         obs.q.copy_from_slice(q);
         obs.qd.copy_from_slice(qd);
-        let mut qdd = vec![0.0; n];
-        self.accelerations(t, q, qd, &mut qdd, &mut obs.multipliers)
+        if obs.multipliers.is_empty() {
+            return Ok(());
+        }
+        self.kkt.solve(
+            &Lagrangian(&self.scene),
+            &[],
+            &self.scene,
+            self.stab,
+            t,
+            q,
+            qd,
+            "formulation B",
+        )?;
+        for (m, v) in obs.multipliers.iter_mut().zip(self.kkt.mu()) {
+            *m = -v;
+        }
+        Ok(())
     }
 
     fn diagnostics(&self) -> Diagnostics {

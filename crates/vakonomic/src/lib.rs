@@ -219,6 +219,8 @@ impl<S: Scene> OdeSystem for Vakonomic<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
+        self.hooks
+            .check_stage(&self.scene, t, &y[..n], &y[n..2 * n])?;
         dy[..n].copy_from_slice(&y[n..2 * n]);
         let (qdd, lambda_dot) = dy[n..].split_at_mut(n);
         self.accelerations(t, y, qdd, lambda_dot, &mut [])
@@ -320,10 +322,22 @@ impl<S: Scene> Model for Vakonomic<S> {
         obs.qd.copy_from_slice(&y[n..2 * n]);
         obs.multipliers[..s].copy_from_slice(&y[2 * n..]);
         if obs.multipliers.len() > s {
-            let mut qdd = vec![0.0; n];
-            let mut lambda_dot = vec![0.0; s];
-            let (_, nu) = obs.multipliers.split_at_mut(s);
-            self.accelerations(t, y, &mut qdd, &mut lambda_dot, nu)?;
+            // ν of the holonomic constraints: from the KKT solve at this state.
+            let (q, rest) = y.split_at(n);
+            let (qd, lambda) = rest.split_at(n);
+            self.kkt.solve(
+                &Augmented(&self.scene),
+                lambda,
+                &self.scene,
+                self.stab,
+                t,
+                q,
+                qd,
+                "formulation C",
+            )?;
+            for (v, m) in obs.multipliers[s..].iter_mut().zip(&self.kkt.mu()[s..]) {
+                *v = -m;
+            }
         }
         Ok(())
     }

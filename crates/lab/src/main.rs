@@ -28,12 +28,11 @@ fn main() {
     let result: Result<(), CliError> = match &cli.command {
         Command::Scenes { json } => {
             if *json {
-                println!(
-                    "{}",
-                    serde_json::to_string_pretty(&listing::json()).unwrap_or_default()
-                );
+                let mut text = serde_json::to_string_pretty(&listing::json()).unwrap_or_default();
+                text.push('\n');
+                nonholo_lab::print_stdout(&text);
             } else {
-                print!("{}", listing::text());
+                nonholo_lab::print_stdout(&listing::text());
             }
             Ok(())
         }

@@ -18,6 +18,7 @@ pub struct IntegratorRecord {
     pub atol: f64,
     pub fixed_step: Option<f64>,
     pub max_steps: usize,
+    pub max_wall_time_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -99,6 +100,9 @@ pub struct RunRecord {
     pub t: Vec<f64>,
     pub q: Vec<Vec<f64>>,
     pub q_dot: Vec<Vec<f64>>,
+    /// What the multipliers mean (B and C use different conventions).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub multiplier_convention: Option<&'static str>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lambda: Option<Vec<Vec<f64>>>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -111,6 +115,15 @@ pub struct RunRecord {
     /// Formulation A: how its initial derivatives were matched with C.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub matching: Option<crate::matching::MatchReport>,
+}
+
+/// The meaning of the multipliers a formulation reports.
+pub fn multiplier_convention(formulation: &str) -> &'static str {
+    match formulation {
+        "chetaev" => "B: constraint forces, M q̈ − Q = Gᵀλ + Fᵀν",
+        "vakonomic" => "C: multipliers of the action, L + λᵀg (state); holonomic ν as in B",
+        _ => "see docs/formulations.md",
+    }
 }
 
 /// `{name: value}` in spec order.
@@ -164,6 +177,43 @@ impl RunRecord {
         };
         check("q", &q)?;
         check("q_dot", &q_dot)?;
+        let d = &run.diagnostics;
+        let mut scalars: Vec<(String, f64)> = vec![
+            (
+                "diagnostics.constraint_residual_max".into(),
+                d.constraint_residual_max,
+            ),
+            ("diagnostics.energy_initial".into(), d.energy_initial),
+            ("diagnostics.energy_final".into(), d.energy_final),
+            ("diagnostics.energy_drift_max".into(), d.energy_drift_max),
+            ("stats.wall_time_s".into(), run.solution.stats.wall_time_s),
+        ];
+        for inv in &d.invariants {
+            scalars.push((
+                format!("diagnostics.invariants.{}.initial", inv.name),
+                inv.initial,
+            ));
+            scalars.push((
+                format!("diagnostics.invariants.{}.drift_max", inv.name),
+                inv.drift_max,
+            ));
+        }
+        for (k, v) in run.model.init_report() {
+            scalars.push((format!("init.report.{k}"), v));
+        }
+        scalars.extend(
+            run.initial
+                .q
+                .iter()
+                .chain(&run.initial.qd)
+                .map(|v| ("init".to_string(), *v)),
+        );
+        if let Some((name, v)) = scalars.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(format!(
+                "refusing to write a non-finite value: {name} = {v} (the state overflowed or \
+                 left the domain of the scene's functions)"
+            ));
+        }
         if let Some(l) = &lambda {
             check("lambda", l)?;
         }
@@ -171,7 +221,6 @@ impl RunRecord {
             check("nu", l)?;
         }
 
-        let d = &run.diagnostics;
         let st = &run.solution.stats;
         let cfg = &run.config;
         Ok(RunRecord {
@@ -184,6 +233,7 @@ impl RunRecord {
                 atol: cfg.options.atol,
                 fixed_step: cfg.options.fixed_step,
                 max_steps: cfg.options.max_steps,
+                max_wall_time_s: cfg.options.max_wall_time_s,
             },
             params: params_json(run.model.scene_params()),
             options: params_json(run.model.options()),
@@ -225,6 +275,8 @@ impl RunRecord {
             t,
             q,
             q_dot,
+            multiplier_convention: has_multipliers
+                .then(|| multiplier_convention(run.model.formulation().name)),
             lambda,
             nu,
             diagnostics: DiagnosticsRecord {
@@ -267,6 +319,18 @@ impl RunRecord {
             }),
             matching: None,
         })
+    }
+
+    /// The record without the trajectory arrays: what a CSV file cannot carry
+    /// (status, tolerances, options, diagnostics, counters), written beside it.
+    pub fn metadata(&self) -> Json {
+        let mut j = serde_json::to_value(self).unwrap_or(Json::Null);
+        if let Json::Object(map) = &mut j {
+            for key in ["t", "q", "q_dot", "lambda", "nu"] {
+                map.remove(key);
+            }
+        }
+        j
     }
 
     /// CSV: `t,<q names>,<q names>_dot,<multiplier names>`, one row per output time.

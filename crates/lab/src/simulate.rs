@@ -51,14 +51,18 @@ pub struct SimulateArgs {
     /// Budget on integrator steps (accepted plus rejected).
     #[arg(long, default_value_t = 10_000_000)]
     pub max_steps: usize,
+    /// Budget on wall-clock time in seconds (default: none).
+    #[arg(long)]
+    pub max_wall_time: Option<f64>,
     /// Move inconsistent initial data onto the constraints (nearest in the
     /// kinetic-energy metric) instead of refusing them.
     #[arg(long)]
     pub project_init: bool,
-    /// Write the run to FILE.json or FILE.csv (default: a summary on stdout).
+    /// Write the run to FILE.json, or FILE.csv plus FILE.csv.meta.json (status,
+    /// tolerances, options, diagnostics); default: a summary on stdout.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Also write the file when the run fails part-way (status "failed").
+    /// Also write the file when the run fails part-way (status "failed"; JSON only).
     #[arg(long)]
     pub keep_partial: bool,
 }
@@ -86,12 +90,16 @@ fn positive(flag: &str, v: f64) -> Result<f64, CliError> {
     }
 }
 
+/// Most output points a run may ask for (each is a row of the result).
+pub const MAX_OUTPUT_POINTS: f64 = 1e6;
+
 /// Output grid `0, Δ, 2Δ, …` up to `t_end`, which is always the last point.
 pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
     let count = (t_end / every).floor();
-    if count > 1e7 {
+    if count.is_nan() || count > MAX_OUTPUT_POINTS {
         return Err(CliError::Input(format!(
-            "--output-every {every} over [0, {t_end}] gives {count:e} output points (limit 1e7)"
+            "--output-every {every:e} over [0, {t_end:e}] gives {count:.3e} output points \
+             (limit {MAX_OUTPUT_POINTS:e})"
         )));
     }
     let count = count as usize;
@@ -103,6 +111,10 @@ pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
     }
     Ok(grid)
 }
+
+/// Smallest relative tolerance accepted: below ~100 ε double precision
+/// cannot deliver what is asked, and a result file would claim it did.
+pub const MIN_RTOL: f64 = 100.0 * f64::EPSILON;
 
 /// Integrator method and options from command-line values.
 pub fn integrator(
@@ -127,13 +139,23 @@ pub fn integrator(
     if max_steps == 0 {
         return Err(CliError::Input("--max-steps: must be at least 1".into()));
     }
+    let rtol = positive("--rtol", rtol)?;
+    if rtol < MIN_RTOL {
+        return Err(CliError::Input(format!(
+            "--rtol {rtol:e} is below what double precision can deliver (at least {MIN_RTOL:.1e})"
+        )));
+    }
     Ok((
         method,
         Options {
-            rtol: positive("--rtol", rtol)?,
+            rtol,
             atol: positive("--atol", atol)?,
             fixed_step: step,
             max_steps,
+            // Samples come from each step's polynomial as the run passes the
+            // output times; keeping every polynomial is only needed for
+            // evaluation at arbitrary times afterwards.
+            dense: false,
             ..Options::default()
         },
     ))
@@ -152,6 +174,10 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
         args.max_steps,
     )?;
     options.output = output_grid(t_end, every)?;
+    options.max_wall_time_s = args
+        .max_wall_time
+        .map(|s| positive("--max-wall-time", s))
+        .transpose()?;
 
     let scene = nonholo_scenes::build(&args.scene, &pairs("--param", &args.params)?)?;
     let model = formulations::build_model(
@@ -197,7 +223,14 @@ impl nonholo_scenes::SceneVisitor for ResolveInit {
 pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
     if let Some(path) = &args.out {
         match path.extension().and_then(|e| e.to_str()) {
-            Some("json") | Some("csv") => {}
+            Some("json") => {}
+            Some("csv") if args.keep_partial => {
+                return Err(CliError::Input(
+                    "--keep-partial needs a .json output: a CSV cannot say that the run failed"
+                        .into(),
+                ));
+            }
+            Some("csv") => {}
             _ => {
                 return Err(CliError::Input(format!(
                     "--out {}: the file name must end in .json or .csv",
@@ -233,8 +266,21 @@ pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
             };
             write_atomic(path, &bytes)
                 .map_err(|e| CliError::Run(format!("cannot write {}: {e}", path.display())))?;
+            if path.extension().and_then(|e| e.to_str()) == Some("csv") {
+                let meta = path.with_file_name(format!(
+                    "{}.meta.json",
+                    path.file_name()
+                        .map(|n| n.to_string_lossy())
+                        .unwrap_or_default()
+                ));
+                let mut b = serde_json::to_vec_pretty(&record.metadata())
+                    .map_err(|e| CliError::Run(e.to_string()))?;
+                b.push(b'\n');
+                write_atomic(&meta, &b)
+                    .map_err(|e| CliError::Run(format!("cannot write {}: {e}", meta.display())))?;
+            }
         }
-        (None, _) => print!("{}", summary(&run, &record)),
+        (None, _) => crate::print_stdout(&summary(&run, &record)),
         (Some(_), false) => {}
     }
     match &run.failure {

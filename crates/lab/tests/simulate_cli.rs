@@ -477,3 +477,211 @@ fn scenes_lists_coordinates_parameters_and_formulations() {
     assert_eq!(j[0]["params"][4]["name"], "alpha");
     assert_eq!(j[0]["formulations"][0]["applicable"], true);
 }
+
+/// A review found B stepping straight over Appell–Hamel's stop at loose
+/// tolerances (|v| never changes sign). With the signed guard and stages
+/// refused beyond the singular set, every adaptive method and tolerance stops
+/// at t* − singular_tol/|ρ̇| = 0.5096839934 (t* = ρ0 (1 + c²)/(|c| g)); a fixed
+/// step stops at the start of the step that would cross, with that reason.
+#[test]
+fn singularity_is_not_stepped_over_at_loose_tolerances() {
+    let base = [
+        "simulate",
+        "--scene",
+        "appell-hamel",
+        "--param",
+        "c=-0.5",
+        "--init",
+        "rho=2",
+        "--t-end",
+        "3",
+    ];
+    for extra in [
+        &["--rtol", "1e-3", "--atol", "1e-3"][..],
+        &["--rtol", "1e-4", "--atol", "1e-4", "--integrator", "dopri5"][..],
+        &["--integrator", "radau5", "--rtol", "1e-4", "--atol", "1e-4"][..],
+    ] {
+        let mut args = base.to_vec();
+        args.extend(extra);
+        fails_with(&args, 1, &["at t = 0.50968399337", "horizontal speed"]);
+    }
+    let mut args = base.to_vec();
+    args.extend(["--integrator", "rk4", "--step", "0.05"]);
+    fails_with(
+        &args,
+        1,
+        &["at t = 0.5:", "a stage crossed the singular set"],
+    );
+}
+
+/// Units do not decide singularity or consistency: masses of 1e8, a 1000 m
+/// pendulum, positions of 1e9 m.
+#[test]
+fn results_do_not_depend_on_units() {
+    for m in ["1e8", "1e-8"] {
+        let o = nonholo(&[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            &format!("m={m}"),
+            "--t-end",
+            "2",
+        ]);
+        assert!(o.status.success(), "m = {m}: {}", stderr(&o));
+    }
+    for l in ["100", "1000"] {
+        let o = nonholo(&[
+            "simulate",
+            "--scene",
+            "pendulum",
+            "--param",
+            &format!("l={l}"),
+            "--init",
+            "omega=0.01",
+            "--option",
+            "stab=projection",
+            "--t-end",
+            "5",
+            "--rtol",
+            "1e-8",
+            "--atol",
+            "1e-8",
+        ]);
+        assert!(o.status.success(), "l = {l}: {}", stderr(&o));
+        let o = nonholo(&[
+            "simulate",
+            "--scene",
+            "pendulum",
+            "--param",
+            &format!("l={l}"),
+            "--init",
+            "x=1",
+            "--project-init",
+            "--t-end",
+            "1",
+        ]);
+        assert!(o.status.success(), "l = {l} --project-init: {}", stderr(&o));
+    }
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--init",
+            "x=1e9",
+            "--init",
+            "phi=0",
+            "--init",
+            "x_dot=1",
+            "--init",
+            "y_dot=0.5",
+            "--init",
+            "phi_dot=0.3",
+        ],
+        2,
+        &["violate the constraints", "distance 5.000e-1"],
+    );
+}
+
+#[test]
+fn limits_and_formats_are_enforced() {
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--rtol", "1e-20"],
+        2,
+        &["--rtol 1e-20", "double precision"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--output-every",
+            "1e-300",
+        ],
+        2,
+        &["output points", "limit 1e6"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--out",
+            "x.csv",
+            "--keep-partial",
+        ],
+        2,
+        &["--keep-partial needs a .json"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "alpha=90deg",
+        ],
+        2,
+        &["`alpha` = 90deg"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "a=1e400",
+        ],
+        2,
+        &["`a` = 1e400"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--param", "a=x"],
+        2,
+        &["a real number in (-inf, inf)"],
+    );
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "appell-hamel",
+        "--init",
+        "beta=45deg",
+        "--t-end",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn csv_comes_with_its_metadata() {
+    let dir = tmpdir("csvmeta");
+    let out = dir.join("run.csv");
+    let o = run(&with(&[
+        "--out",
+        out.to_str().unwrap(),
+        "--option",
+        "stab=projection",
+    ]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("run.csv.meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["options"]["stab"], "projection");
+    assert_eq!(meta["status"], "completed");
+    assert!(meta.get("q").is_none() && meta["diagnostics"]["energy_initial"].is_number());
+}
+
+#[test]
+fn a_closed_pipe_is_not_a_panic() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nonholo"))
+        .arg("scenes")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    assert!(out.status.success() || out.status.code() == Some(1));
+}

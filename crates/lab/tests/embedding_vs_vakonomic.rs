@@ -4,8 +4,8 @@
 //! vakonomic problem restricted to constrained curves, so the two must agree
 //! — up to the first reversal, where A's embedding map is singular.
 
-use nonholo_core::Run;
 use nonholo_core::integrate::IntegrateError;
+use nonholo_core::{Run, Scene};
 use nonholo_lab::simulate::{SimulateArgs, run};
 
 fn args(
@@ -163,4 +163,175 @@ fn a_does_not_depend_on_a_with_the_paper_potential() {
             }
         }
     }
+}
+
+/// A sleigh launched up the slope (heading ≈ π, gravity against the motion):
+/// its forward speed passes through zero. B and C are regular there and carry
+/// on through the reversal; A stops at its embedding map's singular set with
+/// the promised error, within 1e-3 of C's zero.
+#[test]
+fn launched_up_the_slope() {
+    let params = ["a=0.4", "alpha=0.3", "potential=com"];
+    let init = ["phi=3.0", "u=2", "omega=0.3"];
+    let (b, _) = run(&args("chetaev", &params, &init, "dop853", 1e-11, 3.0, 1e-3)).unwrap();
+    assert!(b.completed(), "{:?}", b.failure);
+    let b_rev = first_reversal(&b).expect("B's speed passes through zero");
+    // B is regular through the reversal: energy conserved to round-off across it.
+    assert!(
+        b.diagnostics.energy_drift_max < 1e-9,
+        "{:e}",
+        b.diagnostics.energy_drift_max
+    );
+    let (c, _) = run(&args(
+        "vakonomic",
+        &params,
+        &init,
+        "dop853",
+        1e-11,
+        3.0,
+        1e-4,
+    ))
+    .unwrap();
+    assert!(c.completed(), "{:?}", c.failure);
+    let c_rev = first_reversal(&c).unwrap();
+    assert!(
+        c.diagnostics.energy_drift_max < 1e-9,
+        "{:e}",
+        c.diagnostics.energy_drift_max
+    );
+    let (a, _) = run(&args(
+        "embedding",
+        &params,
+        &init,
+        "radau5",
+        1e-10,
+        3.0,
+        1e-4,
+    ))
+    .unwrap();
+    let stop = match &a.failure {
+        Some(IntegrateError::Stopped { t, .. }) => *t,
+        other => panic!("A should stop at the reversal, got {other:?}"),
+    };
+    eprintln!("up the slope: B reverses at {b_rev:.6}, C at {c_rev:.6}, A stops at {stop:.6}");
+    assert!((stop - c_rev).abs() < 1e-3);
+}
+
+/// The branch effect (spec): for a sleigh moving backwards, atan2(ẏ, ẋ) is
+/// the heading plus π. A refuses such data unless asked (branch = map). With
+/// the paper's potential φ enters Θ only through φ̇, so A still reproduces
+/// C; with gravity at the centre of mass the flipped branch flips the sign
+/// of the gravity torque in Θ: C's Taylor coefficients then violate A's
+/// hidden constraints, and from C's q̈ alone A follows different physics.
+#[test]
+fn branch_effect_for_backward_motion() {
+    let backward = ["phi=0.2", "u=-1", "omega=0.4"];
+    let strict = run(&args(
+        "embedding",
+        &["potential=com"],
+        &backward,
+        "radau5",
+        1e-10,
+        0.3,
+        1e-3,
+    ));
+    let msg = strict.err().expect("refused").to_string();
+    assert!(
+        msg.contains("backward motion") && msg.contains("branch=map"),
+        "{msg}"
+    );
+
+    let mut with_map = |potential: &str, init: &[&str]| {
+        let mut spec = args(
+            "embedding",
+            &[&format!("potential={potential}")],
+            init,
+            "radau5",
+            1e-10,
+            0.3,
+            1e-3,
+        );
+        spec.options = vec!["branch=map".into()];
+        run(&spec)
+    };
+    // Paper's potential: A matched with C agrees with C.
+    let (a, _) = with_map("paper", &backward).unwrap();
+    let (c, _) = run(&args(
+        "vakonomic",
+        &["potential=paper"],
+        &backward,
+        "dop853",
+        1e-12,
+        0.3,
+        1e-3,
+    ))
+    .unwrap();
+    let n = a.samples.len().min(c.samples.len());
+    let worst = (0..n)
+        .map(|i| {
+            (a.samples[i].q[0] - c.samples[i].q[0])
+                .abs()
+                .max((a.samples[i].q[1] - c.samples[i].q[1]).abs())
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-7, "paper potential, backward: {worst:e}");
+    // A's heading column is C's plus π.
+    let dphi = a.samples[n - 1].q[2] - c.samples[n - 1].q[2];
+    assert!((dphi.abs() - std::f64::consts::PI).abs() < 1e-6, "{dphi}");
+
+    // Gravity at the centre of mass: C's q⃛ violates A's hidden constraints.
+    let e = with_map("com", &backward)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("hidden constraints"), "{e}");
+    // From C's q̈ alone (q⃛ completed by A) A follows different physics.
+    let (c, _) = run(&args(
+        "vakonomic",
+        &["potential=com"],
+        &backward,
+        "dop853",
+        1e-12,
+        0.3,
+        1e-3,
+    ))
+    .unwrap();
+    let (phi, u, omega): (f64, f64, f64) = (0.2, -1.0, 0.4);
+    // C's q̈ at t = 0 by Taylor-mode differentiation of C's right-hand side.
+    let mut c_model = nonholo_vakonomic::Vakonomic::new(
+        nonholo_scenes::Sleigh::from_params(
+            &nonholo_core::Params::resolve(
+                nonholo_scenes::sleigh::INFO.params,
+                &[("potential".into(), "com".into())],
+                "parameter",
+            )
+            .unwrap(),
+        )
+        .unwrap(),
+        nonholo_core::Params::defaults(nonholo_vakonomic::OPTIONS),
+    )
+    .unwrap();
+    let y = [0.0, 0.0, phi, u * phi.cos(), u * phi.sin(), omega, 0.0];
+    let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
+    c_model
+        .taylor(0.0, &y, &mut yd, &mut ydd, &mut yddd)
+        .unwrap();
+    let (xs, ys) = (format!("x_ddot={}", yd[3]), format!("y_ddot={}", yd[4]));
+    let mut init = backward.to_vec();
+    init.push(&xs);
+    init.push(&ys);
+    let (a, _) = with_map("com", &init).unwrap();
+    let n = a.samples.len().min(c.samples.len());
+    let apart = (0..n)
+        .map(|i| {
+            (a.samples[i].q[0] - c.samples[i].q[0])
+                .abs()
+                .max((a.samples[i].q[1] - c.samples[i].q[1]).abs())
+        })
+        .fold(0.0, f64::max);
+    eprintln!(
+        "com potential, backward: A and C drift {apart:.3e} apart within {:.2} s",
+        a.solution.t_last
+    );
+    assert!(apart > 1e-4, "{apart:e}");
 }

@@ -685,3 +685,72 @@ fn a_closed_pipe_is_not_a_panic() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
     assert!(out.status.success() || out.status.code() == Some(1));
 }
+
+#[test]
+fn embedding_applicability_and_integrator() {
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "rolling-disk",
+            "--formulation",
+            "embedding",
+        ],
+        2,
+        &[
+            "formulation `embedding` is not applicable to scene `rolling-disk`",
+            "no embedding map",
+        ],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "appell-hamel",
+            "--formulation",
+            "embedding",
+        ],
+        2,
+        &["not applicable", "eq. (28)"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "embedding",
+            "--integrator",
+            "dop853",
+        ],
+        2,
+        &["implicit (differential-algebraic)", "--integrator radau5"],
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "embedding",
+            "--integrator",
+            "radau5",
+            "--init",
+            "lambda=0.5",
+            "--init",
+            "x_ddot=1",
+        ],
+        2,
+        &["either as lambda", "not both"],
+    );
+    let o = nonholo(&["scenes"]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("A embedding: applies") && s.contains("C vakonomic: applies"),
+        "{s}"
+    );
+    assert!(
+        s.contains("A embedding: not applicable — the scene provides no embedding map"),
+        "{s}"
+    );
+}

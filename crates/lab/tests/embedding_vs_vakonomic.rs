@@ -235,13 +235,13 @@ fn branch_effect_for_backward_motion() {
         0.3,
         1e-3,
     ));
-    let msg = strict.err().expect("refused").to_string();
+    let msg = strict.expect_err("refused").to_string();
     assert!(
         msg.contains("backward motion") && msg.contains("branch=map"),
         "{msg}"
     );
 
-    let mut with_map = |potential: &str, init: &[&str]| {
+    let with_map = |potential: &str, init: &[&str]| {
         let mut spec = args(
             "embedding",
             &[&format!("potential={potential}")],
@@ -281,8 +281,7 @@ fn branch_effect_for_backward_motion() {
 
     // Gravity at the centre of mass: C's q⃛ violates A's hidden constraints.
     let e = with_map("com", &backward)
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(e.contains("hidden constraints"), "{e}");
     // From C's q̈ alone (q⃛ completed by A) A follows different physics.

@@ -280,9 +280,7 @@ fn branch_effect_for_backward_motion() {
     assert!((dphi.abs() - std::f64::consts::PI).abs() < 1e-6, "{dphi}");
 
     // Gravity at the centre of mass: C's q⃛ violates A's hidden constraints.
-    let e = with_map("com", &backward)
-        .expect_err("refused")
-        .to_string();
+    let e = with_map("com", &backward).expect_err("refused").to_string();
     assert!(e.contains("hidden constraints"), "{e}");
     // From C's q̈ alone (q⃛ completed by A) A follows different physics.
     let (c, _) = run(&args(

@@ -332,3 +332,48 @@ fn branch_effect_for_backward_motion() {
     );
     assert!(apart > 1e-4, "{apart:e}");
 }
+
+/// The inverse map: from A's explicit q̈ (here: C's at λ0 = 0.7) the lab
+/// recovers λ0 through C's exact ∂q̈/∂λ, and reports how far C's q⃛ at that
+/// λ0 is from A's given q⃛.
+#[test]
+fn inverse_map_recovers_lambda0() {
+    use nonholo_lab::matching::prepare_embedding;
+    let scene =
+        nonholo_scenes::build("sleigh-incline", &[("potential".into(), "com".into())]).unwrap();
+    let resolve = |given: &[(&str, &str)]| {
+        struct R(Vec<(String, String)>);
+        impl nonholo_scenes::SceneVisitor for R {
+            type Output = nonholo_core::Initial;
+            fn visit<S: Scene>(self, s: S) -> Self::Output {
+                let extra: Vec<_> = ["lambda", "x_ddot", "y_ddot", "x_dddot", "y_dddot"]
+                    .iter()
+                    .map(|n| nonholo_core::init::ExtraName::new(*n, "", ""))
+                    .collect();
+                nonholo_core::init::resolve(&s, &self.0, &extra).unwrap()
+            }
+        }
+        scene.clone().visit(R(given
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect()))
+    };
+    let mut matched = resolve(&[("lambda", "0.7")]);
+    let forward = prepare_embedding(&scene, &mut matched).unwrap();
+    assert_eq!(forward.source, "vakonomic");
+    let get = |n: &str| matched.extra(n).unwrap().to_string();
+    let (xdd, ydd, xddd, yddd) = (get("x_ddot"), get("y_ddot"), get("x_dddot"), get("y_dddot"));
+    let mut explicit = resolve(&[
+        ("x_ddot", &xdd),
+        ("y_ddot", &ydd),
+        ("x_dddot", &xddd),
+        ("y_dddot", &yddd),
+    ]);
+    let back = prepare_embedding(&scene, &mut explicit).unwrap();
+    assert_eq!(back.source, "explicit");
+    assert!((back.lambda0[0] - 0.7).abs() < 1e-12, "{back:?}");
+    assert!(
+        back.second_residual < 1e-13 && back.third_residual.unwrap() < 1e-12,
+        "{back:?}"
+    );
+}

@@ -111,17 +111,9 @@ impl<S: Scene> Vakonomic<S> {
         &self.scene
     }
 
-    /// Solves the KKT system at `(t, q, q̇, λ)`: `q̈` into `qdd`, `λ̇` into
-    /// `lambda_dot`, and `ν` (if the scene has holonomic constraints) into `nu`.
-    pub fn accelerations(
-        &mut self,
-        t: f64,
-        y: &[f64],
-        qdd: &mut [f64],
-        lambda_dot: &mut [f64],
-        nu: &mut [f64],
-    ) -> Result<(), SystemError> {
-        let (n, s) = (self.n, self.s);
+    /// The KKT solve at `y = (q, q̇, λ)`, results in `self.kkt`.
+    fn solve_at(&mut self, t: f64, y: &[f64]) -> Result<(), SystemError> {
+        let n = self.n;
         let (q, rest) = y.split_at(n);
         let (qd, lambda) = rest.split_at(n);
         self.kkt.solve(
@@ -133,7 +125,21 @@ impl<S: Scene> Vakonomic<S> {
             q,
             qd,
             "formulation C",
-        )?;
+        )
+    }
+
+    /// Solves the KKT system at `(t, q, q̇, λ)`: `q̈` into `qdd`, `λ̇` into
+    /// `lambda_dot`, and `ν` (if the scene has holonomic constraints) into `nu`.
+    pub fn accelerations(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        qdd: &mut [f64],
+        lambda_dot: &mut [f64],
+        nu: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let s = self.s;
+        self.solve_at(t, y)?;
         qdd.copy_from_slice(self.kkt.qdd());
         lambda_dot.copy_from_slice(&self.kkt.mu()[..s]);
         for (v, m) in nu.iter_mut().zip(&self.kkt.mu()[s..]) {
@@ -323,18 +329,7 @@ impl<S: Scene> Model for Vakonomic<S> {
         obs.multipliers[..s].copy_from_slice(&y[2 * n..]);
         if obs.multipliers.len() > s {
             // ν of the holonomic constraints: from the KKT solve at this state.
-            let (q, rest) = y.split_at(n);
-            let (qd, lambda) = rest.split_at(n);
-            self.kkt.solve(
-                &Augmented(&self.scene),
-                lambda,
-                &self.scene,
-                self.stab,
-                t,
-                q,
-                qd,
-                "formulation C",
-            )?;
+            self.solve_at(t, y)?;
             for (v, m) in obs.multipliers[s..].iter_mut().zip(&self.kkt.mu()[s..]) {
                 *v = -m;
             }

@@ -119,3 +119,12 @@ impl Monitor {
         &self.diag
     }
 }
+
+/// `(max(|g|, |f|, |ḟ|), E)` at one state: the constraint residual and the
+/// energy `E = q̇·∂L/∂q̇ − L`, for time series of results (not a hot path).
+pub fn state_measures<S: Scene>(scene: &S, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64) {
+    let mut m = Monitor::new(scene);
+    m.record(scene, t, q, qd);
+    let d = m.diagnostics();
+    (d.constraint_residual_max, d.energy_initial)
+}

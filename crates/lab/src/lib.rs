@@ -1,16 +1,18 @@
 //! The `nonholo` command line and the lab: formulations registry, runs,
 //! result files.
 
+pub mod experiment;
 pub mod formulations;
 pub mod listing;
 pub mod matching;
+pub mod plot;
 pub mod record;
 pub mod simulate;
 
 use thiserror::Error;
 
 /// Errors reported by the command line. Exit status 2 for bad input, 1 for a
-/// run that failed.
+/// run that failed, 3 for an experiment some of whose runs failed.
 #[derive(Debug, Error)]
 pub enum CliError {
     #[error("{0}")]
@@ -19,6 +21,9 @@ pub enum CliError {
     Setup(#[from] nonholo_core::Error),
     #[error("{0}")]
     Run(String),
+    /// An experiment ran to its end, but some of its runs failed.
+    #[error("{0}")]
+    RunsFailed(String),
 }
 
 impl CliError {
@@ -26,6 +31,7 @@ impl CliError {
         match self {
             CliError::Input(_) | CliError::Setup(_) => 2,
             CliError::Run(_) => 1,
+            CliError::RunsFailed(_) => 3,
         }
     }
 }

@@ -1,4 +1,5 @@
 use clap::{Parser, Subcommand};
+use nonholo_lab::experiment::cli::{self, ExperimentArgs, PlotArgs, ReproduceArgs};
 use nonholo_lab::simulate::{self, SimulateArgs};
 use nonholo_lab::{CliError, listing};
 
@@ -21,6 +22,12 @@ enum Command {
     },
     /// Run one motion of a scene under one formulation.
     Simulate(Box<SimulateArgs>),
+    /// Run an experiment file: sweeps, comparisons, plots, reports in results/<name>/.
+    Experiment(ExperimentArgs),
+    /// Redraw an experiment's figures from its stored results.
+    Plot(PlotArgs),
+    /// Run every experiment marked as a figure and rebuild docs/figures.md.
+    Reproduce(ReproduceArgs),
 }
 
 fn main() {
@@ -37,6 +44,9 @@ fn main() {
             Ok(())
         }
         Command::Simulate(args) => simulate::command(args),
+        Command::Experiment(args) => cli::experiment(args),
+        Command::Plot(args) => cli::plot(args),
+        Command::Reproduce(args) => cli::reproduce(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

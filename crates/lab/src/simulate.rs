@@ -80,7 +80,7 @@ pub fn pairs(flag: &str, items: &[String]) -> Result<Vec<(String, String)>, CliE
         .collect()
 }
 
-fn positive(flag: &str, v: f64) -> Result<f64, CliError> {
+pub fn positive(flag: &str, v: f64) -> Result<f64, CliError> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -161,6 +161,48 @@ pub fn integrator(
     ))
 }
 
+/// Everything one run needs, resolved to names and values: what `nonholo
+/// simulate` and each formulation of an experiment point describe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSpec {
+    pub scene: String,
+    pub formulation: String,
+    pub params: Vec<(String, String)>,
+    pub init: Vec<(String, String)>,
+    pub options: Vec<(String, String)>,
+    pub method: Method,
+    pub integrator: Options,
+    pub t_end: f64,
+    pub project_init: bool,
+}
+
+/// Builds the model, resolves the initial data (matching A with C when
+/// needed) and runs it.
+pub fn execute(spec: &RunSpec) -> Result<(Run, Option<MatchReport>), CliError> {
+    let scene = nonholo_scenes::build(&spec.scene, &spec.params)?;
+    let model = formulations::build_model(scene.clone(), &spec.formulation, &spec.options)?;
+    let mut initial = scene.clone().visit(ResolveInit {
+        given: spec.init.clone(),
+        extra: model.extra_init_names(),
+    })?;
+    let matching = if model.formulation().name == nonholo_embedding::INFO.name {
+        Some(matching::prepare_embedding(&scene, &mut initial)?)
+    } else {
+        None
+    };
+    let run = simulate(
+        model,
+        initial,
+        RunConfig {
+            method: spec.method,
+            options: spec.integrator.clone(),
+            t_end: spec.t_end,
+            project_init: spec.project_init,
+        },
+    )?;
+    Ok((run, matching))
+}
+
 /// Builds and runs the simulation described by `args`; for formulation A
 /// also reports how its initial derivatives were matched with C.
 pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> {
@@ -178,33 +220,17 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
         .max_wall_time
         .map(|s| positive("--max-wall-time", s))
         .transpose()?;
-
-    let scene = nonholo_scenes::build(&args.scene, &pairs("--param", &args.params)?)?;
-    let model = formulations::build_model(
-        scene.clone(),
-        &args.formulation,
-        &pairs("--option", &args.options)?,
-    )?;
-    let mut initial = scene.clone().visit(ResolveInit {
-        given: pairs("--init", &args.init)?,
-        extra: model.extra_init_names(),
-    })?;
-    let matching = if model.formulation().name == nonholo_embedding::INFO.name {
-        Some(matching::prepare_embedding(&scene, &mut initial)?)
-    } else {
-        None
-    };
-    let run = simulate(
-        model,
-        initial,
-        RunConfig {
-            method,
-            options,
-            t_end,
-            project_init: args.project_init,
-        },
-    )?;
-    Ok((run, matching))
+    execute(&RunSpec {
+        scene: args.scene.clone(),
+        formulation: args.formulation.clone(),
+        params: pairs("--param", &args.params)?,
+        init: pairs("--init", &args.init)?,
+        options: pairs("--option", &args.options)?,
+        method,
+        integrator: options,
+        t_end,
+        project_init: args.project_init,
+    })
 }
 
 struct ResolveInit {

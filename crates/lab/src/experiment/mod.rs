@@ -1,0 +1,280 @@
+//! The experiment runner: `nonholo experiment FILE`.
+//!
+//! An experiment file ([`spec`]) names a scene, formulations to compare, a
+//! time grid, a sweep and what to measure. [`run`] expands the sweep into
+//! points ([`sweep`]), runs every point's formulations in parallel
+//! ([`point`]), and writes to `results/<name>/`:
+//!
+//! | file | content |
+//! |---|---|
+//! | `points/<i>.json` | one point: swept values, every formulation's status, counters, diagnostics, every pair's divergence |
+//! | `runs.csv` | one row per (point, formulation): swept values, status, counters, diagnostics, divergence from the reference formulation |
+//! | `pairs.csv` | one row per (point, pair): divergence measures |
+//! | `timing.csv` | wall times (kept apart: the other tables are identical whatever the thread count) |
+//! | `trajectories/<i>-<label>.csv` | samples of the plotted point (of all points with `plots.all_trajectories`) |
+//! | `summary.json`, `config.json`, `manifest.json` | aggregates; the resolved configuration; command, file hash, git revision, versions, machine, times |
+//! | `plots/*.png`, `plots/*.svg`, `index.html` | the figures and a page showing them with the tables |
+//!
+//! Every file is written atomically. A point whose result file exists with
+//! the same configuration hash is not run again (unless `--force`), so a
+//! sweep killed half-way finishes with every point exactly once.
+
+pub mod cli;
+pub mod output;
+pub mod plots;
+pub mod point;
+pub mod spec;
+pub mod sweep;
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+pub use point::{FormResult, PairResult, PointResult};
+pub use spec::{Experiment, SpecError};
+
+use crate::record::write_atomic;
+
+impl Experiment {
+    /// Checks that `p` can be set up (called for every point at load).
+    pub fn check_point(&self, p: &sweep::Point) -> Result<(), String> {
+        point::check_point(self, p)
+    }
+}
+
+/// How to run an experiment.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Where results go (default `results/<name>` beside `experiments/`).
+    pub out_dir: PathBuf,
+    /// Run every point again even if its result is stored.
+    pub force: bool,
+    /// Worker threads (default: all cores).
+    pub threads: Option<usize>,
+    /// No progress output.
+    pub quiet: bool,
+}
+
+/// What a run of an experiment did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    pub dir: PathBuf,
+    pub points: usize,
+    /// Points taken from stored results.
+    pub reused: usize,
+    /// (point, formulation) runs that failed (not counting designed stops).
+    pub failed_runs: usize,
+    /// Runs that stopped at a singular set.
+    pub stopped_runs: usize,
+    pub runs: usize,
+    pub plots: Vec<PathBuf>,
+}
+
+/// The default results directory of `exp`: `results/<name>` next to the
+/// `experiments/` directory holding the file, else in the current directory.
+pub fn default_dir(exp: &Experiment) -> PathBuf {
+    let root = exp
+        .path
+        .parent()
+        .filter(|p| p.file_name().is_some_and(|n| n == "experiments"))
+        .and_then(|p| p.parent())
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    root.join("results").join(&exp.name)
+}
+
+/// Progress reporting: a bar on a terminal, a few plain lines otherwise.
+struct Progress {
+    total: usize,
+    done: AtomicUsize,
+    failed: AtomicUsize,
+    bar: Option<indicatif::ProgressBar>,
+    quiet: bool,
+    lines: Mutex<usize>,
+}
+
+impl Progress {
+    fn new(total: usize, quiet: bool, name: &str) -> Self {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let b = indicatif::ProgressBar::new(total as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{prefix} [{bar:30}] {pos}/{len} points, {msg} failed runs, {elapsed} elapsed, {eta} left",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+                .progress_chars("=> "),
+            );
+            b.set_prefix(name.to_string());
+            b.set_message("0");
+            b
+        });
+        Progress {
+            total,
+            done: AtomicUsize::new(0),
+            failed: AtomicUsize::new(0),
+            bar,
+            quiet,
+            lines: Mutex::new(0),
+        }
+    }
+
+    fn point_done(&self, failed_runs: usize, reused: bool) {
+        let done = self.done.fetch_add(1, Ordering::SeqCst) + 1;
+        let failed = self.failed.fetch_add(failed_runs, Ordering::SeqCst) + failed_runs;
+        if let Some(b) = &self.bar {
+            b.set_message(failed.to_string());
+            b.inc(1);
+        } else if !self.quiet {
+            // About twenty lines over the whole sweep.
+            let every = self.total.div_ceil(20).max(1);
+            let mut lines = self.lines.lock().unwrap_or_else(|e| e.into_inner());
+            if done == self.total || done / every > *lines {
+                *lines = done / every;
+                eprintln!(
+                    "{done}/{} points done ({failed} failed runs){}",
+                    self.total,
+                    if reused {
+                        ", some reused from stored results"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish();
+        }
+    }
+}
+
+/// Deletes temporary files a killed run may have left in `dir`.
+fn clean_temporaries(dir: &Path) {
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with('.') && name.ends_with(".tmp") {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}
+
+/// The stored result of `p`, if it is complete and for the same configuration.
+fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
+    let text =
+        std::fs::read_to_string(dir.join("points").join(format!("{}.json", p.index))).ok()?;
+    let r: PointResult = serde_json::from_str(&text).ok()?;
+    let runs = sweep::resolve(exp, p).ok()?;
+    if r.schema != point::POINT_SCHEMA || r.hash != point::point_hash(exp, &runs) {
+        return None;
+    }
+    if needs_traj {
+        let all_there = r
+            .formulations
+            .iter()
+            .filter(|f| f.t_last.is_some())
+            .all(|f| output::trajectory_path(dir, p.index, &f.label).exists());
+        if !all_there {
+            return None;
+        }
+    }
+    Some(r)
+}
+
+/// Runs `exp` and writes its results (see the module documentation).
+pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
+    let started = std::time::SystemTime::now();
+    let dir = &opts.out_dir;
+    for sub in ["points", "trajectories", "plots"] {
+        let d = dir.join(sub);
+        std::fs::create_dir_all(&d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
+        clean_temporaries(&d);
+    }
+    clean_temporaries(dir);
+    let points = exp.points();
+    let threads = opts.threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| format!("cannot start {threads} worker threads: {e}"))?;
+    let progress = Progress::new(points.len(), opts.quiet, &exp.name);
+    let reused = AtomicUsize::new(0);
+
+    let results: Vec<Result<PointResult, String>> = pool.install(|| {
+        points
+            .par_iter()
+            .map(|p| {
+                let needs_traj = exp.all_trajectories || p.index == exp.plot_point;
+                if !opts.force
+                    && let Some(r) = stored(dir, exp, p, needs_traj)
+                {
+                    {
+                        reused.fetch_add(1, Ordering::SeqCst);
+                        let failed = r
+                            .formulations
+                            .iter()
+                            .filter(|f| f.status == "failed")
+                            .count();
+                        progress.point_done(failed, true);
+                        return Ok(r);
+                    }
+                }
+                let (r, samples) = point::run_point(exp, p);
+                if needs_traj {
+                    for s in &samples {
+                        output::write_trajectory(dir, p.index, s)?;
+                    }
+                }
+                let mut bytes = serde_json::to_vec_pretty(&r).map_err(|e| e.to_string())?;
+                bytes.push(b'\n');
+                let path = dir.join("points").join(format!("{}.json", p.index));
+                write_atomic(&path, &bytes)
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                let failed = r
+                    .formulations
+                    .iter()
+                    .filter(|f| f.status == "failed")
+                    .count();
+                progress.point_done(failed, false);
+                Ok(r)
+            })
+            .collect()
+    });
+    progress.finish();
+    let results: Vec<PointResult> = results.into_iter().collect::<Result<_, _>>()?;
+
+    output::write_tables(exp, dir, &results)?;
+    let plots = plots::draw(exp, dir, &results)?;
+    output::write_summary(exp, dir, &results, &plots)?;
+    output::write_html(exp, dir, &results, &plots)?;
+    output::write_manifest(exp, dir, started, threads)?;
+
+    let runs = results.iter().map(|r| r.formulations.len()).sum();
+    let count = |status: &str| {
+        results
+            .iter()
+            .flat_map(|r| &r.formulations)
+            .filter(|f| f.status == status)
+            .count()
+    };
+    Ok(Outcome {
+        dir: dir.clone(),
+        points: results.len(),
+        reused: reused.load(Ordering::SeqCst),
+        failed_runs: count("failed"),
+        stopped_runs: count("stopped"),
+        runs,
+        plots,
+    })
+}

@@ -1,0 +1,382 @@
+//! The figures of an experiment, drawn from its result files.
+//!
+//! For the plotted point: trajectories in the plane, divergence of every pair
+//! against time, constraint residual and energy drift against time. For a
+//! sweep: the divergence from the reference at the end of the common span
+//! against one swept variable (a line per formulation) or two (a heat map per
+//! formulation). Everything is read back from `points/` and `trajectories/`,
+//! so `nonholo plot DIR` redraws without running anything.
+
+use std::path::{Path, PathBuf};
+
+use super::output::{Trajectory, trajectory_path};
+use super::point::PointResult;
+use super::spec::{Experiment, SweepMode};
+use crate::plot::{Heatmap, LinePlot, Series, heatmap, line_plot};
+
+/// Caption of a plot from its file stem, for the HTML page.
+pub fn caption(exp: &Experiment, stem: &str) -> String {
+    let point = format!("point {}", exp.plot_point);
+    match stem {
+        "trajectories" => format!("Path of the first two coordinates, every formulation, {point}."),
+        "divergence" => format!(
+            "Divergence ‖(x, y)_a − (x, y)_b‖ of every pair against time on the common output grid, {point} (log scale; a curve ends where one of the two runs stopped)."
+        ),
+        "residual" => {
+            format!("Constraint residual max(|g|, |f|, |ḟ|) at the output times, {point}.")
+        }
+        "energy" => {
+            format!("Energy drift |E(t) − E(0)|, E = q̇·∂L/∂q̇ − L, at the output times, {point}.")
+        }
+        s if s.starts_with("sweep-") => format!(
+            "Divergence from {} at the end of the common span, over the sweep ({}); missing points failed before the first common sample.",
+            exp.reference,
+            exp.axes
+                .iter()
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" × ")
+        ),
+        other => other.to_string(),
+    }
+}
+
+fn coordinate_label(exp: &Experiment, k: usize) -> String {
+    nonholo_scenes::info(&exp.scene)
+        .ok()
+        .and_then(|i| {
+            i.coordinates
+                .get(k)
+                .map(|c| format!("{} [{}]", c.name, c.unit))
+        })
+        .unwrap_or_else(|| format!("q{k}"))
+}
+
+/// Axis label of a swept name: a scene parameter or initial value shows its
+/// unit (`alpha [rad]`); formulation-specific names keep their path.
+fn axis_label(exp: &Experiment, name: &str) -> String {
+    let info = nonholo_scenes::info(&exp.scene).ok();
+    let unit = |n: &str| -> Option<&'static str> {
+        let info = info?;
+        if let Some(p) = name.strip_prefix("param.") {
+            return info.params.iter().find(|s| s.name == p).map(|s| s.unit);
+        }
+        info.coordinates
+            .iter()
+            .chain(info.velocity_chart)
+            .find(|c| c.name == n)
+            .map(|c| c.unit)
+    };
+    let short = name
+        .strip_prefix("param.")
+        .or_else(|| name.strip_prefix("init."))
+        .unwrap_or(name);
+    match unit(short) {
+        Some(u) if !u.is_empty() => format!("{short} [{u}]"),
+        _ => short.to_string(),
+    }
+}
+
+/// Draws every figure of `exp` into `dir/plots/`; returns the files written.
+pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec<PathBuf>, String> {
+    let plots = dir.join("plots");
+    let mut files = Vec::new();
+    let point = exp.plot_point;
+    let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+    let coords: Vec<String> = info
+        .coordinates
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let angle: Vec<bool> = info.coordinates.iter().map(|c| c.unit == "rad").collect();
+
+    let trajectories: Vec<(String, Trajectory)> = exp
+        .formulations
+        .iter()
+        .filter_map(|f| {
+            let p = trajectory_path(dir, point, &f.label);
+            Trajectory::read(&p).ok().map(|t| (f.label.clone(), t))
+        })
+        .collect();
+    let describe = |label: &str| {
+        exp.formulations
+            .iter()
+            .find(|f| f.label == label)
+            .map(|f| {
+                if f.formulation == super::spec::CLOSED_FORM {
+                    format!("{label}: closed form")
+                } else {
+                    format!("{label}: {} ({})", f.formulation, f.settings.integrator)
+                }
+            })
+            .unwrap_or_else(|| label.to_string())
+    };
+    // "at alpha = 0.3, a = 0.4" for the plotted point (nothing without a sweep).
+    let values = results
+        .get(point)
+        .map(|r| r.values.clone())
+        .unwrap_or_default();
+    let at = super::spec::describe(&exp.axes, &values);
+    let at = at
+        .trim_end_matches(": ")
+        .replace("param.", "")
+        .replace("init.", "");
+    let titled = |what: &str| {
+        if at.is_empty() {
+            what.to_string()
+        } else {
+            format!("{what} {at}")
+        }
+    };
+
+    if !trajectories.is_empty() && coords.len() >= 2 {
+        let series = trajectories
+            .iter()
+            .filter_map(|(l, t)| {
+                Some(Series {
+                    label: describe(l),
+                    x: t.column(&coords[0])?,
+                    y: t.column(&coords[1])?,
+                })
+            })
+            .collect();
+        files.extend(line_plot(
+            &LinePlot {
+                title: titled("Paths"),
+                x_label: coordinate_label(exp, 0),
+                y_label: coordinate_label(exp, 1),
+                log_x: false,
+                log_y: false,
+                equal_aspect: true,
+                series,
+            },
+            &plots.join("trajectories"),
+        )?);
+
+        // Divergence of every pair from the trajectories on the common grid.
+        let mut series = Vec::new();
+        for (i, (la, ta)) in trajectories.iter().enumerate() {
+            for (lb, tb) in &trajectories[i + 1..] {
+                let (Some(t_a), Some(t_b)) = (ta.column("t"), tb.column("t")) else {
+                    continue;
+                };
+                let cols: Vec<(Vec<f64>, Vec<f64>)> = coords
+                    .iter()
+                    .take(2)
+                    .filter_map(|c| Some((ta.column(c)?, tb.column(c)?)))
+                    .collect();
+                let n = t_a.iter().zip(&t_b).take_while(|(x, y)| x == y).count();
+                let y: Vec<f64> = (0..n)
+                    .map(|j| {
+                        cols.iter()
+                            .enumerate()
+                            .map(|(k, (a, b))| {
+                                let d = a[j] - b[j];
+                                if angle[k] {
+                                    let tau = std::f64::consts::TAU;
+                                    d - (d / tau).round() * tau
+                                } else {
+                                    d
+                                }
+                            })
+                            .map(|d| d * d)
+                            .sum::<f64>()
+                            .sqrt()
+                    })
+                    .collect();
+                series.push(Series {
+                    label: format!("{la} vs {lb}"),
+                    x: t_a[..n].to_vec(),
+                    y,
+                });
+            }
+        }
+        if !series.is_empty() {
+            files.extend(line_plot(
+                &LinePlot {
+                    title: titled("Divergence"),
+                    x_label: "t [s]".into(),
+                    y_label: format!(
+                        "‖Δ({}, {})‖ [{}]",
+                        coords[0], coords[1], info.coordinates[0].unit
+                    ),
+                    log_x: false,
+                    log_y: true,
+                    equal_aspect: false,
+                    series,
+                },
+                &plots.join("divergence"),
+            )?);
+        }
+
+        let residual = trajectories
+            .iter()
+            .filter_map(|(l, t)| {
+                Some(Series {
+                    label: describe(l),
+                    x: t.column("t")?,
+                    y: t.column("residual")?,
+                })
+            })
+            .collect();
+        files.extend(line_plot(
+            &LinePlot {
+                title: titled("Constraint residual"),
+                x_label: "t [s]".into(),
+                y_label: "max(|g|, |f|, |ḟ|)".into(),
+                log_x: false,
+                log_y: true,
+                equal_aspect: false,
+                series: residual,
+            },
+            &plots.join("residual"),
+        )?);
+        let energy = trajectories
+            .iter()
+            .filter_map(|(l, t)| {
+                let e = t.column("energy")?;
+                let e0 = *e.first()?;
+                Some(Series {
+                    label: describe(l),
+                    x: t.column("t")?,
+                    y: e.iter().map(|v| (v - e0).abs()).collect(),
+                })
+            })
+            .collect();
+        files.extend(line_plot(
+            &LinePlot {
+                title: titled("Energy drift"),
+                x_label: "t [s]".into(),
+                y_label: "|E(t) − E(0)| [J]".into(),
+                log_x: false,
+                log_y: true,
+                equal_aspect: false,
+                series: energy,
+            },
+            &plots.join("energy"),
+        )?);
+    }
+
+    files.extend(sweep_plots(exp, &plots, results)?);
+    Ok(files)
+}
+
+/// The value of axis `k` at every point, as numbers (categories by index).
+fn axis_numbers(exp: &Experiment, k: usize, results: &[PointResult]) -> (Vec<f64>, bool) {
+    let parsed: Vec<Option<f64>> = results.iter().map(|r| r.values[k].parse().ok()).collect();
+    if parsed.iter().all(Option::is_some) {
+        (parsed.into_iter().map(|v| v.unwrap_or(0.0)).collect(), true)
+    } else {
+        let cats = &exp.axes[k].values;
+        (
+            results
+                .iter()
+                .map(|r| cats.iter().position(|c| c == &r.values[k]).unwrap_or(0) as f64)
+                .collect(),
+            false,
+        )
+    }
+}
+
+fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> {
+    r.pairs
+        .iter()
+        .find(|p| (p.a == reference && p.b == label) || (p.b == reference && p.a == label))
+        .and_then(|p| p.div_xy_end)
+}
+
+fn sweep_plots(
+    exp: &Experiment,
+    plots: &Path,
+    results: &[PointResult],
+) -> Result<Vec<PathBuf>, String> {
+    let others: Vec<&str> = exp
+        .formulations
+        .iter()
+        .map(|f| f.label.as_str())
+        .filter(|l| *l != exp.reference)
+        .collect();
+    let mut files = Vec::new();
+    if results.len() < 2 || others.is_empty() {
+        return Ok(files);
+    }
+    match (exp.axes.len(), &exp.mode) {
+        (1, _) | (_, SweepMode::Zip) => {
+            let (x, numeric) = axis_numbers(exp, 0, results);
+            let mut order: Vec<usize> = (0..results.len()).collect();
+            order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+            let series = others
+                .iter()
+                .map(|l| {
+                    let pts: Vec<(f64, f64)> = order
+                        .iter()
+                        .filter_map(|&i| {
+                            end_divergence(&results[i], &exp.reference, l).map(|d| (x[i], d))
+                        })
+                        .collect();
+                    Series {
+                        label: format!("{l} vs {}", exp.reference),
+                        x: pts.iter().map(|p| p.0).collect(),
+                        y: pts.iter().map(|p| p.1).collect(),
+                    }
+                })
+                .collect();
+            let axis = &exp.axes[0];
+            files.extend(line_plot(
+                &LinePlot {
+                    title: "Divergence at the end of the common span".into(),
+                    x_label: if numeric {
+                        axis_label(exp, &axis.name)
+                    } else {
+                        format!(
+                            "{} ({})",
+                            axis_label(exp, &axis.name),
+                            axis.values.join(", ")
+                        )
+                    },
+                    y_label: format!("‖Δ(x, y)‖ from {} [m]", exp.reference),
+                    log_x: false,
+                    log_y: true,
+                    equal_aspect: false,
+                    series,
+                },
+                &plots.join("sweep-end"),
+            )?);
+        }
+        (2, SweepMode::Grid) => {
+            let (xs, _) = axis_numbers(exp, 0, results);
+            let (ys, _) = axis_numbers(exp, 1, results);
+            let mut xv: Vec<f64> = xs.clone();
+            xv.sort_by(f64::total_cmp);
+            xv.dedup();
+            let mut yv: Vec<f64> = ys.clone();
+            yv.sort_by(f64::total_cmp);
+            yv.dedup();
+            for l in &others {
+                let mut z = vec![vec![None; xv.len()]; yv.len()];
+                for (i, r) in results.iter().enumerate() {
+                    let xi = xv.iter().position(|v| *v == xs[i]);
+                    let yi = yv.iter().position(|v| *v == ys[i]);
+                    if let (Some(xi), Some(yi)) = (xi, yi) {
+                        z[yi][xi] = end_divergence(r, &exp.reference, l);
+                    }
+                }
+                files.extend(heatmap(
+                    &Heatmap {
+                        title: format!("{l} vs {} at the end of the common span", exp.reference),
+                        x_label: axis_label(exp, &exp.axes[0].name),
+                        y_label: axis_label(exp, &exp.axes[1].name),
+                        z_label: "‖Δ(x, y)‖ [m]".into(),
+                        x: xv.clone(),
+                        y: yv.clone(),
+                        z,
+                        log_z: true,
+                    },
+                    &plots.join(format!("sweep-{l}")),
+                )?);
+            }
+        }
+        _ => {}
+    }
+    Ok(files)
+}

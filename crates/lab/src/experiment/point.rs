@@ -1,0 +1,491 @@
+//! One sweep point: every formulation run on the common output grid, and the
+//! measures that compare them.
+
+use nonholo_core::consistency::check_or_project;
+use nonholo_core::init::{self, ExtraName};
+use nonholo_core::monitor::state_measures;
+use nonholo_core::{Initial, Observation, Run, Scene};
+use nonholo_scenes::SceneVisitor;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::spec::{CLOSED_FORM, Experiment};
+use super::sweep::{Point, PointRun, resolve};
+use crate::simulate::execute;
+
+/// Schema of a point's result file.
+pub const POINT_SCHEMA: &str = "nonholo.point/1";
+
+/// One formulation at one point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FormResult {
+    pub label: String,
+    pub formulation: String,
+    pub integrator: String,
+    pub rtol: f64,
+    pub atol: f64,
+    /// `completed`; `stopped` (the run ended where the formulation stops by
+    /// design, at a singular set: a result, not an error); or `failed`.
+    pub status: String,
+    pub error_t: Option<f64>,
+    pub error: Option<String>,
+    /// Last time reached.
+    pub t_last: Option<f64>,
+    pub steps: usize,
+    pub rejected_steps: usize,
+    pub rhs_evals: usize,
+    pub jacobian_evals: usize,
+    pub lu_decompositions: usize,
+    pub newton_failures: usize,
+    pub wall_time_s: f64,
+    pub constraint_residual_max: Option<f64>,
+    pub energy_initial: Option<f64>,
+    pub energy_drift_max: Option<f64>,
+    /// What the formulation found setting up (A: rank_w, hidden constraints…).
+    pub report: Vec<(String, f64)>,
+}
+
+/// Two formulations compared on their common output grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairResult {
+    pub a: String,
+    pub b: String,
+    /// Last common grid time (None if the two share no sample).
+    pub span_end: Option<f64>,
+    /// `‖(x, y)_a − (x, y)_b‖` (first two coordinates) at `span_end` and its maximum.
+    pub div_xy_end: Option<f64>,
+    pub div_xy_max: Option<f64>,
+    /// `‖q_a − q_b‖` (angles compared modulo 2π) at `span_end` and its maximum.
+    pub div_q_end: Option<f64>,
+    pub div_q_max: Option<f64>,
+    /// First grid time at which the (x, y) divergence exceeds the threshold.
+    pub t_exceed: Option<f64>,
+}
+
+/// The result of one point, as stored in `points/<index>.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PointResult {
+    pub schema: String,
+    pub index: usize,
+    pub values: Vec<String>,
+    /// Hash of the resolved configuration: a stored result is reused only
+    /// if the experiment still asks for the same computation.
+    pub hash: String,
+    pub formulations: Vec<FormResult>,
+    pub pairs: Vec<PairResult>,
+}
+
+/// A formulation's samples on the grid (for measures and trajectory files).
+pub struct Samples {
+    pub label: String,
+    pub coordinates: Vec<(String, String)>,
+    pub multipliers: Vec<String>,
+    pub t: Vec<f64>,
+    pub obs: Vec<Observation>,
+    /// `(residual, energy)` per sample.
+    pub physics: Vec<(f64, f64)>,
+}
+
+/// Hash of the resolved runs of a point and the measures' settings.
+pub fn point_hash(exp: &Experiment, runs: &[PointRun]) -> String {
+    let mut h = Sha256::new();
+    h.update(POINT_SCHEMA.as_bytes());
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(format!("{runs:?}|{:?}", exp.threshold).as_bytes());
+    let digest = h.finalize();
+    digest.iter().take(8).map(|b| format!("{b:02x}")).collect()
+}
+
+/// Checks that every formulation of `point` can be set up (names, ranges,
+/// applicability) without running anything.
+pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
+    for r in resolve(exp, point)? {
+        let scene = nonholo_scenes::build(&r.spec.scene, &r.spec.params)
+            .map_err(|e| format!("{}: {e}", r.label))?;
+        if r.spec.formulation == CLOSED_FORM {
+            if scene.info().closed_form.is_none() {
+                return Err(format!(
+                    "{}: scene `{}` has no closed form",
+                    r.label,
+                    scene.info().name
+                ));
+            }
+            scene
+                .clone()
+                .visit(Resolve {
+                    given: r.spec.init.clone(),
+                    extra: Vec::new(),
+                })
+                .map_err(|e| format!("{}: {e}", r.label))?;
+            continue;
+        }
+        let model =
+            crate::formulations::build_model(scene.clone(), &r.spec.formulation, &r.spec.options)
+                .map_err(|e| format!("{}: {e}", r.label))?;
+        scene
+            .visit(Resolve {
+                given: r.spec.init.clone(),
+                extra: model.extra_init_names(),
+            })
+            .map_err(|e| format!("{}: {e}", r.label))?;
+    }
+    Ok(())
+}
+
+struct Resolve {
+    given: Vec<(String, String)>,
+    extra: Vec<ExtraName>,
+}
+
+impl SceneVisitor for Resolve {
+    type Output = Result<Initial, nonholo_core::Error>;
+    fn visit<S: Scene>(self, scene: S) -> Self::Output {
+        init::resolve(&scene, &self.given, &self.extra)
+    }
+}
+
+/// Samples the scene's closed form on the grid from the resolved initial data.
+struct ClosedForm<'a> {
+    spec: &'a crate::simulate::RunSpec,
+}
+
+impl SceneVisitor for ClosedForm<'_> {
+    type Output = Result<(Vec<f64>, Vec<Observation>, Option<(f64, String)>), String>;
+    fn visit<S: Scene>(self, scene: S) -> Self::Output {
+        let mut initial = init::resolve(&scene, &self.spec.init, &[]).map_err(|e| e.to_string())?;
+        check_or_project(&scene, &mut initial, self.spec.project_init)
+            .map_err(|e| e.to_string())?;
+        let n = scene.info().n();
+        let (mut t, mut obs) = (Vec::new(), Vec::new());
+        for &time in &self.spec.integrator.output {
+            let mut o = Observation::new(n, 0);
+            if let Err(why) = scene.closed_form(&initial.q, &initial.qd, time, &mut o.q, &mut o.qd)
+            {
+                if t.is_empty() {
+                    return Err(why);
+                }
+                return Ok((t, obs, Some((time, why))));
+            }
+            t.push(time);
+            obs.push(o);
+        }
+        Ok((t, obs, None))
+    }
+}
+
+struct Physics<'a> {
+    t: &'a [f64],
+    obs: &'a [Observation],
+}
+
+impl SceneVisitor for Physics<'_> {
+    type Output = Vec<(f64, f64)>;
+    fn visit<S: Scene>(self, scene: S) -> Self::Output {
+        self.t
+            .iter()
+            .zip(self.obs)
+            .map(|(t, o)| state_measures(&scene, *t, &o.q, &o.qd))
+            .collect()
+    }
+}
+
+fn failed(r: &PointRun, error_t: Option<f64>, error: String) -> FormResult {
+    let s = &r.spec;
+    FormResult {
+        label: r.label.clone(),
+        formulation: s.formulation.clone(),
+        integrator: if s.formulation == CLOSED_FORM {
+            "—".into()
+        } else {
+            s.method.name().into()
+        },
+        rtol: s.integrator.rtol,
+        atol: s.integrator.atol,
+        status: "failed".into(),
+        error_t,
+        error: Some(error),
+        t_last: None,
+        steps: 0,
+        rejected_steps: 0,
+        rhs_evals: 0,
+        jacobian_evals: 0,
+        lu_decompositions: 0,
+        newton_failures: 0,
+        wall_time_s: 0.0,
+        constraint_residual_max: None,
+        energy_initial: None,
+        energy_drift_max: None,
+        report: Vec::new(),
+    }
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+fn from_run(r: &PointRun, run: &Run) -> FormResult {
+    let st = &run.solution.stats;
+    let d = &run.diagnostics;
+    FormResult {
+        label: r.label.clone(),
+        formulation: r.spec.formulation.clone(),
+        integrator: r.spec.method.name().into(),
+        rtol: r.spec.integrator.rtol,
+        atol: r.spec.integrator.atol,
+        status: match &run.failure {
+            None => "completed",
+            Some(nonholo_core::integrate::IntegrateError::Stopped { .. }) => "stopped",
+            Some(_) => "failed",
+        }
+        .into(),
+        error_t: run.failure.as_ref().and_then(|e| e.time()),
+        error: run.failure.as_ref().map(|e| e.to_string()),
+        t_last: finite(run.solution.t_last),
+        steps: st.steps,
+        rejected_steps: st.rejected_steps,
+        rhs_evals: st.rhs_evals,
+        jacobian_evals: st.jacobian_evals,
+        lu_decompositions: st.lu_decompositions,
+        newton_failures: st.newton_failures,
+        wall_time_s: st.wall_time_s,
+        constraint_residual_max: finite(d.constraint_residual_max),
+        energy_initial: finite(d.energy_initial),
+        energy_drift_max: finite(d.energy_drift_max),
+        report: run
+            .model
+            .init_report()
+            .into_iter()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
+    }
+}
+
+/// Runs every formulation of `point`; a failure of one is recorded and the
+/// others go on. Never panics (a panic inside a run is caught and recorded).
+pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>) {
+    let runs = match resolve(exp, point) {
+        Ok(r) => r,
+        Err(e) => {
+            // Every point is checked when the experiment is loaded; this is
+            // for experiments built in code.
+            let formulations = exp
+                .formulations
+                .iter()
+                .map(|f| FormResult {
+                    label: f.label.clone(),
+                    formulation: f.formulation.clone(),
+                    integrator: f.settings.integrator.clone(),
+                    rtol: f.settings.rtol,
+                    atol: f.settings.atol,
+                    status: "failed".into(),
+                    error_t: None,
+                    error: Some(e.clone()),
+                    t_last: None,
+                    steps: 0,
+                    rejected_steps: 0,
+                    rhs_evals: 0,
+                    jacobian_evals: 0,
+                    lu_decompositions: 0,
+                    newton_failures: 0,
+                    wall_time_s: 0.0,
+                    constraint_residual_max: None,
+                    energy_initial: None,
+                    energy_drift_max: None,
+                    report: Vec::new(),
+                })
+                .collect();
+            return (
+                PointResult {
+                    schema: POINT_SCHEMA.into(),
+                    index: point.index,
+                    values: point.values.clone(),
+                    hash: String::new(),
+                    formulations,
+                    pairs: Vec::new(),
+                },
+                Vec::new(),
+            );
+        }
+    };
+    let hash = point_hash(exp, &runs);
+    let mut results = Vec::new();
+    let mut samples = Vec::new();
+    for r in &runs {
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(r)));
+        let (res, smp) = match outcome {
+            Ok(x) => x,
+            Err(p) => {
+                let msg = p
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| p.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                (
+                    failed(r, None, format!("internal error (panic): {msg}")),
+                    None,
+                )
+            }
+        };
+        results.push(res);
+        if let Some(s) = smp {
+            samples.push(s);
+        }
+    }
+    let pairs = pair_measures(exp, &runs, &samples);
+    (
+        PointResult {
+            schema: POINT_SCHEMA.into(),
+            index: point.index,
+            values: point.values.clone(),
+            hash,
+            formulations: results,
+            pairs,
+        },
+        samples,
+    )
+}
+
+fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
+    let scene = match nonholo_scenes::build(&r.spec.scene, &r.spec.params) {
+        Ok(s) => s,
+        Err(e) => return (failed(r, None, e.to_string()), None),
+    };
+    let info = scene.info();
+    let coordinates: Vec<(String, String)> = info
+        .coordinates
+        .iter()
+        .map(|c| (c.name.to_string(), c.unit.to_string()))
+        .collect();
+    if r.spec.formulation == CLOSED_FORM {
+        let started = std::time::Instant::now();
+        return match scene.clone().visit(ClosedForm { spec: &r.spec }) {
+            Err(e) => (failed(r, Some(0.0), e), None),
+            Ok((t, obs, stop)) => {
+                let physics = scene.visit(Physics { t: &t, obs: &obs });
+                let mut res = failed(r, None, String::new());
+                res.error = None;
+                res.status = "completed".into();
+                res.t_last = t.last().copied();
+                res.wall_time_s = started.elapsed().as_secs_f64();
+                if let Some((te, why)) = stop {
+                    res.status = "failed".into();
+                    res.error_t = Some(te);
+                    res.error = Some(why);
+                }
+                res.energy_initial = physics.first().map(|p| p.1);
+                res.energy_drift_max = physics.first().map(|p0| {
+                    physics
+                        .iter()
+                        .fold(0.0, |m: f64, p| m.max((p.1 - p0.1).abs()))
+                });
+                res.constraint_residual_max =
+                    Some(physics.iter().fold(0.0, |m: f64, p| m.max(p.0)));
+                (
+                    res,
+                    Some(Samples {
+                        label: r.label.clone(),
+                        coordinates,
+                        multipliers: Vec::new(),
+                        t,
+                        obs,
+                        physics,
+                    }),
+                )
+            }
+        };
+    }
+    match execute(&r.spec) {
+        Err(e) => (failed(r, None, e.to_string()), None),
+        Ok((run, _matching)) => {
+            let res = from_run(r, &run);
+            let t = run.solution.t[..run.samples.len()].to_vec();
+            let physics = scene.visit(Physics {
+                t: &t,
+                obs: &run.samples,
+            });
+            let samples = Samples {
+                label: r.label.clone(),
+                coordinates,
+                multipliers: run.model.multiplier_names(),
+                t,
+                obs: run.samples,
+                physics,
+            };
+            (res, Some(samples))
+        }
+    }
+}
+
+/// Divergence measures for every pair of formulations with samples.
+fn pair_measures(exp: &Experiment, runs: &[PointRun], samples: &[Samples]) -> Vec<PairResult> {
+    let mut pairs = Vec::new();
+    for (i, ra) in runs.iter().enumerate() {
+        for rb in &runs[i + 1..] {
+            let sa = samples.iter().find(|s| s.label == ra.label);
+            let sb = samples.iter().find(|s| s.label == rb.label);
+            pairs.push(compare(exp, &ra.label, &rb.label, sa, sb));
+        }
+    }
+    pairs
+}
+
+/// Distance between two samples: `(‖Δ(x, y)‖, ‖Δq‖)`, angles modulo 2π.
+pub fn distance(a: &Observation, b: &Observation, units: &[(String, String)]) -> (f64, f64) {
+    let diff = |k: usize| {
+        let d = a.q[k] - b.q[k];
+        if units[k].1 == "rad" {
+            let tau = std::f64::consts::TAU;
+            d - (d / tau).round() * tau
+        } else {
+            d
+        }
+    };
+    let xy = if a.q.len() >= 2 {
+        diff(0).hypot(diff(1))
+    } else {
+        diff(0).abs()
+    };
+    let q = (0..a.q.len()).map(|k| diff(k).powi(2)).sum::<f64>().sqrt();
+    (xy, q)
+}
+
+fn compare(
+    exp: &Experiment,
+    a: &str,
+    b: &str,
+    sa: Option<&Samples>,
+    sb: Option<&Samples>,
+) -> PairResult {
+    let mut out = PairResult {
+        a: a.into(),
+        b: b.into(),
+        span_end: None,
+        div_xy_end: None,
+        div_xy_max: None,
+        div_q_end: None,
+        div_q_max: None,
+        t_exceed: None,
+    };
+    let (Some(sa), Some(sb)) = (sa, sb) else {
+        return out;
+    };
+    // The common grid: samples at identical times (a stopped run's extra
+    // sample at its stop time is not on the grid).
+    let n = sa.t.iter().zip(&sb.t).take_while(|(x, y)| x == y).count();
+    for i in 0..n {
+        let (xy, q) = distance(&sa.obs[i], &sb.obs[i], &sa.coordinates);
+        if !(xy.is_finite() && q.is_finite()) {
+            break;
+        }
+        out.span_end = Some(sa.t[i]);
+        out.div_xy_end = Some(xy);
+        out.div_q_end = Some(q);
+        out.div_xy_max = Some(out.div_xy_max.unwrap_or(0.0).max(xy));
+        out.div_q_max = Some(out.div_q_max.unwrap_or(0.0).max(q));
+        if out.t_exceed.is_none() && xy > exp.threshold {
+            out.t_exceed = Some(sa.t[i]);
+        }
+    }
+    out
+}

@@ -1,0 +1,747 @@
+//! Experiment files: the TOML schema, and its validation into an
+//! [`Experiment`] whose every value has been checked before anything runs.
+//!
+//! ```toml
+//! [experiment]
+//! name = "sleigh-slope-sweep"        # results go to results/<name>/
+//! title = "…"
+//! claim = "…"                        # the claim the figure tests
+//! figure = true                      # part of `nonholo reproduce`
+//! scene = "sleigh-incline"
+//!
+//! [params]                           # scene parameters
+//! a = 0.4
+//! [init]                             # initial values (names as for --init)
+//! phi = 0.2
+//!
+//! [time]
+//! t_end = 5.0
+//! output_every = 0.01                # the common grid of every comparison
+//!
+//! [[formulation]]                    # one or more
+//! label = "B"
+//! formulation = "chetaev"            # or vakonomic, embedding, closed-form
+//! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init
+//! options = { stab = "none" }
+//! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
+//! params = {}                        # scene parameters overridden for this formulation
+//!
+//! [sweep]                            # optional
+//! mode = "grid"                      # grid | zip | random
+//! values = { "param.alpha" = [0.1, 0.3], "param.a" = [0.0, 0.4] }
+//! # random: ranges = { "init.u" = [0.5, 3.0] }, samples = 20, seed = 1, log = ["…"]
+//!
+//! [measures]
+//! threshold = 1e-6                   # divergence level whose first crossing is reported
+//! reference = "B"                    # runs.csv reports divergence from this one
+//!
+//! [plots]
+//! point = 0                          # sweep point whose time series are drawn
+//! main = "divergence"                # the figure shown for it in docs/figures.md
+//! ```
+//!
+//! Swept names: `param.<p>`, `init.<v>` (all formulations), and
+//! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
+//! `<label>.rtol|atol|step|integrator` (one formulation).
+
+use std::path::{Path, PathBuf};
+
+use indexmap::IndexMap;
+use nonholo_core::integrate::Method;
+use serde::Deserialize;
+use toml::{Spanned, Value};
+
+use crate::formulations;
+
+type Entries = IndexMap<String, Spanned<Value>>;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    experiment: Header,
+    #[serde(default)]
+    params: Entries,
+    #[serde(default)]
+    init: Entries,
+    time: TimeFile,
+    #[serde(default, rename = "formulation")]
+    formulations: Vec<FormulationFile>,
+    sweep: Option<SweepFile>,
+    #[serde(default)]
+    measures: MeasuresFile,
+    #[serde(default)]
+    plots: PlotsFile,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    name: Spanned<String>,
+    title: String,
+    claim: String,
+    #[serde(default)]
+    description: String,
+    #[serde(default)]
+    figure: bool,
+    scene: Spanned<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TimeFile {
+    t_end: Spanned<f64>,
+    output_every: Spanned<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FormulationFile {
+    label: Spanned<String>,
+    formulation: Spanned<String>,
+    integrator: Option<Spanned<String>>,
+    rtol: Option<Spanned<f64>>,
+    atol: Option<Spanned<f64>>,
+    step: Option<Spanned<f64>>,
+    max_steps: Option<Spanned<u64>>,
+    max_wall_time: Option<Spanned<f64>>,
+    #[serde(default)]
+    project_init: bool,
+    #[serde(default)]
+    options: Entries,
+    #[serde(default)]
+    init: Entries,
+    #[serde(default)]
+    params: Entries,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepFile {
+    mode: Spanned<String>,
+    #[serde(default)]
+    values: IndexMap<String, Spanned<Vec<Spanned<Value>>>>,
+    #[serde(default)]
+    ranges: IndexMap<String, Spanned<Vec<f64>>>,
+    #[serde(default)]
+    log: Vec<String>,
+    samples: Option<Spanned<u64>>,
+    seed: Option<u64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeasuresFile {
+    threshold: Option<Spanned<f64>>,
+    reference: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlotsFile {
+    point: Option<Spanned<u64>>,
+    #[serde(default)]
+    all_trajectories: bool,
+    main: Option<String>,
+}
+
+/// The pseudo-formulation that samples a scene's closed-form solution.
+pub const CLOSED_FORM: &str = "closed-form";
+
+/// Integration settings of one formulation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    pub integrator: String,
+    pub rtol: f64,
+    pub atol: f64,
+    pub step: Option<f64>,
+    pub max_steps: usize,
+    pub max_wall_time: Option<f64>,
+    pub project_init: bool,
+}
+
+/// One formulation of an experiment, with everything given as text (the
+/// same text the command line takes, parsed by the same code).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FormulationSpec {
+    pub label: String,
+    pub formulation: String,
+    pub settings: Settings,
+    pub options: Vec<(String, String)>,
+    pub init: Vec<(String, String)>,
+    pub params: Vec<(String, String)>,
+}
+
+/// What a swept name addresses.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Target {
+    Param(String),
+    Init(String),
+    FormParam(String, String),
+    FormInit(String, String),
+    FormOption(String, String),
+    FormSetting(String, String),
+}
+
+/// One swept variable and its values (as text).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    pub name: String,
+    pub target: Target,
+    pub values: Vec<String>,
+}
+
+/// How the axes combine into points.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SweepMode {
+    /// No sweep: a single point.
+    Single,
+    /// Every combination, the first axis varying slowest.
+    Grid,
+    /// The i-th values of every axis together.
+    Zip,
+    /// `samples` points drawn uniformly (log-uniformly for `log` axes) from
+    /// `[lo, hi]` with a seeded generator; axis values hold `lo`, `hi`.
+    Random {
+        samples: usize,
+        seed: u64,
+        log: Vec<String>,
+    },
+}
+
+/// A validated experiment.
+#[derive(Debug, Clone)]
+pub struct Experiment {
+    pub name: String,
+    pub title: String,
+    pub claim: String,
+    pub description: String,
+    pub figure: bool,
+    pub path: PathBuf,
+    pub source: String,
+    pub scene: String,
+    pub params: Vec<(String, String)>,
+    pub init: Vec<(String, String)>,
+    pub t_end: f64,
+    pub output_every: f64,
+    pub formulations: Vec<FormulationSpec>,
+    pub mode: SweepMode,
+    pub axes: Vec<Axis>,
+    pub threshold: f64,
+    pub reference: String,
+    pub plot_point: usize,
+    pub all_trajectories: bool,
+    /// The plot that stands for the experiment in docs/figures.md (file stem).
+    pub main_plot: Option<String>,
+}
+
+/// An error in an experiment file, naming the file, line and key.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpecError(pub String);
+
+impl std::fmt::Display for SpecError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    source: &'a str,
+}
+
+impl Ctx<'_> {
+    fn line(&self, offset: usize) -> usize {
+        self.source[..offset.min(self.source.len())]
+            .bytes()
+            .filter(|&b| b == b'\n')
+            .count()
+            + 1
+    }
+
+    fn err(
+        &self,
+        span: std::ops::Range<usize>,
+        key: &str,
+        msg: impl std::fmt::Display,
+    ) -> SpecError {
+        SpecError(format!(
+            "{}:{}: `{key}`: {msg}",
+            self.path.display(),
+            self.line(span.start)
+        ))
+    }
+}
+
+/// The text of a TOML value as the command line would give it.
+fn text(v: &Value) -> Result<String, String> {
+    match v {
+        Value::String(s) => Ok(s.clone()),
+        Value::Integer(i) => Ok(i.to_string()),
+        Value::Float(f) => Ok(format!("{f:?}")),
+        Value::Boolean(b) => Ok(b.to_string()),
+        other => Err(format!(
+            "expected a number or a string, found {}",
+            other.type_str()
+        )),
+    }
+}
+
+fn entries(ctx: &Ctx, table: &str, e: &Entries) -> Result<Vec<(String, String)>, SpecError> {
+    e.iter()
+        .map(|(k, v)| {
+            text(v.get_ref())
+                .map(|t| (k.clone(), t))
+                .map_err(|m| ctx.err(v.span(), &format!("{table}.{k}"), m))
+        })
+        .collect()
+}
+
+fn override_with(base: &[(String, String)], extra: &[(String, String)]) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = base
+        .iter()
+        .filter(|(k, _)| !extra.iter().any(|(e, _)| e == k))
+        .cloned()
+        .collect();
+    out.extend(extra.iter().cloned());
+    out
+}
+
+fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
+    let parts: Vec<&str> = name.split('.').collect();
+    let bad = || {
+        format!(
+            "cannot address `{name}`: use param.<p>, init.<v>, or <label>.param.<p>, \
+             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator \
+             (labels: {})",
+            labels.join(", ")
+        )
+    };
+    match parts.as_slice() {
+        ["param", p] => Ok(Target::Param(p.to_string())),
+        ["init", v] => Ok(Target::Init(v.to_string())),
+        [label, kind, key] if labels.iter().any(|l| l == label) => match *kind {
+            "param" => Ok(Target::FormParam(label.to_string(), key.to_string())),
+            "init" => Ok(Target::FormInit(label.to_string(), key.to_string())),
+            "option" => Ok(Target::FormOption(label.to_string(), key.to_string())),
+            _ => Err(bad()),
+        },
+        [label, setting] if labels.iter().any(|l| l == label) => match *setting {
+            "rtol" | "atol" | "step" | "integrator" => {
+                Ok(Target::FormSetting(label.to_string(), setting.to_string()))
+            }
+            _ => Err(bad()),
+        },
+        _ => Err(bad()),
+    }
+}
+
+/// Applies one swept value to the formulation specs.
+pub fn apply(
+    target: &Target,
+    value: &str,
+    scene_params: &mut Vec<(String, String)>,
+    forms: &mut [FormulationSpec],
+    init: &mut Vec<(String, String)>,
+) -> Result<(), String> {
+    let set = |list: &mut Vec<(String, String)>, k: &str| {
+        *list = override_with(list, &[(k.to_string(), value.to_string())]);
+    };
+    match target {
+        Target::Param(p) => set(scene_params, p),
+        Target::Init(v) => set(init, v),
+        Target::FormParam(l, p)
+        | Target::FormInit(l, p)
+        | Target::FormOption(l, p)
+        | Target::FormSetting(l, p) => {
+            let f = forms
+                .iter_mut()
+                .find(|f| &f.label == l)
+                .ok_or_else(|| format!("no formulation labelled `{l}`"))?;
+            match target {
+                Target::FormParam(..) => set(&mut f.params, p),
+                Target::FormInit(..) => set(&mut f.init, p),
+                Target::FormOption(..) => set(&mut f.options, p),
+                _ => {
+                    let num = || {
+                        value
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite() && *v > 0.0)
+                            .ok_or_else(|| {
+                                format!("`{l}.{p}` must be a positive number, got `{value}`")
+                            })
+                    };
+                    match p.as_str() {
+                        "rtol" => f.settings.rtol = num()?,
+                        "atol" => f.settings.atol = num()?,
+                        "step" => f.settings.step = Some(num()?),
+                        _ => f.settings.integrator = value.to_string(),
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+impl Experiment {
+    /// Reads and validates `path`.
+    pub fn load(path: &Path) -> Result<Experiment, SpecError> {
+        let source = std::fs::read_to_string(path)
+            .map_err(|e| SpecError(format!("cannot read {}: {e}", path.display())))?;
+        Experiment::parse(path, &source)
+    }
+
+    /// Parses and validates the text of an experiment file.
+    pub fn parse(path: &Path, source: &str) -> Result<Experiment, SpecError> {
+        let file: File =
+            toml::from_str(source).map_err(|e| SpecError(format!("{}: {e}", path.display())))?;
+        let ctx = Ctx { path, source };
+
+        let name = file.experiment.name.get_ref().clone();
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(ctx.err(
+                file.experiment.name.span(),
+                "experiment.name",
+                "must be a non-empty name of letters, digits, `-` and `_` (it names the results directory)",
+            ));
+        }
+
+        let scene = file.experiment.scene.get_ref().clone();
+        nonholo_scenes::info(&scene)
+            .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
+        let params = entries(&ctx, "params", &file.params)?;
+        let init = entries(&ctx, "init", &file.init)?;
+
+        let (t_end, every) = (
+            *file.time.t_end.get_ref(),
+            *file.time.output_every.get_ref(),
+        );
+        if !(t_end.is_finite() && t_end > 0.0) {
+            return Err(ctx.err(
+                file.time.t_end.span(),
+                "time.t_end",
+                "must be a positive finite number",
+            ));
+        }
+        if !(every.is_finite() && every > 0.0) || t_end / every > crate::simulate::MAX_OUTPUT_POINTS
+        {
+            return Err(ctx.err(
+                file.time.output_every.span(),
+                "time.output_every",
+                format!(
+                    "must be positive and give at most {:e} output points",
+                    crate::simulate::MAX_OUTPUT_POINTS
+                ),
+            ));
+        }
+
+        if file.formulations.is_empty() {
+            return Err(SpecError(format!(
+                "{}: no [[formulation]]: an experiment compares at least one formulation",
+                path.display()
+            )));
+        }
+        let mut forms = Vec::new();
+        for f in &file.formulations {
+            let label = f.label.get_ref().clone();
+            if forms.iter().any(|g: &FormulationSpec| g.label == label) {
+                return Err(ctx.err(
+                    f.label.span(),
+                    "formulation.label",
+                    format!("`{label}` used twice"),
+                ));
+            }
+            if label.is_empty() || label.contains('.') {
+                return Err(ctx.err(
+                    f.label.span(),
+                    "formulation.label",
+                    "must be non-empty and contain no `.`",
+                ));
+            }
+            let name = f.formulation.get_ref().clone();
+            if name != CLOSED_FORM {
+                formulations::info(&name)
+                    .map_err(|e| ctx.err(f.formulation.span(), "formulation.formulation", e))?;
+            }
+            let default_integrator = if name == nonholo_embedding::INFO.name {
+                "radau5"
+            } else {
+                "dop853"
+            };
+            let integrator = f
+                .integrator
+                .as_ref()
+                .map(|s| s.get_ref().clone())
+                .unwrap_or_else(|| default_integrator.to_string());
+            if name != CLOSED_FORM && Method::from_name(&integrator).is_none() {
+                let span = f
+                    .integrator
+                    .as_ref()
+                    .map(|s| s.span())
+                    .unwrap_or(f.label.span());
+                return Err(ctx.err(
+                    span,
+                    "formulation.integrator",
+                    format!(
+                        "unknown integrator `{integrator}`; valid names: {}",
+                        Method::ALL.map(|m| m.name()).join(", ")
+                    ),
+                ));
+            }
+            let positive = |v: &Option<Spanned<f64>>,
+                            key: &str,
+                            default: Option<f64>|
+             -> Result<Option<f64>, SpecError> {
+                match v {
+                    None => Ok(default),
+                    Some(s) if s.get_ref().is_finite() && *s.get_ref() > 0.0 => {
+                        Ok(Some(*s.get_ref()))
+                    }
+                    Some(s) => Err(ctx.err(
+                        s.span(),
+                        key,
+                        format!("must be a positive finite number, got {}", s.get_ref()),
+                    )),
+                }
+            };
+            forms.push(FormulationSpec {
+                label,
+                formulation: name,
+                settings: Settings {
+                    integrator,
+                    rtol: positive(&f.rtol, "formulation.rtol", Some(1e-10))?.unwrap_or(1e-10),
+                    atol: positive(&f.atol, "formulation.atol", Some(1e-10))?.unwrap_or(1e-10),
+                    step: positive(&f.step, "formulation.step", None)?,
+                    max_steps: f
+                        .max_steps
+                        .as_ref()
+                        .map(|v| *v.get_ref() as usize)
+                        .unwrap_or(10_000_000),
+                    max_wall_time: positive(&f.max_wall_time, "formulation.max_wall_time", None)?,
+                    project_init: f.project_init,
+                },
+                options: entries(&ctx, "formulation.options", &f.options)?,
+                init: entries(&ctx, "formulation.init", &f.init)?,
+                params: entries(&ctx, "formulation.params", &f.params)?,
+            });
+        }
+        let labels: Vec<String> = forms.iter().map(|f| f.label.clone()).collect();
+
+        let (mode, axes) = match &file.sweep {
+            None => (SweepMode::Single, Vec::new()),
+            Some(sw) => {
+                let mut axes = Vec::new();
+                let mode = match sw.mode.get_ref().as_str() {
+                    m @ ("grid" | "zip") => {
+                        if sw.values.is_empty() {
+                            return Err(ctx.err(
+                                sw.mode.span(),
+                                "sweep.values",
+                                "a grid or zip sweep needs at least one swept name with values",
+                            ));
+                        }
+                        if !sw.ranges.is_empty() {
+                            return Err(ctx.err(
+                                sw.mode.span(),
+                                "sweep.ranges",
+                                "ranges belong to random sweeps",
+                            ));
+                        }
+                        for (k, vals) in &sw.values {
+                            let target = parse_target(k, &labels).map_err(|m| {
+                                ctx.err(vals.span(), &format!("sweep.values.{k}"), m)
+                            })?;
+                            if vals.get_ref().is_empty() {
+                                return Err(ctx.err(
+                                    vals.span(),
+                                    &format!("sweep.values.{k}"),
+                                    "empty list: nothing to sweep",
+                                ));
+                            }
+                            let values = vals
+                                .get_ref()
+                                .iter()
+                                .map(|v| {
+                                    text(v.get_ref()).map_err(|m| {
+                                        ctx.err(v.span(), &format!("sweep.values.{k}"), m)
+                                    })
+                                })
+                                .collect::<Result<Vec<_>, _>>()?;
+                            axes.push(Axis {
+                                name: k.clone(),
+                                target,
+                                values,
+                            });
+                        }
+                        if m == "zip" {
+                            let n = axes[0].values.len();
+                            if let Some(a) = axes.iter().find(|a| a.values.len() != n) {
+                                let span = sw.values[&a.name].span();
+                                return Err(ctx.err(span, &format!("sweep.values.{}", a.name), format!(
+                                    "a zip sweep needs lists of equal length ({} has {}, {} has {n})",
+                                    a.name, a.values.len(), axes[0].name
+                                )));
+                            }
+                            SweepMode::Zip
+                        } else {
+                            SweepMode::Grid
+                        }
+                    }
+                    "random" => {
+                        if sw.ranges.is_empty() {
+                            return Err(ctx.err(
+                                sw.mode.span(),
+                                "sweep.ranges",
+                                "a random sweep needs ranges = { name = [lo, hi] }",
+                            ));
+                        }
+                        let samples = sw.samples.as_ref().map(|s| *s.get_ref()).unwrap_or(0);
+                        if samples == 0 {
+                            return Err(ctx.err(
+                                sw.mode.span(),
+                                "sweep.samples",
+                                "a random sweep needs samples ≥ 1",
+                            ));
+                        }
+                        for (k, r) in &sw.ranges {
+                            let target = parse_target(k, &labels)
+                                .map_err(|m| ctx.err(r.span(), &format!("sweep.ranges.{k}"), m))?;
+                            let v = r.get_ref();
+                            let log = sw.log.contains(k);
+                            if v.len() != 2
+                                || !(v[0].is_finite() && v[1].is_finite() && v[0] < v[1])
+                                || (log && v[0] <= 0.0)
+                            {
+                                return Err(ctx.err(r.span(), &format!("sweep.ranges.{k}"), "must be [lo, hi] with finite lo < hi (and lo > 0 on a log axis)"));
+                            }
+                            axes.push(Axis {
+                                name: k.clone(),
+                                target,
+                                values: vec![format!("{:?}", v[0]), format!("{:?}", v[1])],
+                            });
+                        }
+                        if let Some(l) = sw.log.iter().find(|l| !sw.ranges.contains_key(*l)) {
+                            return Err(ctx.err(
+                                sw.mode.span(),
+                                "sweep.log",
+                                format!("`{l}` is not one of the ranges"),
+                            ));
+                        }
+                        SweepMode::Random {
+                            samples: samples as usize,
+                            seed: sw.seed.unwrap_or(0),
+                            log: sw.log.clone(),
+                        }
+                    }
+                    other => {
+                        return Err(ctx.err(
+                            sw.mode.span(),
+                            "sweep.mode",
+                            format!("unknown mode `{other}`; valid: grid, zip, random"),
+                        ));
+                    }
+                };
+                (mode, axes)
+            }
+        };
+
+        let threshold = match &file.measures.threshold {
+            None => 1e-6,
+            Some(t) if t.get_ref().is_finite() && *t.get_ref() > 0.0 => *t.get_ref(),
+            Some(t) => {
+                return Err(ctx.err(
+                    t.span(),
+                    "measures.threshold",
+                    "must be a positive finite number",
+                ));
+            }
+        };
+        let reference = match &file.measures.reference {
+            None => labels[0].clone(),
+            Some(r) if labels.contains(r.get_ref()) => r.get_ref().clone(),
+            Some(r) => {
+                return Err(ctx.err(
+                    r.span(),
+                    "measures.reference",
+                    format!(
+                        "no formulation labelled `{}`; labels: {}",
+                        r.get_ref(),
+                        labels.join(", ")
+                    ),
+                ));
+            }
+        };
+
+        let exp = Experiment {
+            name,
+            title: file.experiment.title.clone(),
+            claim: file.experiment.claim.clone(),
+            description: file.experiment.description.clone(),
+            figure: file.experiment.figure,
+            path: path.to_path_buf(),
+            source: source.to_string(),
+            scene,
+            params,
+            init,
+            t_end,
+            output_every: every,
+            formulations: forms,
+            mode,
+            axes,
+            threshold,
+            reference,
+            plot_point: file
+                .plots
+                .point
+                .as_ref()
+                .map(|p| *p.get_ref() as usize)
+                .unwrap_or(0),
+            all_trajectories: file.plots.all_trajectories,
+            main_plot: file.plots.main.clone(),
+        };
+        let n = exp.points().len();
+        if exp.plot_point >= n {
+            let span = file.plots.point.as_ref().map(|p| p.span()).unwrap_or(0..0);
+            return Err(ctx.err(
+                span,
+                "plots.point",
+                format!("the sweep has {n} points (0..{})", n - 1),
+            ));
+        }
+        // Every point must resolve: parameters in range, names known,
+        // formulations applicable. Errors name the swept values.
+        for p in exp.points() {
+            exp.check_point(&p).map_err(|m| {
+                SpecError(format!(
+                    "{}: {}{m}",
+                    path.display(),
+                    describe(&exp.axes, &p.values)
+                ))
+            })?;
+        }
+        Ok(exp)
+    }
+
+    /// The sweep points, in a fixed order.
+    pub fn points(&self) -> Vec<crate::experiment::sweep::Point> {
+        crate::experiment::sweep::points(self)
+    }
+}
+
+/// `at alpha = 0.3, a = 0.4: ` for messages about one point.
+pub fn describe(axes: &[Axis], values: &[String]) -> String {
+    if axes.is_empty() {
+        return String::new();
+    }
+    let parts: Vec<String> = axes
+        .iter()
+        .zip(values)
+        .map(|(a, v)| format!("{} = {v}", a.name))
+        .collect();
+    format!("at {}: ", parts.join(", "))
+}

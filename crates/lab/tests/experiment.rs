@@ -1,0 +1,308 @@
+//! The experiment runner as a user drives it: results, determinism across
+//! thread counts, a sweep killed half-way and resumed, bad files.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn nonholo(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nonholo"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A fresh `<tmp>/experiments/<name>.toml`; results go to `<tmp>/results/<name>`.
+fn setup(tag: &str, name: &str, body: &str) -> (PathBuf, PathBuf) {
+    let root = std::env::temp_dir().join(format!("nonholo-exp-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(root.join("experiments")).unwrap();
+    let file = root.join("experiments").join(format!("{name}.toml"));
+    std::fs::write(&file, body).unwrap();
+    (file, root.join("results").join(name))
+}
+
+fn disk_sweep(name: &str, points: usize) -> String {
+    disk_sweep_to(name, points, 20.0)
+}
+
+/// A rolling-disk sweep of `points` values of C's λ1(0) over `[0, t_end]`.
+fn disk_sweep_to(name: &str, points: usize, t_end: f64) -> String {
+    let values: Vec<String> = (0..points)
+        .map(|i| format!("{:.3}", -2.0 + 4.0 * i as f64 / points as f64))
+        .collect();
+    format!(
+        r#"[experiment]
+name = "{name}"
+title = "test sweep"
+claim = "none"
+scene = "rolling-disk"
+
+[init]
+omega_theta = 0.5
+omega_psi = 1.0
+
+[time]
+t_end = {t_end:?}
+output_every = 0.01
+
+[[formulation]]
+label = "B"
+formulation = "chetaev"
+rtol = 1e-12
+atol = 1e-12
+
+[[formulation]]
+label = "C"
+formulation = "vakonomic"
+rtol = 1e-12
+atol = 1e-12
+
+[sweep]
+mode = "grid"
+values = {{ "C.init.lambda1" = [{}] }}
+"#,
+        values.join(", ")
+    )
+}
+
+#[test]
+fn results_are_complete_and_legible() {
+    let (file, dir) = setup("files", "files", &disk_sweep("files", 5));
+    let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "runs.csv",
+        "pairs.csv",
+        "timing.csv",
+        "summary.json",
+        "config.json",
+        "manifest.json",
+        "index.html",
+    ] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let runs = std::fs::read_to_string(dir.join("runs.csv")).unwrap();
+    assert_eq!(runs.lines().count(), 1 + 5 * 2);
+    assert!(
+        runs.lines()
+            .next()
+            .unwrap()
+            .starts_with("point,C.init.lambda1,label,formulation,")
+    );
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    for k in [
+        "command",
+        "experiment_sha256",
+        "git_revision",
+        "git_dirty",
+        "versions",
+        "machine",
+        "started",
+        "finished",
+    ] {
+        assert!(manifest.get(k).is_some(), "manifest lacks {k}");
+    }
+    // Every plot exists as PNG and SVG, and its text is real text.
+    for stem in [
+        "trajectories",
+        "divergence",
+        "residual",
+        "energy",
+        "sweep-end",
+    ] {
+        let svg = std::fs::read_to_string(dir.join("plots").join(format!("{stem}.svg"))).unwrap();
+        assert!(
+            svg.contains("<text") && svg.contains("[s]") || svg.contains("[m]"),
+            "{stem}: no axis text"
+        );
+        assert!(
+            std::fs::metadata(dir.join("plots").join(format!("{stem}.png")))
+                .unwrap()
+                .len()
+                > 10_000
+        );
+    }
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(
+        html.contains("plots/sweep-end.png")
+            && html.contains("<table>")
+            && html.contains("figcaption")
+    );
+    // Redrawing from stored results needs no run.
+    let o = nonholo(&["plot", file.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn thread_count_does_not_change_results() {
+    let (file, dir) = setup("det", "det", &disk_sweep("det", 8));
+    let f = file.to_str().unwrap();
+    let read = |p: &Path| std::fs::read(p).unwrap();
+    assert!(
+        nonholo(&["experiment", f, "--threads", "1", "--force", "--quiet"])
+            .status
+            .success()
+    );
+    let (runs1, pairs1) = (read(&dir.join("runs.csv")), read(&dir.join("pairs.csv")));
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(2)
+        .max(2)
+        .to_string();
+    assert!(
+        nonholo(&["experiment", f, "--threads", &cores, "--force", "--quiet"])
+            .status
+            .success()
+    );
+    assert_eq!(
+        runs1,
+        read(&dir.join("runs.csv")),
+        "runs.csv differs between 1 and {cores} threads"
+    );
+    assert_eq!(pairs1, read(&dir.join("pairs.csv")));
+}
+
+/// A sweep killed half-way and started again finishes with every point
+/// exactly once, stored points reused, nothing corrupt, no temporary left.
+#[test]
+fn killed_sweep_resumes() {
+    let n = 40;
+    // ~50 ms per point on one thread: long enough to kill half-way.
+    let (file, dir) = setup("kill", "kill", &disk_sweep_to("kill", n, 300.0));
+    let f = file.to_str().unwrap().to_string();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nonholo"))
+        .args(["experiment", &f, "--threads", "1", "--quiet"])
+        .spawn()
+        .unwrap();
+    let points = dir.join("points");
+    let count = || {
+        std::fs::read_dir(&points)
+            .map(|d| {
+                d.flatten()
+                    .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
+                    .count()
+            })
+            .unwrap_or(0)
+    };
+    let start = std::time::Instant::now();
+    while count() < 3 && start.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let done_before = count();
+    assert!(
+        done_before >= 3 && done_before < n,
+        "killed after {done_before} of {n} points: make the sweep longer"
+    );
+    let o = nonholo(&["experiment", &f, "--threads", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("{n} points ({done_before} reused)")) || err.contains("reused"),
+        "{err}"
+    );
+    assert_eq!(count(), n);
+    let runs = std::fs::read_to_string(dir.join("runs.csv")).unwrap();
+    let mut seen: Vec<(String, String)> = runs
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[0].to_string(), c[2].to_string())
+        })
+        .collect();
+    assert_eq!(seen.len(), 2 * n);
+    seen.sort();
+    seen.dedup();
+    assert_eq!(
+        seen.len(),
+        2 * n,
+        "a (point, formulation) row appears twice"
+    );
+    for d in [
+        dir.clone(),
+        points.clone(),
+        dir.join("trajectories"),
+        dir.join("plots"),
+    ] {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            assert!(
+                !e.file_name().to_string_lossy().ends_with(".tmp"),
+                "temporary left: {:?}",
+                e.path()
+            );
+        }
+    }
+    for e in std::fs::read_dir(&points).unwrap().flatten() {
+        let v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(e.path()).unwrap()).unwrap();
+        assert_eq!(v["schema"], "nonholo.point/1");
+    }
+}
+
+fn refused(tag: &str, body: &str, needles: &[&str]) {
+    let (file, _) = setup(tag, tag, body);
+    let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{tag}: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{tag}: `{n}` not in {err}");
+    }
+}
+
+#[test]
+fn bad_experiment_files_name_key_and_line() {
+    let good = disk_sweep("bad", 2);
+    refused(
+        "unknown-key",
+        &good.replace("[time]\n", "[time]\nt_start = 0\n"),
+        &["unknown field `t_start`", "line"],
+    );
+    refused(
+        "wrong-type",
+        &good.replace("t_end = 20.0", "t_end = \"long\""),
+        &["t_end", "line 12"],
+    );
+    refused(
+        "empty-sweep",
+        &good.replace(
+            r#""C.init.lambda1" = [-2.000, 0.000]"#,
+            r#""C.init.lambda1" = []"#,
+        ),
+        &["sweep.values.C.init.lambda1", "empty list"],
+    );
+    refused(
+        "unknown-formulation",
+        &good.replace("formulation = \"vakonomic\"", "formulation = \"lagrange\""),
+        &[
+            ":23: `formulation.formulation`",
+            "unknown formulation `lagrange`",
+        ],
+    );
+    refused(
+        "unknown-scene",
+        &good.replace("scene = \"rolling-disk\"", "scene = \"disc\""),
+        &[
+            ":5: `experiment.scene`",
+            "unknown scene `disc`",
+            "rolling-disk",
+        ],
+    );
+    refused(
+        "out-of-range",
+        &good.replace("[init]", "[params]\nR = -1\n\n[init]"),
+        &["`R` = -1", "(0, inf)"],
+    );
+    refused(
+        "bad-sweep-name",
+        &good.replace("\"C.init.lambda1\"", "\"D.init.lambda1\""),
+        &["cannot address `D.init.lambda1`", "labels: B, C"],
+    );
+    refused(
+        "no-formulation",
+        "[experiment]\nname = \"x\"\ntitle = \"t\"\nclaim = \"c\"\nscene = \"pendulum\"\n[time]\nt_end = 1\noutput_every = 0.1\n",
+        &["no [[formulation]]"],
+    );
+}

@@ -3,6 +3,18 @@
 default:
     @just --list
 
+# Regenerate every figure that backs a claim (the main job).
+reproduce *ARGS:
+    cargo run --release --bin nonholo -- reproduce {{ARGS}}
+
+# Run experiments/NAME.toml into results/NAME/.
+experiment NAME *ARGS:
+    cargo run --release --bin nonholo -- experiment experiments/{{NAME}}.toml {{ARGS}}
+
+# Redraw the figures of experiments/NAME.toml from stored results.
+plot NAME:
+    cargo run --release --bin nonholo -- plot experiments/{{NAME}}.toml
+
 # Run the test suite (what CI runs).
 test:
     cargo test --release --workspace

@@ -188,6 +188,8 @@ pub struct Axis {
     pub name: String,
     pub target: Target,
     pub values: Vec<String>,
+    /// Line of the axis in the experiment file (0 if built in code).
+    pub line: usize,
 }
 
 /// How the axes combine into points.
@@ -576,6 +578,7 @@ impl Experiment {
                                 name: k.clone(),
                                 target,
                                 values,
+                                line: ctx.line(vals.span().start),
                             });
                         }
                         if m == "zip" {
@@ -623,6 +626,7 @@ impl Experiment {
                                 name: k.clone(),
                                 target,
                                 values: vec![format!("{:?}", v[0]), format!("{:?}", v[1])],
+                                line: ctx.line(r.span().start),
                             });
                         }
                         if let Some(l) = sw.log.iter().find(|l| !sw.ranges.contains_key(*l)) {
@@ -741,7 +745,13 @@ pub fn describe(axes: &[Axis], values: &[String]) -> String {
     let parts: Vec<String> = axes
         .iter()
         .zip(values)
-        .map(|(a, v)| format!("{} = {v}", a.name))
+        .map(|(a, v)| {
+            if a.line > 0 {
+                format!("{} = {v} (swept at line {})", a.name, a.line)
+            } else {
+                format!("{} = {v}", a.name)
+            }
+        })
         .collect();
     format!("at {}: ", parts.join(", "))
 }

@@ -45,6 +45,41 @@ pub struct FormResult {
     pub report: Vec<(String, f64)>,
 }
 
+impl FormResult {
+    /// A formulation that produced no trajectory: set-up failed, or it was never run.
+    pub fn failed(
+        label: &str,
+        formulation: &str,
+        integrator: &str,
+        (rtol, atol): (f64, f64),
+        error_t: Option<f64>,
+        error: String,
+    ) -> Self {
+        FormResult {
+            label: label.into(),
+            formulation: formulation.into(),
+            integrator: integrator.into(),
+            rtol,
+            atol,
+            status: "failed".into(),
+            error_t,
+            error: Some(error),
+            t_last: None,
+            steps: 0,
+            rejected_steps: 0,
+            rhs_evals: 0,
+            jacobian_evals: 0,
+            lu_decompositions: 0,
+            newton_failures: 0,
+            wall_time_s: 0.0,
+            constraint_residual_max: None,
+            energy_initial: None,
+            energy_drift_max: None,
+            report: Vec::new(),
+        }
+    }
+}
+
 /// Two formulations compared on their common output grid.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PairResult {
@@ -191,32 +226,19 @@ impl SceneVisitor for Physics<'_> {
 
 fn failed(r: &PointRun, error_t: Option<f64>, error: String) -> FormResult {
     let s = &r.spec;
-    FormResult {
-        label: r.label.clone(),
-        formulation: s.formulation.clone(),
-        integrator: if s.formulation == CLOSED_FORM {
-            "—".into()
-        } else {
-            s.method.name().into()
-        },
-        rtol: s.integrator.rtol,
-        atol: s.integrator.atol,
-        status: "failed".into(),
+    let integrator = if s.formulation == CLOSED_FORM {
+        "—"
+    } else {
+        s.method.name()
+    };
+    FormResult::failed(
+        &r.label,
+        &s.formulation,
+        integrator,
+        (s.integrator.rtol, s.integrator.atol),
         error_t,
-        error: Some(error),
-        t_last: None,
-        steps: 0,
-        rejected_steps: 0,
-        rhs_evals: 0,
-        jacobian_evals: 0,
-        lu_decompositions: 0,
-        newton_failures: 0,
-        wall_time_s: 0.0,
-        constraint_residual_max: None,
-        energy_initial: None,
-        energy_drift_max: None,
-        report: Vec::new(),
-    }
+        error,
+    )
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -272,27 +294,15 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
             let formulations = exp
                 .formulations
                 .iter()
-                .map(|f| FormResult {
-                    label: f.label.clone(),
-                    formulation: f.formulation.clone(),
-                    integrator: f.settings.integrator.clone(),
-                    rtol: f.settings.rtol,
-                    atol: f.settings.atol,
-                    status: "failed".into(),
-                    error_t: None,
-                    error: Some(e.clone()),
-                    t_last: None,
-                    steps: 0,
-                    rejected_steps: 0,
-                    rhs_evals: 0,
-                    jacobian_evals: 0,
-                    lu_decompositions: 0,
-                    newton_failures: 0,
-                    wall_time_s: 0.0,
-                    constraint_residual_max: None,
-                    energy_initial: None,
-                    energy_drift_max: None,
-                    report: Vec::new(),
+                .map(|f| {
+                    FormResult::failed(
+                        &f.label,
+                        &f.formulation,
+                        &f.settings.integrator,
+                        (f.settings.rtol, f.settings.atol),
+                        None,
+                        e.clone(),
+                    )
                 })
                 .collect();
             return (

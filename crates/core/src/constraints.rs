@@ -100,11 +100,21 @@ impl<T: Scalar> ConstraintState<T> {
     /// constraints: `|g_i|/‖G_i‖` and `|ḟ_i|/‖F_i‖` (exact for constraints
     /// linear in q̇). Independent of how each constraint is scaled.
     pub fn velocity_distance(&self) -> f64 {
+        self.velocity_distance_to(&[])
+    }
+
+    /// [`ConstraintState::velocity_distance`] from `g = target` instead of
+    /// `g = 0` (an empty `target` means zero).
+    pub fn velocity_distance_to(&self, target: &[f64]) -> f64 {
         let s = self.s;
         (0..s + self.k)
             .map(|r| {
-                let v = if r < s { self.g[r] } else { self.f_rate[r - s] };
-                v.re().abs() / self.row_norm(r).max(f64::MIN_POSITIVE)
+                let v = if r < s {
+                    self.g[r].re() - target.get(r).copied().unwrap_or(0.0)
+                } else {
+                    self.f_rate[r - s].re()
+                };
+                v.abs() / self.row_norm(r).max(f64::MIN_POSITIVE)
             })
             .fold(0.0, nan_max)
     }

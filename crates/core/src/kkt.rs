@@ -25,6 +25,23 @@ use crate::linalg::{Lu, equilibrate};
 use crate::scene::{Scalar, ScalarField, Scene};
 use crate::stab::Stabilisation;
 
+/// How the rows of the nonholonomic constraints `g` enter the system.
+///
+/// * `Ideal`: `G q̈ = −ġ₀ − 2α g` (B, C: the constraint holds).
+/// * `Compliant(c)`: `G q̈ − c μ_g = −ġ₀`, the constraint with compliance
+///   `c = 1/N` (the added-mass realisation carrying `λ = N g`, `μ_g = λ̇`).
+/// * `Absent`: no constraint row (`μ_g = 0`); `g` acts only through the
+///   field `ℓ` (the added-mass realisation written directly, `ℓ = L + (N/2) gᵀg`).
+/// * `Viscous(k)`: no constraint row; the viscous force `−k Gᵀ g` joins the
+///   right-hand side (the viscous realisation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GRows {
+    Ideal,
+    Compliant(f64),
+    Absent,
+    Viscous(f64),
+}
+
 /// Workspace of the KKT solve over base scalar `T`.
 #[derive(Debug, Clone)]
 pub struct Kkt<T: Scalar = f64> {
@@ -76,6 +93,23 @@ impl<T: Scalar> Kkt<T> {
         qd: &[T],
         what: &str,
     ) -> Result<(), SystemError> {
+        self.solve_rows(ell, p, scene, stab, GRows::Ideal, t, q, qd, what)
+    }
+
+    /// [`Kkt::solve`] with the rows of `g` entering as `rows` says.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_rows<F: ScalarField, S: Scene>(
+        &mut self,
+        ell: &F,
+        p: &[T],
+        scene: &S,
+        stab: Stabilisation,
+        rows: GRows,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        what: &str,
+    ) -> Result<(), SystemError> {
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
@@ -98,8 +132,35 @@ impl<T: Scalar> Kkt<T> {
                 }
             }
             let (alpha, beta) = stab.gains();
-            for i in 0..s {
-                self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
+            match rows {
+                GRows::Ideal => {
+                    for i in 0..s {
+                        self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
+                    }
+                }
+                GRows::Compliant(c) => {
+                    for i in 0..s {
+                        self.matrix[(n + i, n + i)] = T::from(-c);
+                        self.sol[n + i] = -self.cs.g_rate0[i];
+                    }
+                }
+                GRows::Absent | GRows::Viscous(_) => {
+                    let k = match rows {
+                        GRows::Viscous(k) => k,
+                        _ => 0.0,
+                    };
+                    for i in 0..s {
+                        for j in 0..n {
+                            if k != 0.0 {
+                                self.sol[j] -= self.cs.jac[(i, j)] * self.cs.g[i] * k;
+                            }
+                            self.matrix[(n + i, j)] = T::from(0.0);
+                            self.matrix[(j, n + i)] = T::from(0.0);
+                        }
+                        self.matrix[(n + i, n + i)] = T::from(1.0);
+                        self.sol[n + i] = T::from(0.0);
+                    }
+                }
             }
             for i in 0..k {
                 self.sol[n + s + i] = -self.cs.f_accel0[i]

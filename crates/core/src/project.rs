@@ -58,6 +58,9 @@ pub struct Projector {
     scale: Vec<f64>,
     q0: Vec<f64>,
     qd0: Vec<f64>,
+    /// Value of `g` the velocity projection aims at (zero but for
+    /// [`Projector::shift_velocity`]).
+    g_target: Vec<f64>,
 }
 
 /// Which constraints a Newton step enforces.
@@ -83,6 +86,7 @@ impl Projector {
             scale: vec![1.0; n + s + k],
             q0: vec![0.0; n],
             qd0: vec![0.0; n],
+            g_target: vec![0.0; s],
         }
     }
 
@@ -136,8 +140,11 @@ impl Projector {
                 }
             }
             Level::Velocity => {
-                for (a, r) in self.cs.g.iter().chain(&self.cs.f_rate).enumerate() {
-                    rhs[n + a] = -r;
+                for (a, (g, t)) in self.cs.g.iter().zip(&self.g_target).enumerate() {
+                    rhs[n + a] = t - g;
+                }
+                for (a, r) in self.cs.f_rate.iter().enumerate() {
+                    rhs[n + s + a] = -r;
                 }
             }
         }
@@ -149,6 +156,74 @@ impl Projector {
             *x *= d;
         }
         Ok(())
+    }
+
+    /// Newton iterations on `q̇` towards `g = g_target, ḟ = 0` (see
+    /// [`Projector::project`] for the stopping rule); returns their number.
+    fn velocity_loop<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        q: &[f64],
+        qd: &mut [f64],
+        rtol: f64,
+    ) -> Result<usize, String> {
+        let tol = rtol * qd.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        self.residuals(scene, t, q, qd);
+        let mut dist = self.cs.velocity_distance_to(&self.g_target);
+        let mut count = 0;
+        while dist > tol {
+            if count == MAX_ITER {
+                return Err(format!(
+                    "projection onto the velocity constraints did not converge: distance {dist:.3e} after {MAX_ITER} iterations"
+                ));
+            }
+            self.newton_step(scene, t, q, qd, Level::Velocity)?;
+            for (x, d) in qd.iter_mut().zip(&self.rhs[..self.n]) {
+                *x += d;
+            }
+            count += 1;
+            self.residuals(scene, t, q, qd);
+            let new = self.cs.velocity_distance_to(&self.g_target);
+            if new > 0.5 * dist && new <= 1e3 * tol {
+                break;
+            }
+            dist = new;
+        }
+        Ok(count)
+    }
+
+    /// Moves `q̇` (nearest in the kinetic-energy metric, `q` fixed) so that
+    /// `g(q, q̇, t) = target` and `ḟ = 0`: the initial constraint violation of
+    /// the added-mass realisation. Same stopping rule as [`Projector::project`].
+    pub fn shift_velocity<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        q: &[f64],
+        qd: &mut [f64],
+        target: &[f64],
+        rtol: f64,
+    ) -> Result<Projection, String> {
+        self.qd0.copy_from_slice(qd);
+        let (v_before, p) = self.residuals(scene, t, q, qd);
+        self.g_target.copy_from_slice(target);
+        let iterations = self.velocity_loop(scene, t, q, qd, rtol);
+        self.g_target.fill(0.0);
+        let iterations = iterations?;
+        let dqd_norm = qd
+            .iter()
+            .zip(&self.qd0)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        Ok(Projection {
+            velocity_residual: (v_before, self.cs.velocity_residual()),
+            position_residual: (p, p),
+            dq_norm: 0.0,
+            dqd_norm,
+            iterations,
+        })
     }
 
     /// Projects `q` onto `f = 0` (if the scene has holonomic constraints) and
@@ -193,29 +268,7 @@ impl Projector {
             dist = new;
         }
 
-        let tol = rtol * scale(qd);
-        self.residuals(scene, t, q, qd);
-        let mut dist = self.cs.velocity_distance();
-        let mut count = 0;
-        while dist > tol {
-            if count == MAX_ITER {
-                return Err(format!(
-                    "projection onto the velocity constraints did not converge: distance {dist:.3e} after {MAX_ITER} iterations"
-                ));
-            }
-            self.newton_step(scene, t, q, qd, Level::Velocity)?;
-            for (x, d) in qd.iter_mut().zip(&self.rhs[..self.n]) {
-                *x += d;
-            }
-            iterations += 1;
-            count += 1;
-            self.residuals(scene, t, q, qd);
-            let new = self.cs.velocity_distance();
-            if new > 0.5 * dist && new <= 1e3 * tol {
-                break;
-            }
-            dist = new;
-        }
+        iterations += self.velocity_loop(scene, t, q, qd, rtol)?;
         let res = self.cs.velocity_residual();
         let (v_after, p_after) = (res, self.cs.position_residual());
         let dist = |a: &[f64], b: &[f64]| {

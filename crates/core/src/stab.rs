@@ -107,6 +107,18 @@ impl StepHooks {
         }
     }
 
+    /// Diagnostics and the singular-set guard only, for formulations that do
+    /// not enforce the nonholonomic constraints (the realisations).
+    pub fn unstabilised<S: Scene>(scene: &S, singular_tol: f64) -> Self {
+        StepHooks {
+            stab: Stabilisation::None,
+            projector: Projector::new(scene),
+            monitor: Monitor::new(scene),
+            guard: SingularGuard::new(singular_tol),
+            r: [0.0; MAX_SINGULAR],
+        }
+    }
+
     /// Starts the diagnostics and the guard of a new run at the initial state.
     pub fn start<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
         self.monitor = Monitor::new(scene);

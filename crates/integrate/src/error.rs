@@ -47,6 +47,10 @@ pub enum IntegrateError {
         t: f64,
         /// The budget `Options::max_steps`.
         max_steps: usize,
+        /// The step size at that time.
+        h: f64,
+        /// Set when an explicit method's stiffness test had fired.
+        stiffness: Option<StiffnessEstimate>,
     },
     /// The wall-clock budget `Options::max_wall_time_s` was used up.
     TimeBudgetExceeded {
@@ -54,6 +58,10 @@ pub enum IntegrateError {
         t: f64,
         /// The budget `Options::max_wall_time_s`.
         seconds: f64,
+        /// The step size at that time.
+        h: f64,
+        /// Set when an explicit method's stiffness test had fired.
+        stiffness: Option<StiffnessEstimate>,
     },
     /// The state or its derivative stopped being finite; also when the step
     /// size collapsed because the last trial steps were rejected for
@@ -81,6 +89,43 @@ pub enum IntegrateError {
     },
 }
 
+/// Where Hairer's stiffness test of an explicit method fired: at time `t`,
+/// with step size `h`, `h·ρ = h_rho` above the method's stability bound,
+/// `ρ` estimating the magnitude of the dominant eigenvalue of `∂f/∂y`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StiffnessEstimate {
+    /// Time of the step at which the test fired.
+    pub t: f64,
+    /// Its step size.
+    pub h: f64,
+    /// `h·ρ` there.
+    pub h_rho: f64,
+}
+
+impl StiffnessEstimate {
+    /// The estimate `ρ` of the dominant eigenvalue's magnitude.
+    pub fn rho(&self) -> f64 {
+        self.h_rho / self.h.abs()
+    }
+}
+
+/// What a used-up budget says about the step size and stiffness.
+fn budget_note(h: f64, stiffness: &Option<StiffnessEstimate>) -> String {
+    match stiffness {
+        Some(s) => format!(
+            " (step size {h:.3e}); the problem is stiff for this explicit method: its stiffness \
+             test fired at t = {:.6}, where h·ρ = {:.2} with ρ ≈ {:.3e} (dominant eigenvalue \
+             magnitude, 1/time unit), so stability rather than accuracy holds the step near \
+             {:.1e}; use an implicit method (radau5)",
+            s.t,
+            s.h_rho,
+            s.rho(),
+            s.h.abs()
+        ),
+        None => format!(" (step size {h:.3e})"),
+    }
+}
+
 impl IntegrateError {
     /// Time at which the error happened, if it happened during the run.
     pub fn time(&self) -> Option<f64> {
@@ -106,12 +151,26 @@ impl fmt::Display for IntegrateError {
                     "at t = {t}: step size {h:e} too small (the problem may be stiff or singular here)"
                 )
             }
-            IntegrateError::TooManySteps { t, max_steps } => {
-                write!(f, "at t = {t}: step budget of {max_steps} steps used up")
-            }
-            IntegrateError::TimeBudgetExceeded { t, seconds } => {
-                write!(f, "at t = {t}: wall-time budget of {seconds} s used up")
-            }
+            IntegrateError::TooManySteps {
+                t,
+                max_steps,
+                h,
+                stiffness,
+            } => write!(
+                f,
+                "at t = {t}: step budget of {max_steps} steps used up{}",
+                budget_note(*h, stiffness)
+            ),
+            IntegrateError::TimeBudgetExceeded {
+                t,
+                seconds,
+                h,
+                stiffness,
+            } => write!(
+                f,
+                "at t = {t}: wall-time budget of {seconds} s used up{}",
+                budget_note(*h, stiffness)
+            ),
             IntegrateError::NonFinite { t } => write!(
                 f,
                 "at t = {t}: the solution is not finite (overflow or NaN in the state, \

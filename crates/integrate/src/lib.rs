@@ -37,7 +37,7 @@ mod solution;
 mod system;
 
 pub use dense::Dense;
-pub use error::{Failure, IntegrateError, SystemError};
+pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
 pub use options::{Method, Options, RadauNewton};
 pub use solution::{Solution, Stats};
 pub use system::{ImplicitSystem, OdeSystem};

@@ -243,7 +243,7 @@ fn wall_time_budget() {
         opts.max_wall_time_s = Some(0.0);
         let f = failure(solve(method, &mut Oscillator, 0.0, &[1.0, 0.0], 1.0, &opts));
         assert!(
-            matches!(f.error, IntegrateError::TimeBudgetExceeded { t: 0.0, seconds } if seconds == 0.0),
+            matches!(f.error, IntegrateError::TimeBudgetExceeded { t: 0.0, seconds, .. } if seconds == 0.0),
             "{f}"
         );
         assert!(f.partial.stats.wall_time_s > 0.0);

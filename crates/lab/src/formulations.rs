@@ -8,28 +8,14 @@ pub const ALL: &[&FormulationInfo] = &[
     &nonholo_embedding::INFO,
     &nonholo_chetaev::INFO,
     &nonholo_vakonomic::INFO,
-];
-
-/// Formulations of the workbench's plan that this build does not have yet,
-/// with what they are: naming one gives a clear message instead of "unknown".
-const PLANNED: &[(&str, &str)] = &[
-    (
-        "visc",
-        "the viscous-friction realisation of the constraints",
-    ),
-    ("mass", "the added-mass realisation of the constraints"),
+    &nonholo_realise::visc::INFO,
+    &nonholo_realise::mass::INFO,
 ];
 
 /// The formulation called `name`, or an error listing the valid names.
 pub fn info(name: &str) -> Result<&'static FormulationInfo, Error> {
     if let Some(f) = ALL.iter().find(|f| f.name == name) {
         return Ok(f);
-    }
-    if let Some((_, what)) = PLANNED.iter().find(|(n, _)| *n == name) {
-        return Err(Error::Unavailable(format!(
-            "formulation `{name}` ({what}) is not in this build yet; available: {}",
-            ALL.iter().map(|f| f.name).collect::<Vec<_>>().join(", ")
-        )));
     }
     Err(Error::UnknownName {
         what: "formulation".into(),
@@ -80,6 +66,8 @@ impl SceneVisitor for Build {
                 scene,
                 self.options,
             )?)),
+            "visc" => Ok(Box::new(nonholo_realise::Visc::new(scene, self.options)?)),
+            "mass" => Ok(Box::new(nonholo_realise::Mass::new(scene, self.options)?)),
             other => unreachable!("formulation `{other}` registered but not constructed"),
         }
     }

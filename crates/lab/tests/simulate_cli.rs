@@ -434,25 +434,6 @@ fn overflow_is_an_error_not_nan_in_a_file() {
 }
 
 #[test]
-fn planned_formulation_is_named_as_not_built() {
-    // Keep in step with the build: once a formulation exists this names it as available.
-    let o = nonholo(&[
-        "simulate",
-        "--scene",
-        "sleigh-incline",
-        "--formulation",
-        "vakonomic",
-        "--t-end",
-        "0.1",
-    ]);
-    let e = stderr(&o);
-    assert!(
-        o.status.success() || e.contains("not in this build yet"),
-        "{e}"
-    );
-}
-
-#[test]
 fn scenes_lists_coordinates_parameters_and_formulations() {
     let o = nonholo(&["scenes"]);
     assert!(o.status.success());
@@ -752,5 +733,81 @@ fn embedding_applicability_and_integrator() {
     assert!(
         s.contains("A embedding: not applicable — the scene provides no embedding map"),
         "{s}"
+    );
+}
+
+/// The realisations as the issue writes them: `visc` with `k`, `mass` with
+/// `N` and `λ0`; their multiplier column; their options checked by name.
+#[test]
+fn realisations_run_from_the_command_line() {
+    let dir = tmpdir("realise");
+    let out = dir.join("visc.json");
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "visc",
+        "--option",
+        "k=1e6",
+        "--param",
+        "a=0.4",
+        "--init",
+        "u=2",
+        "--init",
+        "omega=0.7",
+        "--t-end",
+        "2",
+        "--integrator",
+        "radau5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(j["formulation"], "visc");
+    assert_eq!(j["options"]["k"], 1e6);
+    assert!(j["lambda"].as_array().unwrap().len() > 10);
+    // The violation is O(1/k): a few times 1e-6 for this motion.
+    let r = j["diagnostics"]["constraint_residual_max"].as_f64().unwrap();
+    assert!(r > 1e-7 && r < 1e-5, "{r}");
+
+    let out = dir.join("mass.json");
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "mass",
+        "--option",
+        "N=1e4",
+        "--init",
+        "lambda=0.5",
+        "--init",
+        "u=2",
+        "--t-end",
+        "0.5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(j["lambda"][0][0], 0.5);
+    assert_eq!(j["options"]["form"], "compliance");
+
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--formulation", "visc", "--option", "k=-1"],
+        2,
+        &["`k`", "-1", "(0, inf)"],
+    );
+    fails_with(
+        &["simulate", "--scene", "sleigh-incline", "--formulation", "mass", "--option", "form=soft"],
+        2,
+        &["`form`", "compliance", "direct"],
+    );
+    fails_with(
+        &["simulate", "--scene", "pendulum", "--formulation", "visc"],
+        2,
+        &["not applicable", "no nonholonomic constraints"],
     );
 }

@@ -61,7 +61,8 @@ use std::time::Instant;
 use crate::dense::eval_nested;
 use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, locate_root, validate};
 use crate::{
-    Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, SystemError,
+    Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, StiffnessEstimate,
+    SystemError,
 };
 use control::{ControlParams, Controller, Rhs, StiffnessTest, Tol, all_finite, hinit};
 
@@ -310,6 +311,7 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
     let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
     let mut ctrl = None;
     let mut stiff = M::CONTROL.map(|p| StiffnessTest::new(p.stiff_bound));
+    let mut stiffness: Option<StiffnessEstimate> = None;
     let mut h = match (fixed, M::CONTROL) {
         (Some((h, _)), _) => h,
         (None, Some(p)) => {
@@ -351,13 +353,20 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
             let e = IntegrateError::TooManySteps {
                 t,
                 max_steps: opts.max_steps,
+                h,
+                stiffness,
             };
             let ev = rhs.evals;
             return Err(rec.fail(e, t, &y, ev));
         }
         if let Some(limit) = opts.max_wall_time_s {
             if trials % 8 == 0 && start.elapsed().as_secs_f64() > limit {
-                let e = IntegrateError::TimeBudgetExceeded { t, seconds: limit };
+                let e = IntegrateError::TimeBudgetExceeded {
+                    t,
+                    seconds: limit,
+                    h,
+                    stiffness,
+                };
                 let ev = rhs.evals;
                 return Err(rec.fail(e, t, &y, ev));
             }
@@ -436,6 +445,7 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
                 let ratio = w.scheme.stiffness(h, &w.y_new, &w.f_new);
                 if let Some(h_rho) = st.update(ratio) {
                     rec.stats.stiffness_detected.get_or_insert((t, h_rho));
+                    stiffness.get_or_insert(StiffnessEstimate { t, h, h_rho });
                 }
             }
         }

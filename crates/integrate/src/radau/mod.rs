@@ -1067,13 +1067,20 @@ fn run<P: Problem>(
             let e = IntegrateError::TooManySteps {
                 t,
                 max_steps: opts.max_steps,
+                h,
+                stiffness: None,
             };
             let ev = p.evals();
             return Err(rec.fail(e, t, &y, ev));
         }
         if let Some(limit) = opts.max_wall_time_s {
             if trials % 8 == 0 && start.elapsed().as_secs_f64() > limit {
-                let e = IntegrateError::TimeBudgetExceeded { t, seconds: limit };
+                let e = IntegrateError::TimeBudgetExceeded {
+                    t,
+                    seconds: limit,
+                    h,
+                    stiffness: None,
+                };
                 let ev = p.evals();
                 return Err(rec.fail(e, t, &y, ev));
             }

@@ -59,9 +59,11 @@ pub trait Model: Send {
     fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
         None
     }
-    /// The Newton iteration Radau IIA should use on the implicit form: full
-    /// Newton for systems outside Hessenberg form, where the simplified
-    /// iteration (one Jacobian per step) does not converge.
+    /// The Newton iteration Radau IIA should use when the caller leaves it
+    /// to the model (`RadauNewton::Auto`): full Newton for systems on which
+    /// the simplified iteration (one Jacobian per step) converges badly —
+    /// implicit systems outside Hessenberg form, stiff terms whose Jacobian
+    /// turns with the state.
     fn radau_newton(&self) -> RadauNewton {
         RadauNewton::Simplified
     }

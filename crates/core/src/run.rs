@@ -100,14 +100,15 @@ pub fn simulate(
     let projection = model.make_consistent(&mut initial, config.project_init)?;
     let y0 = model.initial_state(&initial)?;
     let formulation = model.formulation().name;
+    // The Newton iteration of Radau IIA: the caller's choice, else the model's.
+    let mut config = config;
+    if config.options.radau_newton == RadauNewton::Auto {
+        config.options.radau_newton = model.radau_newton();
+    }
     let result = if config.method.is_implicit() && model.implicit().is_some() {
         let yp0 = model.initial_slope()?;
-        let mut options = config.options.clone();
-        if options.radau_newton == RadauNewton::Simplified {
-            options.radau_newton = model.radau_newton();
-        }
         let sys = model.implicit().expect("checked above");
-        solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &options)
+        solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &config.options)
     } else if let Some(sys) = model.ode() {
         solve(
             config.method,

@@ -61,13 +61,16 @@ impl Method {
 /// and the same error estimate; they differ in the Jacobian of the iteration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum RadauNewton {
+    /// The caller decides (`nonholo_core::simulate` asks the model being
+    /// integrated); the integrator itself treats it as [`RadauNewton::Simplified`].
+    #[default]
+    Auto,
     /// RADAU5's simplified Newton iteration (the default): one pair
     /// `J = ∂F/∂y`, `J' = ∂F/∂y'` taken at the step start (and reused across
     /// steps while the iteration contracts fast), decoupled through
     /// `T⁻¹ A⁻¹ T` into one real and one complex `n × n` system. Cheap
     /// (`O(n³)` once per Jacobian/step size, `O(n²)` per iteration) and
     /// linearly convergent.
-    #[default]
     Simplified,
     /// Full Newton iteration: every iteration evaluates `J_k`, `J'_k` at the
     /// three stage points and solves the `3n × 3n` system with blocks
@@ -82,6 +85,28 @@ pub enum RadauNewton {
     /// estimate still factors `γ/h J' + J` at the step start once per step
     /// (not with [`Options::fixed_step`], which has no error estimate).
     Full,
+}
+
+impl RadauNewton {
+    /// Name on the command line and in result files.
+    pub fn name(self) -> &'static str {
+        match self {
+            RadauNewton::Auto => "auto",
+            RadauNewton::Simplified => "simplified",
+            RadauNewton::Full => "full",
+        }
+    }
+
+    /// The variant called `name`.
+    pub fn from_name(name: &str) -> Option<RadauNewton> {
+        [
+            RadauNewton::Auto,
+            RadauNewton::Simplified,
+            RadauNewton::Full,
+        ]
+        .into_iter()
+        .find(|v| v.name() == name)
+    }
 }
 
 /// Integrator settings. `Options::default()` is a reasonable start.
@@ -119,6 +144,12 @@ pub struct Options {
     pub output: Vec<f64>,
     /// Keep the continuous extension of every step ([`crate::Dense`]).
     pub dense: bool,
+    /// Adaptive methods shorten a step that would pass the next time of
+    /// `output` so that it lands on it: the samples are then step end points,
+    /// free of the continuous extension's interpolation error (which for
+    /// Radau IIA, a polynomial of degree 3, dominates at tight tolerances).
+    /// For reference solutions; costs the extra steps.
+    pub hit_output: bool,
     /// [`Method::Radau5`] only: largest number of Newton iterations per
     /// step, simplified or full (RADAU5's `NIT`, `IWORK(3)`). Default 7.
     pub newton_max_iter: usize,
@@ -157,11 +188,12 @@ impl Default for Options {
             max_wall_time_s: None,
             output: Vec::new(),
             dense: true,
+            hit_output: false,
             newton_max_iter: 7,
             newton_tol: None,
             jacobian_reuse: 0.001,
             keep_step: (1.0, 1.2),
-            radau_newton: RadauNewton::Simplified,
+            radau_newton: RadauNewton::Auto,
         }
     }
 }

@@ -1,5 +1,7 @@
 use clap::{Parser, Subcommand};
-use nonholo_lab::experiment::cli::{self, ExperimentArgs, PlotArgs, ReproduceArgs};
+use nonholo_lab::experiment::cli::{
+    self, ExperimentArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
+};
 use nonholo_lab::simulate::{self, SimulateArgs};
 use nonholo_lab::{CliError, listing};
 
@@ -24,6 +26,8 @@ enum Command {
     Simulate(Box<SimulateArgs>),
     /// Run an experiment file: sweeps, comparisons, plots, reports in results/<name>/.
     Experiment(ExperimentArgs),
+    /// Error against cost: run work-precision experiments (all of experiments/ by default).
+    WorkPrecision(WorkPrecisionArgs),
     /// Redraw an experiment's figures from its stored results.
     Plot(PlotArgs),
     /// Run every experiment marked as a figure and rebuild docs/figures.md.
@@ -45,6 +49,7 @@ fn main() {
         }
         Command::Simulate(args) => simulate::command(args),
         Command::Experiment(args) => cli::experiment(args),
+        Command::WorkPrecision(args) => cli::work_precision(args),
         Command::Plot(args) => cli::plot(args),
         Command::Reproduce(args) => cli::reproduce(args),
     };

@@ -19,6 +19,8 @@ pub struct IntegratorRecord {
     pub fixed_step: Option<f64>,
     pub max_steps: usize,
     pub max_wall_time_s: Option<f64>,
+    /// Newton iteration of radau5 (`simplified` or `full`); absent for explicit methods.
+    pub radau_newton: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -234,6 +236,10 @@ impl RunRecord {
                 fixed_step: cfg.options.fixed_step,
                 max_steps: cfg.options.max_steps,
                 max_wall_time_s: cfg.options.max_wall_time_s,
+                radau_newton: cfg
+                    .method
+                    .is_implicit()
+                    .then(|| cfg.options.radau_newton.name().to_string()),
             },
             params: params_json(run.model.scene_params()),
             options: params_json(run.model.options()),

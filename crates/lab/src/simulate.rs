@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use nonholo_core::integrate::{Method, Options};
+use nonholo_core::integrate::{Method, Options, RadauNewton};
 use nonholo_core::{Run, RunConfig, init, simulate};
 
 use crate::CliError;
@@ -48,6 +48,9 @@ pub struct SimulateArgs {
     /// Fixed step size: required for rk4; turns step-size control off for the others.
     #[arg(long)]
     pub step: Option<f64>,
+    /// Newton iteration of radau5: auto (the formulation's choice), simplified, full.
+    #[arg(long, default_value = "auto")]
+    pub radau_newton: String,
     /// Budget on integrator steps (accepted plus rejected).
     #[arg(long, default_value_t = 10_000_000)]
     pub max_steps: usize,
@@ -115,6 +118,15 @@ pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
 /// Smallest relative tolerance accepted: below ~100 ε double precision
 /// cannot deliver what is asked, and a result file would claim it did.
 pub const MIN_RTOL: f64 = 100.0 * f64::EPSILON;
+
+/// The Newton iteration of Radau IIA called `name`.
+pub fn radau_newton(name: &str) -> Result<RadauNewton, CliError> {
+    RadauNewton::from_name(name).ok_or_else(|| {
+        CliError::Input(format!(
+            "unknown Radau Newton iteration `{name}`; valid: auto, simplified, full"
+        ))
+    })
+}
 
 /// Integrator method and options from command-line values.
 pub fn integrator(
@@ -216,6 +228,7 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
         args.max_steps,
     )?;
     options.output = output_grid(t_end, every)?;
+    options.radau_newton = radau_newton(&args.radau_newton)?;
     options.max_wall_time_s = args
         .max_wall_time
         .map(|s| positive("--max-wall-time", s))

@@ -30,6 +30,7 @@ fn args(
         rtol: tol,
         atol: tol,
         step: None,
+        radau_newton: "auto".into(),
         max_steps: 10_000_000,
         max_wall_time: None,
         project_init: false,

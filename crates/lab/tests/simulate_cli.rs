@@ -764,12 +764,15 @@ fn realisations_run_from_the_command_line() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(j["formulation"], "visc");
     assert_eq!(j["options"]["k"], 1e6);
     assert!(j["lambda"].as_array().unwrap().len() > 10);
     // The violation is O(1/k): a few times 1e-6 for this motion.
-    let r = j["diagnostics"]["constraint_residual_max"].as_f64().unwrap();
+    let r = j["diagnostics"]["constraint_residual_max"]
+        .as_f64()
+        .unwrap();
     assert!(r > 1e-7 && r < 1e-5, "{r}");
 
     let out = dir.join("mass.json");
@@ -791,17 +794,34 @@ fn realisations_run_from_the_command_line() {
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(j["lambda"][0][0], 0.5);
     assert_eq!(j["options"]["form"], "compliance");
 
     fails_with(
-        &["simulate", "--scene", "sleigh-incline", "--formulation", "visc", "--option", "k=-1"],
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "visc",
+            "--option",
+            "k=-1",
+        ],
         2,
         &["`k`", "-1", "(0, inf)"],
     );
     fails_with(
-        &["simulate", "--scene", "sleigh-incline", "--formulation", "mass", "--option", "form=soft"],
+        &[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "mass",
+            "--option",
+            "form=soft",
+        ],
         2,
         &["`form`", "compliance", "direct"],
     );

@@ -1107,7 +1107,15 @@ fn run<P: Problem>(
                     h = t_end - t;
                     last = true;
                 }
-                if last { t_end } else { t + h }
+                match rec.next_time() {
+                    // Land on the next output time (`Options::hit_output`).
+                    Some(tau) if opts.hit_output && !last && tau > t && t + 1.0001 * h >= tau => {
+                        h = tau - t;
+                        tau
+                    }
+                    _ if last => t_end,
+                    _ => t + h,
+                }
             }
         };
 

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
+use super::spec::Kind;
 use super::{Experiment, RunOptions, default_dir, run};
 use crate::CliError;
 
@@ -48,6 +49,89 @@ pub struct ReproduceArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+}
+
+#[derive(Debug, Clone, Args)]
+pub struct WorkPrecisionArgs {
+    /// Work-precision experiment files (default: every experiments/*.toml of
+    /// kind "work-precision").
+    pub files: Vec<PathBuf>,
+    /// Directory searched when no file is given.
+    #[arg(long, default_value = "experiments")]
+    pub experiments: PathBuf,
+    /// Run every point again, even those whose results are stored.
+    #[arg(long)]
+    pub force: bool,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `nonholo work-precision [FILE...]`: runs work-precision experiments (the
+/// given files, or every one in `experiments/`); exit 3 if runs failed.
+pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
+    let files = if args.files.is_empty() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&args.experiments)
+            .map_err(|e| CliError::Input(format!("{}: {e}", args.experiments.display())))?
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        let mut wp = Vec::new();
+        for f in files {
+            if load(&f)?.kind == Kind::WorkPrecision {
+                wp.push(f);
+            }
+        }
+        if wp.is_empty() {
+            return Err(CliError::Input(format!(
+                "no experiment of kind \"work-precision\" in {}",
+                args.experiments.display()
+            )));
+        }
+        wp
+    } else {
+        args.files.clone()
+    };
+    let mut failed = 0;
+    let mut runs = 0;
+    for f in &files {
+        let exp = load(f)?;
+        if exp.kind != Kind::WorkPrecision {
+            return Err(CliError::Input(format!(
+                "{}: experiment.kind is not \"work-precision\" (run it with `nonholo experiment`)",
+                f.display()
+            )));
+        }
+        let o = run(
+            &exp,
+            &RunOptions {
+                out_dir: default_dir(&exp),
+                force: args.force,
+                threads: Some(1),
+                quiet: args.quiet,
+            },
+        )
+        .map_err(CliError::Run)?;
+        eprintln!(
+            "{}: {} points ({} reused), {} runs ({} failed); results in {}",
+            exp.name,
+            o.points,
+            o.reused,
+            o.runs,
+            o.failed_runs,
+            o.dir.display()
+        );
+        failed += o.failed_runs;
+        runs += o.runs;
+    }
+    if failed > 0 {
+        return Err(CliError::RunsFailed(format!(
+            "{failed} of {runs} work-precision runs failed (reasons in work_precision.csv)"
+        )));
+    }
+    Ok(())
 }
 
 fn threads(n: Option<usize>) -> Result<Option<usize>, CliError> {
@@ -102,6 +186,15 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
 pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
     let exp = load(&args.file)?;
     let dir = args.out.clone().unwrap_or_else(|| default_dir(&exp));
+    if exp.kind == Kind::WorkPrecision {
+        let plots = super::wp::redraw(&exp, &dir).map_err(CliError::Run)?;
+        eprintln!(
+            "{} plots redrawn in {}",
+            plots.len(),
+            dir.join("plots").display()
+        );
+        return Ok(());
+    }
     let mut results = Vec::new();
     for p in exp.points() {
         let path = dir.join("points").join(format!("{}.json", p.index));
@@ -224,6 +317,9 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
 fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
     let plots = dir.join("plots");
     let mut candidates: Vec<String> = exp.main_plot.iter().cloned().collect();
+    if exp.kind == Kind::WorkPrecision {
+        candidates.push(format!("wp-{}-max-time", exp.plot_point));
+    }
     if exp.axes.len() == 2 {
         candidates.extend(
             exp.formulations

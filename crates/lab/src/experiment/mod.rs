@@ -23,8 +23,10 @@ pub mod cli;
 pub mod output;
 pub mod plots;
 pub mod point;
+pub mod reference;
 pub mod spec;
 pub mod sweep;
+pub mod wp;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -188,8 +190,12 @@ fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> O
     Some(r)
 }
 
-/// Runs `exp` and writes its results (see the module documentation).
+/// Runs `exp` and writes its results (see the module documentation; a
+/// work-precision experiment: [`wp`]).
 pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
+    if exp.kind == spec::Kind::WorkPrecision {
+        return wp::run(exp, opts);
+    }
     let started = std::time::SystemTime::now();
     let dir = &opts.out_dir;
     for sub in ["points", "trajectories", "plots"] {

@@ -11,11 +11,11 @@ use super::point::{PointResult, Samples};
 use super::spec::Experiment;
 use crate::record::write_atomic;
 
-fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
+pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
     write_atomic(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
-fn write_json(path: &Path, value: &Json) -> Result<(), String> {
+pub(crate) fn write_json(path: &Path, value: &Json) -> Result<(), String> {
     let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;
     bytes.push(b'\n');
     write(path, &bytes)
@@ -444,7 +444,7 @@ pub fn write_manifest(
     )
 }
 
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

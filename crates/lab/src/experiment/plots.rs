@@ -28,6 +28,14 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
         "energy" => {
             format!("Energy drift |E(t) − E(0)|, E = q̇·∂L/∂q̇ − L, at the output times, {point}.")
         }
+        "sweep-cost" => format!(
+            "Wall time of every formulation over the sweep ({}); failed runs left out (their reasons are in runs.csv).",
+            exp.axes
+                .iter()
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" × ")
+        ),
         s if s.starts_with("sweep-") => format!(
             "Divergence from {} at the end of the common span, over the sweep ({}); missing points failed before the first common sample.",
             exp.reference,
@@ -278,6 +286,14 @@ fn axis_numbers(exp: &Experiment, k: usize, results: &[PointResult]) -> (Vec<f64
     }
 }
 
+/// A numeric axis of positive values spanning more than two decades is drawn
+/// logarithmically (gains `k`, `N`, tolerances).
+fn log_axis(x: &[f64], numeric: bool) -> bool {
+    let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    numeric && lo > 0.0 && hi / lo > 100.0
+}
+
 fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> {
     r.pairs
         .iter()
@@ -303,6 +319,7 @@ fn sweep_plots(
     match (exp.axes.len(), &exp.mode) {
         (1, _) | (_, SweepMode::Zip) => {
             let (x, numeric) = axis_numbers(exp, 0, results);
+            let log_x = log_axis(&x, numeric);
             let mut order: Vec<usize> = (0..results.len()).collect();
             order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
             let series = others
@@ -314,33 +331,78 @@ fn sweep_plots(
                             end_divergence(&results[i], &exp.reference, l).map(|d| (x[i], d))
                         })
                         .collect();
+                    let (px, py): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
+                    let mut label = format!("{l} vs {}", exp.reference);
+                    if log_x && let Some(rate) = super::wp::log_slope(&px, &py) {
+                        label.push_str(&format!(" (slope {rate:.2})"));
+                    }
                     Series {
-                        label: format!("{l} vs {}", exp.reference),
-                        x: pts.iter().map(|p| p.0).collect(),
-                        y: pts.iter().map(|p| p.1).collect(),
+                        label,
+                        x: px,
+                        y: py,
                     }
                 })
                 .collect();
             let axis = &exp.axes[0];
+            let x_label = if numeric {
+                axis_label(exp, &axis.name)
+            } else {
+                format!(
+                    "{} ({})",
+                    axis_label(exp, &axis.name),
+                    axis.values.join(", ")
+                )
+            };
             files.extend(line_plot(
                 &LinePlot {
                     title: "Divergence at the end of the common span".into(),
-                    x_label: if numeric {
-                        axis_label(exp, &axis.name)
-                    } else {
-                        format!(
-                            "{} ({})",
-                            axis_label(exp, &axis.name),
-                            axis.values.join(", ")
-                        )
-                    },
+                    x_label: x_label.clone(),
                     y_label: format!("‖Δ(x, y)‖ from {} [m]", exp.reference),
-                    log_x: false,
+                    log_x,
                     log_y: true,
                     equal_aspect: false,
                     series,
                 },
                 &plots.join("sweep-end"),
+            )?);
+            // Cost over the sweep: wall time of every formulation (failed
+            // runs left out), e.g. explicit against implicit as stiffness grows.
+            let cost = exp
+                .formulations
+                .iter()
+                .filter(|f| f.formulation != super::spec::CLOSED_FORM)
+                .map(|f| {
+                    let (px, py): (Vec<f64>, Vec<f64>) = order
+                        .iter()
+                        .filter_map(|&i| {
+                            let r = results[i]
+                                .formulations
+                                .iter()
+                                .find(|g| g.label == f.label)?;
+                            (r.status != "failed").then_some((x[i], r.wall_time_s))
+                        })
+                        .unzip();
+                    Series {
+                        label: format!(
+                            "{}: {} ({})",
+                            f.label, f.formulation, f.settings.integrator
+                        ),
+                        x: px,
+                        y: py,
+                    }
+                })
+                .collect();
+            files.extend(line_plot(
+                &LinePlot {
+                    title: "Cost over the sweep".into(),
+                    x_label,
+                    y_label: "wall time [s]".into(),
+                    log_x,
+                    log_y: true,
+                    equal_aspect: false,
+                    series: cost,
+                },
+                &plots.join("sweep-cost"),
             )?);
         }
         (2, SweepMode::Grid) => {

@@ -179,9 +179,10 @@ impl SceneVisitor for Resolve {
     }
 }
 
-/// Samples the scene's closed form on the grid from the resolved initial data.
-struct ClosedForm<'a> {
-    spec: &'a crate::simulate::RunSpec,
+/// Samples the scene's closed form on the grid from the resolved initial
+/// data: the samples, and where and why it stopped applying (if it did).
+pub(crate) struct ClosedForm<'a> {
+    pub spec: &'a crate::simulate::RunSpec,
 }
 
 impl SceneVisitor for ClosedForm<'_> {

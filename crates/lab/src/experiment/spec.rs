@@ -21,7 +21,8 @@
 //! [[formulation]]                    # one or more
 //! label = "B"
 //! formulation = "chetaev"            # or vakonomic, embedding, closed-form
-//! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init
+//! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init,
+//!                                    # radau_newton = "auto" | "simplified" | "full"
 //! options = { stab = "none" }
 //! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
 //! params = {}                        # scene parameters overridden for this formulation
@@ -40,14 +41,15 @@
 //! main = "divergence"                # the figure shown for it in docs/figures.md
 //! ```
 //!
-//! Swept names: `param.<p>`, `init.<v>` (all formulations), and
+//! Swept names: `param.<p>`, `init.<v>` (all formulations), `option.<o>`
+//! (every formulation that has option `o`), and
 //! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
-//! `<label>.rtol|atol|step|integrator` (one formulation).
+//! `<label>.rtol|atol|step|integrator|radau_newton` (one formulation).
 
 use std::path::{Path, PathBuf};
 
 use indexmap::IndexMap;
-use nonholo_core::integrate::Method;
+use nonholo_core::integrate::{Method, RadauNewton};
 use serde::Deserialize;
 use toml::{Spanned, Value};
 
@@ -71,6 +73,7 @@ struct File {
     measures: MeasuresFile,
     #[serde(default)]
     plots: PlotsFile,
+    work_precision: Option<WorkPrecisionFile>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -84,6 +87,8 @@ struct Header {
     #[serde(default)]
     figure: bool,
     scene: Spanned<String>,
+    /// `compare` (default) or `work-precision`.
+    kind: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -104,6 +109,7 @@ struct FormulationFile {
     step: Option<Spanned<f64>>,
     max_steps: Option<Spanned<u64>>,
     max_wall_time: Option<Spanned<f64>>,
+    radau_newton: Option<Spanned<String>>,
     #[serde(default)]
     project_init: bool,
     #[serde(default)]
@@ -112,6 +118,30 @@ struct FormulationFile {
     init: Entries,
     #[serde(default)]
     params: Entries,
+    /// Work-precision ladders and reference of this line (override `[work_precision]`).
+    tolerances: Option<Spanned<Vec<f64>>>,
+    steps: Option<Spanned<Vec<i64>>>,
+    reference: Option<ReferenceFile>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WorkPrecisionFile {
+    tolerances: Option<Spanned<Vec<f64>>>,
+    steps: Option<Spanned<Vec<i64>>>,
+    repeats: Option<Spanned<i64>>,
+    reference: Option<ReferenceFile>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReferenceFile {
+    integrator: Option<Spanned<String>>,
+    rtol: Option<Spanned<f64>>,
+    check_integrator: Option<Spanned<String>>,
+    check_rtol: Option<Spanned<f64>>,
+    max_wall_time: Option<Spanned<f64>>,
+    closed_form: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -157,6 +187,8 @@ pub struct Settings {
     pub max_steps: usize,
     pub max_wall_time: Option<f64>,
     pub project_init: bool,
+    /// Newton iteration of radau5: `auto`, `simplified`, `full`.
+    pub radau_newton: String,
 }
 
 /// One formulation of an experiment, with everything given as text (the
@@ -169,6 +201,70 @@ pub struct FormulationSpec {
     pub options: Vec<(String, String)>,
     pub init: Vec<(String, String)>,
     pub params: Vec<(String, String)>,
+    /// Work-precision experiments: the ladder this line runs and its reference.
+    pub work_precision: Option<(Ladder, RefSpec)>,
+}
+
+/// What an experiment does with its formulations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// Run each formulation once per point and compare them (the default).
+    Compare,
+    /// Run each formulation over a ladder of tolerances (or step counts)
+    /// and measure its error against a reference and its cost.
+    WorkPrecision,
+}
+
+/// The work-precision ladder of one line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Ladder {
+    /// `rtol = atol` values for adaptive methods.
+    Tolerances(Vec<f64>),
+    /// Numbers of equal steps over the span, for fixed-step methods.
+    Steps(Vec<usize>),
+}
+
+/// How a work-precision line's reference is obtained: the scene's closed
+/// form if it has one for this formulation (and `closed_form`), otherwise a
+/// run with `integrator` at `rtol`, whose own error is estimated by a
+/// second run with `check_integrator` at `check_rtol`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefSpec {
+    pub closed_form: bool,
+    pub integrator: String,
+    pub rtol: f64,
+    pub check_integrator: String,
+    pub check_rtol: f64,
+    pub max_wall_time: Option<f64>,
+}
+
+impl RefSpec {
+    /// The default reference of formulation `name`: DOPRI5 at 1e-13 checked
+    /// by DOP853 at 3e-14 — measured on the sleigh's closed form over 20 s,
+    /// 7e-13 and 3e-12 at most on the grid, where Radau IIA's dense output
+    /// (degree 3) gives 2e-10; A (implicit only, tolerance floor ~1e-10):
+    /// Radau IIA at 1e-10 checked by Radau IIA at 1e-9.
+    pub fn default_for(name: &str) -> RefSpec {
+        if name == nonholo_embedding::INFO.name {
+            RefSpec {
+                closed_form: true,
+                integrator: "radau5".into(),
+                rtol: 1e-10,
+                check_integrator: "radau5".into(),
+                check_rtol: 1e-9,
+                max_wall_time: Some(600.0),
+            }
+        } else {
+            RefSpec {
+                closed_form: true,
+                integrator: "dopri5".into(),
+                rtol: 1e-13,
+                check_integrator: "dop853".into(),
+                check_rtol: 3e-14,
+                max_wall_time: Some(600.0),
+            }
+        }
+    }
 }
 
 /// What a swept name addresses.
@@ -176,6 +272,8 @@ pub struct FormulationSpec {
 pub enum Target {
     Param(String),
     Init(String),
+    /// An option of every formulation that has it (`option.k`).
+    Option(String),
     FormParam(String, String),
     FormInit(String, String),
     FormOption(String, String),
@@ -234,6 +332,9 @@ pub struct Experiment {
     pub all_trajectories: bool,
     /// The plot that stands for the experiment in docs/figures.md (file stem).
     pub main_plot: Option<String>,
+    pub kind: Kind,
+    /// Work-precision: timed repeats of every run (the median is reported).
+    pub repeats: usize,
 }
 
 /// An error in an experiment file, naming the file, line and key.
@@ -312,8 +413,8 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     let parts: Vec<&str> = name.split('.').collect();
     let bad = || {
         format!(
-            "cannot address `{name}`: use param.<p>, init.<v>, or <label>.param.<p>, \
-             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator \
+            "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, or <label>.param.<p>, \
+             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton \
              (labels: {})",
             labels.join(", ")
         )
@@ -321,6 +422,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     match parts.as_slice() {
         ["param", p] => Ok(Target::Param(p.to_string())),
         ["init", v] => Ok(Target::Init(v.to_string())),
+        ["option", o] => Ok(Target::Option(o.to_string())),
         [label, kind, key] if labels.iter().any(|l| l == label) => match *kind {
             "param" => Ok(Target::FormParam(label.to_string(), key.to_string())),
             "init" => Ok(Target::FormInit(label.to_string(), key.to_string())),
@@ -328,7 +430,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
             _ => Err(bad()),
         },
         [label, setting] if labels.iter().any(|l| l == label) => match *setting {
-            "rtol" | "atol" | "step" | "integrator" => {
+            "rtol" | "atol" | "step" | "integrator" | "radau_newton" => {
                 Ok(Target::FormSetting(label.to_string(), setting.to_string()))
             }
             _ => Err(bad()),
@@ -351,6 +453,22 @@ pub fn apply(
     match target {
         Target::Param(p) => set(scene_params, p),
         Target::Init(v) => set(init, v),
+        Target::Option(o) => {
+            let mut any = false;
+            for f in forms.iter_mut() {
+                let has = formulations::info(&f.formulation)
+                    .is_ok_and(|info| info.options.iter().any(|spec| spec.name == o));
+                if has {
+                    set(&mut f.options, o);
+                    any = true;
+                }
+            }
+            if !any {
+                return Err(format!(
+                    "no formulation of the experiment has an option `{o}`"
+                ));
+            }
+        }
         Target::FormParam(l, p)
         | Target::FormInit(l, p)
         | Target::FormOption(l, p)
@@ -377,6 +495,7 @@ pub fn apply(
                         "rtol" => f.settings.rtol = num()?,
                         "atol" => f.settings.atol = num()?,
                         "step" => f.settings.step = Some(num()?),
+                        "radau_newton" => f.settings.radau_newton = value.to_string(),
                         _ => f.settings.integrator = value.to_string(),
                     }
                 }
@@ -526,12 +645,41 @@ impl Experiment {
                         .unwrap_or(10_000_000),
                     max_wall_time: positive(&f.max_wall_time, "formulation.max_wall_time", None)?,
                     project_init: f.project_init,
+                    radau_newton: match &f.radau_newton {
+                        None => "auto".into(),
+                        Some(v) if RadauNewton::from_name(v.get_ref()).is_some() => {
+                            v.get_ref().clone()
+                        }
+                        Some(v) => {
+                            return Err(ctx.err(
+                                v.span(),
+                                "formulation.radau_newton",
+                                format!("unknown `{}`; valid: auto, simplified, full", v.get_ref()),
+                            ));
+                        }
+                    },
                 },
                 options: entries(&ctx, "formulation.options", &f.options)?,
                 init: entries(&ctx, "formulation.init", &f.init)?,
                 params: entries(&ctx, "formulation.params", &f.params)?,
+                work_precision: None,
             });
         }
+        let kind = match &file.experiment.kind {
+            None => Kind::Compare,
+            Some(k) => match k.get_ref().as_str() {
+                "compare" => Kind::Compare,
+                "work-precision" => Kind::WorkPrecision,
+                other => {
+                    return Err(ctx.err(
+                        k.span(),
+                        "experiment.kind",
+                        format!("unknown kind `{other}`; valid: compare, work-precision"),
+                    ));
+                }
+            },
+        };
+        let repeats = work_precision_lines(&ctx, kind, &file, &mut forms, t_end)?;
         let labels: Vec<String> = forms.iter().map(|f| f.label.clone()).collect();
 
         let (mode, axes) = match &file.sweep {
@@ -707,6 +855,8 @@ impl Experiment {
                 .unwrap_or(0),
             all_trajectories: file.plots.all_trajectories,
             main_plot: file.plots.main.clone(),
+            kind,
+            repeats,
         };
         let n = exp.points().len();
         if exp.plot_point >= n {
@@ -735,6 +885,232 @@ impl Experiment {
     pub fn points(&self) -> Vec<crate::experiment::sweep::Point> {
         crate::experiment::sweep::points(self)
     }
+}
+
+/// Fills the ladder and reference of every line of a work-precision
+/// experiment (and refuses work-precision keys elsewhere); returns the
+/// number of timed repeats.
+fn work_precision_lines(
+    ctx: &Ctx,
+    kind: Kind,
+    file: &File,
+    forms: &mut [FormulationSpec],
+    t_end: f64,
+) -> Result<usize, SpecError> {
+    if kind == Kind::Compare {
+        if file.work_precision.is_some() {
+            return Err(SpecError(format!(
+                "{}: `work_precision` belongs to experiments of kind \"work-precision\" \
+                 (set experiment.kind)",
+                ctx.path.display()
+            )));
+        }
+        for f in &file.formulations {
+            if f.tolerances.is_some() || f.steps.is_some() || f.reference.is_some() {
+                return Err(ctx.err(
+                    f.label.span(),
+                    "formulation.tolerances",
+                    "tolerances, steps and reference belong to work-precision experiments",
+                ));
+            }
+        }
+        return Ok(1);
+    }
+    let Some(wp) = &file.work_precision else {
+        return Err(SpecError(format!(
+            "{}: a work-precision experiment needs a [work_precision] table (tolerances, steps, \
+             repeats, reference)",
+            ctx.path.display()
+        )));
+    };
+    let repeats = match &wp.repeats {
+        None => 5,
+        Some(r) if (1..=1000).contains(r.get_ref()) => *r.get_ref() as usize,
+        Some(r) => {
+            return Err(ctx.err(
+                r.span(),
+                "work_precision.repeats",
+                "must be between 1 and 1000",
+            ));
+        }
+    };
+    let global_tol = tolerances(ctx, &wp.tolerances, "work_precision.tolerances")?;
+    let global_steps = steps(ctx, &wp.steps, "work_precision.steps")?;
+    for (f, spec) in file.formulations.iter().zip(forms.iter_mut()) {
+        if spec.formulation == CLOSED_FORM {
+            return Err(ctx.err(
+                f.formulation.span(),
+                "formulation.formulation",
+                "a closed form is the reference of a work-precision line, not a line",
+            ));
+        }
+        if let Some(s) = &f.step {
+            return Err(ctx.err(
+                s.span(),
+                "formulation.step",
+                "work-precision lines take `steps = [...]` (step counts over the span)",
+            ));
+        }
+        let method = Method::from_name(&spec.settings.integrator).expect("checked above");
+        let ladder = if method.needs_fixed_step() {
+            let st = steps(ctx, &f.steps, "formulation.steps")?
+                .or(global_steps.clone())
+                .ok_or_else(|| {
+                    ctx.err(
+                        f.label.span(),
+                        "formulation.steps",
+                        format!(
+                            "`{}` has a fixed step: give `steps = [...]` here or in [work_precision]",
+                            spec.settings.integrator
+                        ),
+                    )
+                })?;
+            spec.settings.step = Some(t_end / st[0] as f64);
+            Ladder::Steps(st)
+        } else {
+            let tol = tolerances(ctx, &f.tolerances, "formulation.tolerances")?
+                .or(global_tol.clone())
+                .ok_or_else(|| {
+                    ctx.err(
+                        f.label.span(),
+                        "formulation.tolerances",
+                        "give `tolerances = [...]` here or in [work_precision]",
+                    )
+                })?;
+            Ladder::Tolerances(tol)
+        };
+        let base = reference(
+            ctx,
+            RefSpec::default_for(&spec.formulation),
+            wp.reference.as_ref(),
+            "work_precision.reference",
+        )?;
+        let refspec = reference(ctx, base, f.reference.as_ref(), "formulation.reference")?;
+        spec.work_precision = Some((ladder, refspec));
+    }
+    Ok(repeats)
+}
+
+fn tolerances(
+    ctx: &Ctx,
+    v: &Option<Spanned<Vec<f64>>>,
+    key: &str,
+) -> Result<Option<Vec<f64>>, SpecError> {
+    let Some(v) = v else { return Ok(None) };
+    let list = v.get_ref();
+    if list.is_empty() {
+        return Err(ctx.err(v.span(), key, "empty list"));
+    }
+    if let Some(bad) = list
+        .iter()
+        .find(|t| !(t.is_finite() && **t >= crate::simulate::MIN_RTOL && **t < 1.0))
+    {
+        return Err(ctx.err(
+            v.span(),
+            key,
+            format!(
+                "{bad:e}: tolerances must lie in [{:.1e}, 1)",
+                crate::simulate::MIN_RTOL
+            ),
+        ));
+    }
+    Ok(Some(list.clone()))
+}
+
+fn steps(
+    ctx: &Ctx,
+    v: &Option<Spanned<Vec<i64>>>,
+    key: &str,
+) -> Result<Option<Vec<usize>>, SpecError> {
+    let Some(v) = v else { return Ok(None) };
+    let list = v.get_ref();
+    if list.is_empty() {
+        return Err(ctx.err(v.span(), key, "empty list"));
+    }
+    if let Some(bad) = list.iter().find(|n| !(1..=10_000_000).contains(*n)) {
+        return Err(ctx.err(
+            v.span(),
+            key,
+            format!("{bad}: step counts must lie in [1, 1e7]"),
+        ));
+    }
+    Ok(Some(list.iter().map(|n| *n as usize).collect()))
+}
+
+/// `base` overridden by the keys given in `file`.
+fn reference(
+    ctx: &Ctx,
+    base: RefSpec,
+    file: Option<&ReferenceFile>,
+    key: &str,
+) -> Result<RefSpec, SpecError> {
+    let Some(f) = file else { return Ok(base) };
+    let mut r = base;
+    for (given, field) in [
+        (&f.integrator, &mut r.integrator),
+        (&f.check_integrator, &mut r.check_integrator),
+    ] {
+        if let Some(name) = given {
+            if Method::from_name(name.get_ref()).is_none() {
+                return Err(ctx.err(
+                    name.span(),
+                    &format!("{key}.integrator"),
+                    format!(
+                        "unknown integrator `{}`; valid names: {}",
+                        name.get_ref(),
+                        Method::ALL
+                            .iter()
+                            .filter(|m| !m.needs_fixed_step())
+                            .map(|m| m.name())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            }
+            if Method::from_name(name.get_ref()).is_some_and(|m| m.needs_fixed_step()) {
+                return Err(ctx.err(
+                    name.span(),
+                    &format!("{key}.integrator"),
+                    "a reference needs an adaptive method with an error estimate",
+                ));
+            }
+            *field = name.get_ref().clone();
+        }
+    }
+    for (given, field, sub) in [
+        (&f.rtol, &mut r.rtol, "rtol"),
+        (&f.check_rtol, &mut r.check_rtol, "check_rtol"),
+    ] {
+        if let Some(v) = given {
+            let x = *v.get_ref();
+            if !(crate::simulate::MIN_RTOL..1.0).contains(&x) {
+                return Err(ctx.err(
+                    v.span(),
+                    &format!("{key}.{sub}"),
+                    format!(
+                        "must lie in [{:.1e}, 1), got {x:e}",
+                        crate::simulate::MIN_RTOL
+                    ),
+                ));
+            }
+            *field = x;
+        }
+    }
+    if let Some(v) = &f.max_wall_time {
+        let x = *v.get_ref();
+        if !(x.is_finite() && x > 0.0) {
+            return Err(ctx.err(
+                v.span(),
+                &format!("{key}.max_wall_time"),
+                "must be a positive number of seconds",
+            ));
+        }
+        r.max_wall_time = Some(x);
+    }
+    if let Some(c) = f.closed_form {
+        r.closed_form = c;
+    }
+    Ok(r)
 }
 
 /// `at alpha = 0.3, a = 0.4: ` for messages about one point.

@@ -6,5 +6,6 @@ pub mod analysis;
 pub mod elo;
 pub mod jet;
 pub mod model;
+pub mod ode;
 
 pub use model::{Embedding, INFO, OPTIONS};

@@ -9,11 +9,17 @@
 //! `∂E/∂ż₃ = W` included). Integrated by Radau IIA as a differential-algebraic
 //! system; the rank of `W`, the hidden constraints and the free initial data
 //! are computed at the start and reported.
+//!
+//! The same model also offers an explicit form `ż = (z₁, z₂, z₃, w(z))`, with
+//! `w = q_I⁗` from A's derivative array (see [`crate::ode`]), for RK4, DOPRI5
+//! and DOP853; option `stab` projects `q⃛` back onto the hidden constraints
+//! after every accepted step. Both forms share the guard at the embedding
+//! map's singular set and the refusal of stages that cross it.
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::guard::{SingularGuard, magnitude};
 use nonholo_core::init::ExtraName;
-use nonholo_core::integrate::{ImplicitSystem, RadauNewton, SystemError};
+use nonholo_core::integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
 use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
 use nonholo_core::monitor::Monitor;
 use nonholo_core::param::{Bound, ParamSpec, Params};
@@ -23,6 +29,7 @@ use num_dual::{Dual2, Dual2_64, Dual64};
 
 use crate::analysis::{Completion, Structure, complete, structure};
 use crate::elo::{MAX_DOF, elo_array, reconstruct};
+use crate::ode::{Reduction, ReductionStats};
 
 /// Where the run stops near the embedding map's singular set.
 pub const SINGULAR_TOL: ParamSpec = ParamSpec::real(
@@ -44,6 +51,15 @@ pub const BRANCH: ParamSpec = ParamSpec::choice(
      value and report the difference (the branch effect of the spec)",
 );
 
+/// Stabilisation of the hidden constraints in the explicit form.
+pub const STAB: ParamSpec = ParamSpec::choice(
+    "stab",
+    &["projection", "none"],
+    "explicit integrators (RK4, DOPRI5, DOP853) only: after every accepted step move q⃛ back \
+     onto A's hidden constraints with q, q̇, q̈ fixed (projection), or let them drift (none); \
+     Radau integrates the implicit form and ignores it",
+);
+
 /// Relative tolerance to which initial data are made consistent with the
 /// hidden constraints (round-off level of the derivative array's terms).
 pub const HIDDEN_RTOL: f64 = 1e-14;
@@ -53,7 +69,7 @@ pub const HIDDEN_RTOL: f64 = 1e-14;
 pub const HIDDEN_CHECK_RTOL: f64 = 1e-8;
 
 /// Options of formulation A.
-pub const OPTIONS: &[ParamSpec] = &[SINGULAR_TOL, BRANCH];
+pub const OPTIONS: &[ParamSpec] = &[SINGULAR_TOL, BRANCH, STAB];
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "embedding",
@@ -61,7 +77,9 @@ pub const INFO: FormulationInfo = FormulationInfo {
     title: "Hamilton-principle embedding (the seed paper)",
     description: "the constraint substituted into L via q_D = φ(q_I, q̇_I, t); Euler–Lagrange–\
                   Ostrogradsky equations (19) of Θ, fourth order in q_I, integrated as an implicit \
-                  (differential-algebraic) system in z = (q_I, q̇_I, q̈_I, q⃛_I)",
+                  (differential-algebraic) system in z = (q_I, q̇_I, q̈_I, q⃛_I) by Radau, or by \
+                  explicit methods as the ODE z' = (z₁, z₂, z₃, q⁗(z)) with q⁗ from the derivative \
+                  array [E; Ė; Ë] = 0",
     options: OPTIONS,
     applicable,
 };
@@ -124,6 +142,13 @@ pub struct Embedding<S: Scene> {
     last_dep: Vec<f64>,
     yp0: Vec<f64>,
     report: Option<InitReport>,
+    /// The explicit form's solve for `q⁗` and its warm start.
+    reduction: Reduction,
+    /// `stab = projection` (explicit form only).
+    project_hidden: bool,
+    /// `(t, before, after)` hidden-constraint residuals per accepted step of
+    /// the explicit form, if asked for ([`Embedding::record_hidden`]).
+    hidden_log: Option<Vec<[f64; 3]>>,
 }
 
 /// Names of the derivatives A accepts in `--init` for coordinate `c`.
@@ -149,6 +174,7 @@ impl<S: Scene> Embedding<S> {
             guard: SingularGuard::new(options.real("singular_tol")),
             r: [0.0; MAX_SINGULAR],
             branch_map: options.choice("branch") == "map",
+            project_hidden: options.choice("stab") == "projection",
             options,
             e,
             n,
@@ -163,6 +189,8 @@ impl<S: Scene> Embedding<S> {
             last_dep: vec![0.0; e.dependent.len()],
             yp0: Vec::new(),
             report: None,
+            reduction: Reduction::new(m),
+            hidden_log: None,
             scene,
         })
     }
@@ -247,6 +275,116 @@ impl<S: Scene> Embedding<S> {
         self.scene
             .embedding_singularity(t, &z[..m], &z[m..2 * m], &mut self.r)
     }
+
+    /// Refuses a stage beyond the singular set (both forms): the guard's
+    /// signed distance, measured along the direction at the step start,
+    /// has fallen below zero.
+    fn check_stage(&mut self, t: f64, z: &[f64]) -> Result<(), SystemError> {
+        let p = self.singular_vector(t, z);
+        if p > 0 && self.guard.value(&self.r, p) + self.guard.tol < 0.0 {
+            return Err(SystemError::new(format!(
+                "a stage crossed the singular set of the embedding map {} ({})",
+                self.e.formula, self.e.singular_set
+            )));
+        }
+        Ok(())
+    }
+
+    /// The error for equations that are not finite at `z`.
+    fn not_finite(&mut self, t: f64, z: &[f64]) -> SystemError {
+        let p = self.singular_vector(t, z);
+        SystemError::new(format!(
+            "the equations (19) are not finite here (|r| = {:.3e}): the embedding map is singular",
+            magnitude(&self.r, p)
+        ))
+    }
+
+    /// After an accepted step (both forms): diagnostics of the physical
+    /// state, and the guard's reference direction.
+    fn accept_state(&mut self, t: f64, z: &[f64]) {
+        self.physical(t, z);
+        self.monitor.record(&self.scene, t, &self.q, &self.qd);
+        let p = self.singular_vector(t, z);
+        self.guard.accept(&self.r, p);
+    }
+
+    /// Signed distance from the embedding map's singular set (see
+    /// `nonholo_core::guard`): for the sleigh, the velocity's component along
+    /// its direction at the start of the step, minus `singular_tol`.
+    fn guard_value(&mut self, t: f64, z: &[f64]) -> Option<f64> {
+        let p = self.singular_vector(t, z);
+        (p > 0).then(|| self.guard.value(&self.r, p))
+    }
+
+    fn guard_text(&mut self, t: f64, y: &[f64]) -> String {
+        let m = self.m;
+        let p = self.singular_vector(t, y);
+        let size = magnitude(&self.r, p);
+        // Zero crossing extrapolated linearly from the rate at which r falls
+        // along its own direction (for the sleigh: d|v|/dt = v·a/|v|).
+        let h = 1e-7 * (1.0 + t.abs());
+        let later: Vec<f64> = (0..2 * m).map(|i| y[i] + h * y[m + i]).collect();
+        let along_now = self.guard.value(&self.r, p);
+        let pl = self.singular_vector(t + h, &later);
+        let rate = (self.guard.value(&self.r, pl) - along_now) / h;
+        let crossing = if rate < 0.0 {
+            format!(
+                "; extrapolated zero at t ≈ {:.9}",
+                t - (along_now + self.guard.tol) / rate
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "the motion reached the singular set of the embedding map {} — {} \
+             (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
+            self.e.formula, self.e.singular_set, self.guard.tol
+        )
+    }
+
+    /// `q_I⁗ = w(z)` of the explicit form at `(t, z)` (see [`crate::ode`]):
+    /// the derivative array `[E; Ė; Ë] = 0` solved for `(q⁗, q⁽⁵⁾, q⁽⁶⁾)`,
+    /// warm-started from the previous solve.
+    pub fn fourth_derivative(&mut self, t: f64, z: &[f64]) -> Result<&[f64], SystemError> {
+        self.reduction
+            .fourth(&self.scene, &self.e, t, z)
+            .map_err(|msg| {
+                SystemError::new(format!(
+                    "the derivative array of (19) could not be solved for q⁗: {msg}"
+                ))
+            })
+    }
+
+    /// How far `z` is from A's hidden constraints: the derivative array's
+    /// residual left by the least-squares solve, relative to the terms that
+    /// cancel in each row ([`Reduction::hidden_residual`]). Round-off level on
+    /// the constraint manifold. A diagnostic, not for hot paths.
+    pub fn hidden_residual(&mut self, t: f64, z: &[f64]) -> Result<f64, SystemError> {
+        self.reduction
+            .hidden_residual(&self.scene, &self.e, t, z)
+            .map_err(SystemError::new)
+    }
+
+    /// Work counters of the explicit form since [`Model::initial_state`].
+    pub fn reduction_stats(&self) -> ReductionStats {
+        self.reduction.stats()
+    }
+
+    /// Whether the explicit form records, after every accepted step, the
+    /// hidden-constraint residual before and after the projection (see
+    /// [`Embedding::hidden_log`]). Costs a full derivative-array Jacobian per
+    /// step; for studies of the drift, off by default. Clears the log.
+    pub fn record_hidden(&mut self, on: bool) {
+        self.hidden_log = on.then(Vec::new);
+    }
+
+    /// `(t, before, after)` per accepted step of the explicit form, where
+    /// `before` is [`Embedding::hidden_residual`] of the state the integrator
+    /// produced and `after` that of the state it continues from (after the
+    /// projection if `stab = projection`, else the same).
+    pub fn hidden_log(&self) -> &[[f64; 3]] {
+        self.hidden_log.as_deref().unwrap_or(&[])
+    }
 }
 
 impl<S: Scene> ImplicitSystem for Embedding<S> {
@@ -262,13 +400,7 @@ impl<S: Scene> ImplicitSystem for Embedding<S> {
         res: &mut [f64],
     ) -> Result<(), SystemError> {
         let m = self.m;
-        let p = self.singular_vector(t, y);
-        if p > 0 && self.guard.value(&self.r, p) + self.guard.tol < 0.0 {
-            return Err(SystemError::new(format!(
-                "a stage crossed the singular set of the embedding map {} ({})",
-                self.e.formula, self.e.singular_set
-            )));
-        }
+        self.check_stage(t, y)?;
         for i in 0..3 * m {
             res[i] = yp[i] - y[m + i];
         }
@@ -279,11 +411,7 @@ impl<S: Scene> ImplicitSystem for Embedding<S> {
         if res.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
-            let p = self.singular_vector(t, y);
-            Err(SystemError::new(format!(
-                "the equations (19) are not finite here (|r| = {:.3e}): the embedding map is singular",
-                magnitude(&self.r, p)
-            )))
+            Err(self.not_finite(t, y))
         }
     }
 
@@ -343,50 +471,95 @@ impl<S: Scene> ImplicitSystem for Embedding<S> {
         index[3 * m..].fill(3);
     }
 
+    /// The implicit form ignores `stab`: the collocation equations impose
+    /// `E = 0` at every stage, and Radau treats `(q̈, q⃛)` as index-2 and
+    /// index-3 variables.
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        self.physical(t, y);
-        self.monitor.record(&self.scene, t, &self.q, &self.qd);
-        let p = self.singular_vector(t, y);
-        self.guard.accept(&self.r, p);
+        self.accept_state(t, y);
         Ok(false)
     }
 
-    /// Signed distance from the embedding map's singular set (see
-    /// `nonholo_core::guard`): for the sleigh, the velocity's component along
-    /// its direction at the start of the step, minus `singular_tol`.
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let p = self.singular_vector(t, y);
-        (p > 0).then(|| self.guard.value(&self.r, p))
+        self.guard_value(t, y)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        self.guard_text(t, y)
+    }
+}
+
+/// The explicit form `ż = (z₁, z₂, z₃, w(z))`, `w = q_I⁗` from the derivative
+/// array ([`crate::ode`]), for RK4, DOPRI5 and DOP853 (Radau uses the
+/// implicit form).
+impl<S: Scene> OdeSystem for Embedding<S> {
+    fn dim(&self) -> usize {
+        4 * self.m
+    }
+
+    /// Stages beyond the singular set are refused as in the implicit form;
+    /// so is a state where the derivative array cannot be solved.
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let m = self.m;
-        let p = self.singular_vector(t, y);
-        let size = magnitude(&self.r, p);
-        // Zero crossing extrapolated linearly from the rate at which r falls
-        // along its own direction (for the sleigh: d|v|/dt = v·a/|v|).
-        let h = 1e-7 * (1.0 + t.abs());
-        let later: Vec<f64> = (0..2 * m).map(|i| y[i] + h * y[m + i]).collect();
-        let along_now = self.guard.value(&self.r, p);
-        let pl = self.singular_vector(t + h, &later);
-        let rate = (self.guard.value(&self.r, pl) - along_now) / h;
-        let crossing = if rate < 0.0 {
-            format!(
-                "; extrapolated zero at t ≈ {:.9}",
-                t - (along_now + self.guard.tol) / rate
-            )
+        self.check_stage(t, y)?;
+        if !y.iter().all(|v| v.is_finite()) {
+            return Err(self.not_finite(t, y));
+        }
+        dy[..3 * m].copy_from_slice(&y[m..4 * m]);
+        let w = self.fourth_derivative(t, y)?;
+        dy[3 * m..].copy_from_slice(w);
+        if dy.iter().all(|v| v.is_finite()) {
+            Ok(())
         } else {
-            String::new()
+            Err(self.not_finite(t, y))
+        }
+    }
+
+    /// With `stab = projection`, moves `q⃛` back onto the hidden constraints
+    /// (`q, q̇, q̈` fixed) and says so; then records the diagnostics and
+    /// promotes the guard's reference direction, as the implicit form does.
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        let before = match self.hidden_log {
+            Some(_) => Some(self.hidden_residual(t, y)?),
+            None => None,
         };
-        format!(
-            "the motion reached the singular set of the embedding map {} — {} \
-             (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
-            self.e.formula, self.e.singular_set, self.guard.tol
-        )
+        let mut moved = false;
+        if self.project_hidden {
+            let change = self
+                .reduction
+                .project(&self.scene, &self.e, t, y)
+                .map_err(SystemError::new)?;
+            moved = change > 0.0;
+        }
+        if let Some(before) = before {
+            let after = if moved {
+                self.hidden_residual(t, y)?
+            } else {
+                before
+            };
+            if let Some(log) = self.hidden_log.as_mut() {
+                log.push([t, before, after]);
+            }
+        }
+        self.accept_state(t, y);
+        Ok(moved)
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        self.guard_value(t, y)
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        self.guard_text(t, y)
     }
 }
 
 impl<S: Scene> Model for Embedding<S> {
+    /// The explicit form, for explicit methods (`simulate` integrates with
+    /// Radau the implicit form whenever a model has one).
+    fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
+        Some(self)
+    }
+
     fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
         Some(self)
     }
@@ -576,6 +749,18 @@ impl<S: Scene> Model for Embedding<S> {
         }
         let structure = structure(&self.scene, &self.e, t0, &d);
         self.polish_fourth(t0, &mut d);
+        // The explicit form starts from the same completion: its u is the
+        // first warm start, and the rank of ∂D/∂u is fixed here.
+        self.reduction
+            .reset(&self.scene, &self.e, t0, &d)
+            .map_err(|msg| {
+                Error::Numerical(format!(
+                    "the derivative array of (19) at the initial state: {msg}"
+                ))
+            })?;
+        if let Some(log) = self.hidden_log.as_mut() {
+            log.clear();
+        }
 
         self.last_dep = self.e.dependent.iter().map(|&i| init.q[i]).collect();
         self.physical(t0, &d[..4 * m]);

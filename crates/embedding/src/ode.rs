@@ -1,0 +1,746 @@
+//! Formulation A as an explicit ODE: index reduction by the derivative array.
+//!
+//! The state is the same `z = (q_I, q̇_I, q̈_I, q⃛_I)` as in the implicit form
+//! ([`crate::model`]); the right-hand side is
+//!
+//! ```text
+//! ż = (z₁, z₂, z₃, w(z)),   w = q_I⁗
+//! ```
+//!
+//! **What is solved per right-hand side.** (19) alone does not give `q⁗`
+//! (`W = ∂E/∂q⁗` is singular, rank 1 for the sleigh). With
+//! `u = (q⁗, q⁽⁵⁾, q⁽⁶⁾)` the derivative array of order 2,
+//! `D(z, u) = [E; Ė; Ë] = 0` (3m equations from [`crate::elo::elo_array`],
+//! the same code as the implicit form), fixes `q⁗` uniquely, while parts of
+//! `q⁽⁵⁾, q⁽⁶⁾` stay free. `D` is solved for `u` by a Newton-type iteration
+//! with the automatic-differentiation Jacobian `∂D/∂u` only (never `∂D/∂z`)
+//! and a truncated pseudo-inverse (minimum-norm steps; one-sided Jacobi SVD
+//! in preallocated buffers), warm-started from the previous call's `u`.
+//!
+//! **Why the answer is A's own.** Nothing but A's equations and their exact
+//! time derivatives enter; on A's constraint manifold (`z` consistent) the
+//! solution `D = 0` is exact and its `q⁗` is the one of the consistent
+//! completion ([`crate::analysis::complete`], used for the implicit form's
+//! `y'0`). Along vakonomic motions it is C's `q⁗` (worst 4e-11 relative over
+//! 108 states of C's motions, `tests/ode_form.rs`), although C is never
+//! consulted.
+//!
+//! **Off the manifold** (the stages of an explicit Runge–Kutta step lie off
+//! it by the stage error), `D = 0` has no solution: the combinations of `D`
+//! in the left null space of `∂D/∂u` are the hidden constraints `h(z)`. `w`
+//! is then the Gauss–Newton (least-squares) solution with one weight per
+//! derivative level. The weights depend on `z` only, and so does the left
+//! null space (for the sleigh it lies in the levels `E, Ė`, where `D` is
+//! affine in `u` with `u`-independent coefficients). So an iteration with
+//! the Jacobian taken at the current `z` converges to the same `q⁗` whatever
+//! the `u` its `u`-dependent block was taken at (the warm start): `w` is a
+//! smooth function of `z` alone (checked in this module's tests), and
+//! explicit methods keep their order (RK4 3.99, DOPRI5 4.90 measured).
+//!
+//! **Cost.** `D` is affine in `q⁽⁵⁾, q⁽⁶⁾` and the identities of derivative
+//! arrays (`∂E⁽ˡ⁾/∂q⁽ᵏ⁾ = Σᵢ C(l, i) dˡ⁻ⁱ/dtˡ⁻ⁱ ∂E/∂q⁽ᵏ⁻ⁱ⁾`) give
+//!
+//! ```text
+//!           q⁗   q⁽⁵⁾         q⁽⁶⁾
+//! ∂D/∂u = [ W    0            0 ]     W = ∂E/∂q⁗   (E is linear in q⁗)
+//!         [ Q    W            0 ]     Q = ∂Ė/∂q⁗ = Ẇ + ∂E/∂q⃛
+//!         [ V    2Q − ∂E/∂q⃛  W ]     V = ∂Ë/∂q⁗
+//! ```
+//!
+//! so a Jacobian costs `m` dual passes of the order-4 jet (the `q⁗` columns,
+//! which also give `D`) and `m` cheap order-2 passes for `∂E/∂q⃛`, instead of
+//! `3m` order-4 passes. Only `V` depends on `u` (through `q⁗`), so the
+//! iteration is a chord iteration: one Jacobian at the warm start per call,
+//! then plain evaluations of `D` (order-4 jet over `f64`), with a Newton
+//! restart if it contracts slowly. No allocation per call.
+//!
+//! **Accuracy.** The terms of `[E; Ė; Ë]` grow like powers of the turning
+//! rate `|q̈|/|v|` and cancel in `D`, so the round-off of `w` grows towards
+//! the singular set: ≤ 1e-12 relative for most of the default sleigh
+//! motion, up to 4e-11 at `|v| = 0.4 m/s` and 1e-8 at `|v| = 0.15 m/s`; the
+//! explicit form ends (with an error naming the cause) at
+//! `|v| ≈ 0.07–0.1 m/s`, a few ms before the default guard `singular_tol = 1e-3`.
+//! Steps that no longer contract even with a fresh Jacobian are accepted
+//! as that round-off when they are below 1e-7 relative. num-dual evaluates
+//! the derivatives of the sleigh map `atan2(ẏ, ẋ)` through `ẏ/ẋ`, which
+//! loses accuracy like `(|v|/ẋ)ᵏ` as the heading passes π/2; with the
+//! order-4 jets this ends the explicit form there (default motion:
+//! t = 0.884, ẋ = 0.002 m/s) unless the map is evaluated by quadrants.
+//!
+//! **Projection** ([`Reduction::project`]). An explicit integrator keeps `D`'s
+//! solvable part exactly but lets `h(z)` drift. After each accepted step the
+//! projection moves `q⃛` only (`q, q̇, q̈` fixed) back onto the hidden
+//! constraints: Newton on `D = 0` in the unknowns `(q⃛, u)` (full row rank,
+//! minimum-norm steps), the same Jacobian plus `m` dual passes for the `q⃛`
+//! columns. On the manifold `q⃛` is fixed by `(q, q̇, q̈)` (locally unique),
+//! so the result does not depend on how the step was split between `q⃛`
+//! and `u`.
+
+use nalgebra::DMatrix;
+use nonholo_core::Scene;
+use nonholo_core::scene::EmbeddingInfo;
+use num_dual::{Dual2, Dual64};
+
+use crate::analysis::{LEVELS, derivative_array};
+use crate::elo::elo_array;
+use crate::jet::Jet4;
+
+/// Relative accuracy to which the iteration determines `q⁗` (and, in the
+/// projection, `q⃛`): estimated remaining error of the chord iteration.
+pub const SOLVE_RTOL: f64 = 1e-13;
+
+/// Steps below this (relative) that do not contract even after a fresh
+/// Jacobian are the round-off of `w` at this state, and accepted. That
+/// round-off grows towards the singular set (see the module documentation).
+const STAGNATION: f64 = 1e-7;
+
+/// Iterations (chord steps, including restarts) per solve.
+const MAX_ITER: usize = 40;
+
+/// Newton restarts (fresh Jacobians) per solve beyond the first Jacobian.
+const MAX_RESTARTS: usize = 4;
+
+/// A restart is made when the steps contract slower than this.
+const SLOW: f64 = 0.5;
+
+/// Relative singular-value threshold for a numerical rank.
+const RANK_RTOL: f64 = 1e-10;
+
+/// Work counters of the reduction (not part of any result file).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReductionStats {
+    /// Solves for `q⁗` (right-hand sides).
+    pub solves: usize,
+    /// Projections onto the hidden constraints.
+    pub projections: usize,
+    /// Jacobians of `D` in the unknowns (each `m` order-4 dual passes plus
+    /// `m` order-2 passes for a solve, `2m` order-4 passes for a projection).
+    pub jacobians: usize,
+    /// Evaluations of `D` alone (order-4 jet over `f64`).
+    pub evaluations: usize,
+    /// Chord steps.
+    pub iterations: usize,
+    /// Largest relative change of `q⃛` made by a projection.
+    pub max_third_change: f64,
+    /// Solves and projections that ended at their round-off level (steps
+    /// that no longer contract with a fresh Jacobian) rather than at
+    /// [`SOLVE_RTOL`], and the largest such step (relative).
+    pub stagnations: usize,
+    pub max_stagnation: f64,
+}
+
+/// Workspace and warm start of the derivative-array solve (see the module
+/// documentation). Everything is allocated once, in [`Reduction::new`].
+pub struct Reduction {
+    m: usize,
+    /// Rank of `∂D/∂u` (`3m − hidden constraints`), fixed at a consistent
+    /// point by [`Reduction::reset`]; `None` before (numerical rank then).
+    rank_u: Option<usize>,
+    /// `(z, u) = (q_I⁽⁰⁾ … q_I⁽⁶⁾)` of the last solve: `u` is the warm start.
+    d: Vec<f64>,
+    /// `u` of the last successful solve, restored after a failure.
+    u_good: Vec<f64>,
+    d_dual: Vec<Dual64>,
+    out_dual: Vec<Dual64>,
+    /// `D` at `d`.
+    value: Vec<f64>,
+    /// `∂D/∂(unknowns)`, column-major, `3m` rows, up to `4m` columns.
+    jac: Vec<f64>,
+    /// `∂E/∂q⃛` (`m × m`, column-major).
+    e3: Vec<f64>,
+    /// Equilibrated Jacobian, rotated in place by the Jacobi SVD.
+    a: Vec<f64>,
+    /// Right singular vectors (`cols × cols`, column-major).
+    v: Vec<f64>,
+    norms: Vec<f64>,
+    order: Vec<usize>,
+    /// Pseudo-inverse with the scalings folded in (`cols × 3m`, row-major):
+    /// a step is `Δ = P · D`.
+    pinv: Vec<f64>,
+    row_scale: Vec<f64>,
+    col_scale: Vec<f64>,
+    stats: ReductionStats,
+}
+
+impl Reduction {
+    /// Workspace for `m` independent coordinates.
+    pub fn new(m: usize) -> Self {
+        let rows = LEVELS * m;
+        let cols = 4 * m;
+        Reduction {
+            m,
+            rank_u: None,
+            d: vec![0.0; 7 * m],
+            u_good: vec![0.0; 3 * m],
+            d_dual: vec![Dual64::from_re(0.0); 7 * m],
+            out_dual: vec![Dual64::from_re(0.0); rows],
+            value: vec![0.0; rows],
+            jac: vec![0.0; rows * cols],
+            e3: vec![0.0; m * m],
+            a: vec![0.0; rows * cols],
+            v: vec![0.0; cols * cols],
+            norms: vec![0.0; cols],
+            order: vec![0; cols],
+            pinv: vec![0.0; rows * cols],
+            row_scale: vec![1.0; rows],
+            col_scale: vec![1.0; cols],
+            stats: ReductionStats::default(),
+        }
+    }
+
+    /// Starts from a consistent completion `d = (q_I⁽⁰⁾ … q_I⁽⁶⁾)` (7m
+    /// numbers, `D(d) = 0`): its `u` becomes the warm start, and the rank of
+    /// `∂D/∂u` is fixed there (it is structural: for the sleigh `3m − 2`
+    /// everywhere off the singular set). Resets the counters.
+    pub fn reset<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        d: &[f64],
+    ) -> Result<(), String> {
+        let m = self.m;
+        self.d.copy_from_slice(&d[..7 * m]);
+        self.u_good.copy_from_slice(&d[4 * m..7 * m]);
+        self.rank_u = None;
+        self.stats = ReductionStats::default();
+        self.jacobian(scene, e, t, 4 * m)?;
+        self.rank_u = Some(self.kept_rank());
+        Ok(())
+    }
+
+    /// Rank of `∂D/∂u` in use.
+    pub fn rank_u(&self) -> Option<usize> {
+        self.rank_u
+    }
+
+    /// Work counters since [`Reduction::reset`].
+    pub fn stats(&self) -> ReductionStats {
+        self.stats
+    }
+
+    /// `u = (q⁗, q⁽⁵⁾, q⁽⁶⁾)` of the last solve or projection.
+    pub fn unknowns(&self) -> &[f64] {
+        &self.d[4 * self.m..]
+    }
+
+    /// `w(z) = q⁗`: solves `D(z, u) = 0` for `u` (least squares off the
+    /// manifold, see the module documentation).
+    pub fn fourth<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        z: &[f64],
+    ) -> Result<&[f64], String> {
+        let m = self.m;
+        self.d[..4 * m].copy_from_slice(&z[..4 * m]);
+        self.stats.solves += 1;
+        if let Err(msg) = self.iterate(scene, e, t, 4 * m) {
+            self.d[4 * m..].copy_from_slice(&self.u_good);
+            return Err(msg);
+        }
+        self.u_good.copy_from_slice(&self.d[4 * m..]);
+        Ok(&self.d[4 * m..5 * m])
+    }
+
+    /// Moves `q⃛ = z[3m..4m]` onto A's hidden constraints with `q, q̇, q̈`
+    /// fixed (Newton on `D = 0` in `(q⃛, u)`); returns the relative change
+    /// `|Δq⃛|∞ / |q⃛|∞`.
+    pub fn project<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        z: &mut [f64],
+    ) -> Result<f64, String> {
+        let m = self.m;
+        self.d[..4 * m].copy_from_slice(&z[..4 * m]);
+        self.stats.projections += 1;
+        if let Err(msg) = self.iterate(scene, e, t, 3 * m) {
+            self.d[4 * m..].copy_from_slice(&self.u_good);
+            return Err(format!(
+                "projection onto the hidden constraints failed: {msg}"
+            ));
+        }
+        self.u_good.copy_from_slice(&self.d[4 * m..]);
+        let scale = z[3 * m..4 * m]
+            .iter()
+            .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+        let change = (0..m).fold(0.0f64, |a, k| {
+            a.max((self.d[3 * m + k] - z[3 * m + k]).abs())
+        });
+        z[3 * m..4 * m].copy_from_slice(&self.d[3 * m..4 * m]);
+        let rel = change / scale;
+        self.stats.max_third_change = self.stats.max_third_change.max(rel);
+        Ok(rel)
+    }
+
+    /// How far `z` is from A's hidden constraints: after solving for `u` as
+    /// the right-hand side does, `max_l |D_l(z, u)| / (1 + Σ_j |∂D_l/∂d_j d_j|)`
+    /// — the residual left in each row relative to the terms that cancel in
+    /// it (the measure of [`crate::analysis::complete`]). Round-off level on
+    /// the manifold. A diagnostic (full derivative-array Jacobian; allocates).
+    pub fn hidden_residual<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        z: &[f64],
+    ) -> Result<f64, String> {
+        let m = self.m;
+        self.fourth(scene, e, t, z)?;
+        let rows = LEVELS * m;
+        let mut value = vec![0.0; rows];
+        let mut jac = DMatrix::zeros(rows, 7 * m);
+        derivative_array(scene, e, t, &self.d, &mut value, &mut jac);
+        Ok((0..rows).fold(0.0f64, |a, l| {
+            let scale = 1.0
+                + (0..7 * m)
+                    .map(|j| (jac[(l, j)] * self.d[j]).abs())
+                    .sum::<f64>();
+            a.max(value[l].abs() / scale)
+        }))
+    }
+
+    /// The chord iteration on the unknowns `d[first..7m]` (`first = 4m`:
+    /// `u`; `first = 3m`: `(q⃛, u)`), from the current `d`.
+    fn iterate<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        first: usize,
+    ) -> Result<(), String> {
+        let m = self.m;
+        let rows = LEVELS * m;
+        let cols = 7 * m - first;
+        // Watched blocks: q⁗ (and q⃛ in the projection), each relative to
+        // its own size, with a floor for a vanishing block.
+        let floor = 1e-6
+            * self.d[m..4 * m]
+                .iter()
+                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+        self.jacobian(scene, e, t, first)?;
+        let mut restarts = 0;
+        let mut prev = f64::INFINITY;
+        for _ in 0..MAX_ITER {
+            self.stats.iterations += 1;
+            // Step Δ = P·D, and its size in the watched blocks, relative.
+            let mut size = 0.0f64;
+            for k in 0..cols {
+                let row = &self.pinv[k * rows..(k + 1) * rows];
+                let s: f64 = row.iter().zip(&self.value).map(|(p, v)| p * v).sum();
+                self.d[first + k] -= s;
+                let block = (first + k) / m;
+                if block < 5 {
+                    let range = block * m..(block + 1) * m;
+                    let scale = self.d[range].iter().fold(floor, |a, v| a.max(v.abs()));
+                    size = size.max(s.abs() / scale);
+                }
+            }
+            if !size.is_finite() {
+                return Err("the iteration produced non-finite values".into());
+            }
+            if size <= SOLVE_RTOL {
+                return Ok(());
+            }
+            // Contraction of the chord iteration (none right after a Jacobian).
+            let theta = if prev.is_finite() { size / prev } else { 0.0 };
+            if prev.is_finite() && theta < 1.0 && theta / (1.0 - theta) * size <= SOLVE_RTOL {
+                return Ok(());
+            }
+            if theta >= SLOW {
+                if restarts > 0 && size <= STAGNATION {
+                    // Even with a fresh Jacobian the steps no longer
+                    // contract: they are the round-off of the solution.
+                    self.stats.stagnations += 1;
+                    self.stats.max_stagnation = self.stats.max_stagnation.max(size);
+                    return Ok(());
+                }
+                if restarts == MAX_RESTARTS {
+                    return Err(format!(
+                        "no convergence (relative step {size:.3e}, contraction {theta:.2}): \
+                         round-off in [E; Ė; Ë] no longer determines q⁗ here — their terms \
+                         cancel more and more towards the singular set, and the derivatives \
+                         of the embedding map can lose accuracy on their own (the sleigh's \
+                         atan2(ẏ, ẋ) near ẋ = 0); the implicit form (radau5) does not use Ë"
+                    ));
+                }
+                restarts += 1;
+                self.jacobian(scene, e, t, first)?;
+                prev = f64::INFINITY;
+                continue;
+            }
+            prev = size;
+            elo_array::<_, f64, Jet4<f64>>(scene, e, t, &self.d, &mut self.value);
+            self.stats.evaluations += 1;
+        }
+        Err(format!("no convergence in {MAX_ITER} iterations"))
+    }
+
+    /// `D` and `∂D/∂d[first..7m]` at `d`, equilibrated, and its truncated
+    /// pseudo-inverse into `pinv`.
+    fn jacobian<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        first: usize,
+    ) -> Result<(), String> {
+        let m = self.m;
+        let rows = LEVELS * m;
+        let cols = 7 * m - first;
+        self.stats.jacobians += 1;
+        let tt = Dual64::from_re(t);
+        // Order-4 dual passes for the columns that need them: q⃛ (projection
+        // only) and q⁗. The first pass also gives D.
+        let passes = 5 * m - first;
+        for k in 0..passes {
+            for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
+                *x = Dual64::from_re(v);
+            }
+            self.d_dual[first + k].eps = 1.0;
+            elo_array::<_, Dual64, Jet4<Dual64>>(scene, e, tt, &self.d_dual, &mut self.out_dual);
+            for i in 0..rows {
+                self.jac[k * rows + i] = self.out_dual[i].eps;
+            }
+            if k == 0 {
+                for i in 0..rows {
+                    self.value[i] = self.out_dual[i].re;
+                }
+            }
+        }
+        // ∂E/∂q⃛: the top block of the q⃛ columns, or m order-2 passes.
+        if first == 3 * m {
+            for j in 0..m {
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.jac[j * rows + mu];
+                }
+            }
+        } else {
+            for j in 0..m {
+                for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
+                    *x = Dual64::from_re(v);
+                }
+                self.d_dual[3 * m + j].eps = 1.0;
+                elo_array::<_, Dual64, Dual2<Dual64>>(
+                    scene,
+                    e,
+                    tt,
+                    &self.d_dual[..5 * m],
+                    &mut self.out_dual[..m],
+                );
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.out_dual[mu].eps;
+                }
+            }
+        }
+        // Structural columns: q⁽⁵⁾ → [0; W; 2Q − ∂E/∂q⃛], q⁽⁶⁾ → [0; 0; W].
+        let c4 = 4 * m - first;
+        let (c5, c6) = (c4 + m, c4 + 2 * m);
+        for j in 0..m {
+            for mu in 0..m {
+                let w = self.jac[(c4 + j) * rows + mu];
+                let q = self.jac[(c4 + j) * rows + m + mu];
+                let col5 = (c5 + j) * rows;
+                let col6 = (c6 + j) * rows;
+                self.jac[col5 + mu] = 0.0;
+                self.jac[col5 + m + mu] = w;
+                self.jac[col5 + 2 * m + mu] = 2.0 * q - self.e3[j * m + mu];
+                self.jac[col6 + mu] = 0.0;
+                self.jac[col6 + m + mu] = 0.0;
+                self.jac[col6 + 2 * m + mu] = w;
+            }
+        }
+        // One weight per derivative level, from the u-independent blocks
+        // (W; Q, W; 2Q − ∂E/∂q⃛, W): a function of z alone, invariant under
+        // rotations of the coordinates.
+        for l in 0..LEVELS {
+            let blocks = match l {
+                0 => c4..c5,
+                1 => c4..c6,
+                _ => c5..c6 + m,
+            };
+            let mut sum = 0.0;
+            for c in blocks {
+                for mu in 0..m {
+                    sum += self.jac[c * rows + l * m + mu].powi(2);
+                }
+            }
+            let s = if sum > 0.0 && sum.is_finite() {
+                sum.sqrt()
+            } else {
+                1.0
+            };
+            self.row_scale[l * m..(l + 1) * m].fill(s);
+        }
+        // One scale per block of unknowns (does not change the solution,
+        // only the conditioning and the minimum-norm choice of free parts).
+        for b in 0..cols / m {
+            let mut sum = 0.0;
+            for c in b * m..(b + 1) * m {
+                for i in 0..rows {
+                    sum += (self.jac[c * rows + i] / self.row_scale[i]).powi(2);
+                }
+            }
+            let s = (sum / m as f64).sqrt();
+            let s = if s > 0.0 && s.is_finite() { s } else { 1.0 };
+            self.col_scale[b * m..(b + 1) * m].fill(s);
+        }
+        if !self.value[..rows].iter().all(|v| v.is_finite())
+            || !self.jac[..rows * cols].iter().all(|v| v.is_finite())
+        {
+            return Err("the derivative array is not finite here".into());
+        }
+        for c in 0..cols {
+            for i in 0..rows {
+                self.a[c * rows + i] =
+                    self.jac[c * rows + i] / (self.row_scale[i] * self.col_scale[c]);
+            }
+        }
+        self.pseudo_inverse(first)
+    }
+
+    /// One-sided Jacobi SVD of the equilibrated Jacobian in `a` and the
+    /// truncated pseudo-inverse (`rank_u` for a solve, numerical rank for a
+    /// projection), scalings folded in.
+    fn pseudo_inverse(&mut self, first: usize) -> Result<(), String> {
+        let m = self.m;
+        let rows = LEVELS * m;
+        let cols = 7 * m - first;
+        let (a, v) = (&mut self.a, &mut self.v);
+        v[..cols * cols].fill(0.0);
+        for c in 0..cols {
+            v[c * cols + c] = 1.0;
+        }
+        let total: f64 = a[..rows * cols].iter().map(|x| x * x).sum();
+        let negligible = (f64::EPSILON * f64::EPSILON) * total;
+        let tol = f64::EPSILON * rows as f64;
+        for _sweep in 0..60 {
+            let mut rotated = false;
+            for p in 0..cols - 1 {
+                for q in p + 1..cols {
+                    let (mut alpha, mut beta, mut gamma) = (0.0, 0.0, 0.0);
+                    for i in 0..rows {
+                        let (x, y) = (a[p * rows + i], a[q * rows + i]);
+                        alpha += x * x;
+                        beta += y * y;
+                        gamma += x * y;
+                    }
+                    if alpha <= negligible
+                        || beta <= negligible
+                        || gamma.abs() <= tol * (alpha * beta).sqrt()
+                    {
+                        continue;
+                    }
+                    rotated = true;
+                    let zeta = (beta - alpha) / (2.0 * gamma);
+                    let tan = zeta.signum() / (zeta.abs() + (1.0 + zeta * zeta).sqrt());
+                    let cos = 1.0 / (1.0 + tan * tan).sqrt();
+                    let sin = cos * tan;
+                    for i in 0..rows {
+                        let (x, y) = (a[p * rows + i], a[q * rows + i]);
+                        a[p * rows + i] = cos * x - sin * y;
+                        a[q * rows + i] = sin * x + cos * y;
+                    }
+                    for i in 0..cols {
+                        let (x, y) = (v[p * cols + i], v[q * cols + i]);
+                        v[p * cols + i] = cos * x - sin * y;
+                        v[q * cols + i] = sin * x + cos * y;
+                    }
+                }
+            }
+            if !rotated {
+                break;
+            }
+        }
+        for c in 0..cols {
+            self.norms[c] = a[c * rows..(c + 1) * rows]
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>()
+                .sqrt();
+            self.order[c] = c;
+        }
+        let norms = &self.norms;
+        self.order[..cols].sort_unstable_by(|&i, &j| norms[j].total_cmp(&norms[i]));
+        let top = norms[self.order[0]];
+        let numerical = (0..cols).filter(|&c| norms[c] > RANK_RTOL * top).count();
+        let rank = match (first == 4 * m, self.rank_u) {
+            (true, Some(r)) => r,
+            _ => numerical,
+        };
+        if rank == 0 || norms[self.order[rank - 1]] <= 1e-14 * top {
+            return Err(format!(
+                "the Jacobian of the derivative array lost rank (expected {rank}, numerical {numerical})"
+            ));
+        }
+        // P = C⁻¹ V Σ⁻² (AV)ᵀ R⁻¹ over the kept singular triplets.
+        self.pinv[..cols * rows].fill(0.0);
+        for &j in &self.order[..rank] {
+            let s2 = norms[j] * norms[j];
+            for k in 0..cols {
+                let vk = self.v[j * cols + k] / s2;
+                if vk == 0.0 {
+                    continue;
+                }
+                for l in 0..rows {
+                    self.pinv[k * rows + l] += vk * self.a[j * rows + l];
+                }
+            }
+        }
+        for k in 0..cols {
+            for l in 0..rows {
+                self.pinv[k * rows + l] /= self.col_scale[k] * self.row_scale[l];
+            }
+        }
+        Ok(())
+    }
+
+    /// Number of singular values kept by the last pseudo-inverse's rule.
+    fn kept_rank(&self) -> usize {
+        let m = self.m;
+        let cols = 3 * m;
+        let top = self.norms[self.order[0]];
+        (0..cols)
+            .filter(|&c| self.norms[c] > RANK_RTOL * top)
+            .count()
+    }
+
+    /// The Jacobian of the last solve in the unknowns (`3m × cols`), for tests.
+    #[cfg(test)]
+    fn jacobian_matrix(&self, first: usize) -> DMatrix<f64> {
+        let rows = LEVELS * self.m;
+        let cols = 7 * self.m - first;
+        DMatrix::from_column_slice(rows, cols, &self.jac[..rows * cols])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::complete;
+    use nonholo_core::{Params, Scene};
+    use nonholo_scenes::Sleigh;
+
+    /// A consistent point of the sleigh: `(q, q̇, q̈)` given, `q⃛` and `u`
+    /// completed.
+    fn consistent(s: &Sleigh) -> Vec<f64> {
+        let e = Sleigh::INFO.embedding.unwrap();
+        let mut d = vec![0.0; 14];
+        d[..6].copy_from_slice(&[0.3, -0.2, 1.9, 0.5, 0.4, 2.6]);
+        complete(s, &e, 0.0, &mut d, true, 1e-14).unwrap();
+        d
+    }
+
+    /// The structural Jacobian (identities of the derivative array) equals
+    /// the full AD Jacobian of `derivative_array` column by column, for the
+    /// solve (`u`) and the projection (`q⃛, u`).
+    #[test]
+    fn structural_jacobian_matches_full_ad() {
+        for potential in ["paper", "com"] {
+            let given = vec![("potential".to_string(), potential.to_string())];
+            let s = Sleigh::from_params(
+                &Params::resolve(Sleigh::INFO.params, &given, "parameter").unwrap(),
+            )
+            .unwrap();
+            let e = Sleigh::INFO.embedding.unwrap();
+            let mut d = consistent(&s);
+            // Off the manifold and away from the solution: the identities
+            // hold everywhere.
+            d[7] += 0.01;
+            d[9] -= 0.3;
+            d[11] += 0.7;
+            let mut value = vec![0.0; 6];
+            let mut full = DMatrix::zeros(6, 14);
+            derivative_array(&s, &e, 0.0, &d, &mut value, &mut full);
+            let mut r = Reduction::new(2);
+            for first in [8, 6] {
+                r.d.copy_from_slice(&d);
+                r.jacobian(&s, &e, 0.0, first).unwrap();
+                let jac = r.jacobian_matrix(first);
+                let want = full.columns(first, 14 - first);
+                let scale = want.amax();
+                assert!(
+                    (&jac - want).amax() <= 1e-13 * scale,
+                    "first = {first}:\n{jac:.6e}\n{want:.6e}"
+                );
+                for l in 0..6 {
+                    assert!((r.value[l] - value[l]).abs() <= 1e-13 * (1.0 + value[l].abs()));
+                }
+            }
+        }
+    }
+
+    /// Off the manifold `w` is the weighted least-squares solution with the
+    /// Jacobian at the solution (`Jᵀ R⁻² D = 0`), whatever the warm start:
+    /// a function of `z` alone.
+    #[test]
+    fn off_manifold_solution_is_independent_of_the_warm_start() {
+        let s = Sleigh::from_params(&Params::defaults(Sleigh::INFO.params)).unwrap();
+        let e = Sleigh::INFO.embedding.unwrap();
+        let d = consistent(&s);
+        let mut z = d[..8].to_vec();
+        // Off the hidden constraints by 1e-3 relative in q⃛.
+        z[6] *= 1.001;
+        z[7] *= 0.999;
+        let mut r = Reduction::new(2);
+        r.reset(&s, &e, 0.0, &d).unwrap();
+        let w1 = r.fourth(&s, &e, 0.0, &z).unwrap().to_vec();
+        // Warm start far off: u scaled by 1.3 and shifted.
+        let mut far = d.clone();
+        for v in far[8..].iter_mut() {
+            *v = 1.3 * *v + 0.5;
+        }
+        r.reset(&s, &e, 0.0, &far).unwrap();
+        let w2 = r.fourth(&s, &e, 0.0, &z).unwrap().to_vec();
+        let scale = w1[0].abs().max(w1[1].abs());
+        assert!(
+            (w1[0] - w2[0]).abs().max((w1[1] - w2[1]).abs()) <= 1e-12 * scale,
+            "{w1:?} vs {w2:?}"
+        );
+        // Stationarity with the Jacobian at the solution: Jᵀ R⁻² D = 0
+        // relative to the terms of the product (whose round-off, through
+        // the large level-2 entries, is ~1e-10 of them).
+        let (mut value, mut full) = (vec![0.0; 6], DMatrix::zeros(6, 14));
+        derivative_array(&s, &e, 0.0, &r.d, &mut value, &mut full);
+        let hidden = value.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(hidden > 1e-6, "the point is off the manifold: {value:?}");
+        let ju = full.columns(8, 6);
+        let (mut worst, mut size) = (0.0f64, 0.0f64);
+        for k in 0..6 {
+            let mut g = 0.0;
+            for l in 0..6 {
+                let term = ju[(l, k)] * value[l] / r.row_scale[l].powi(2);
+                g += term;
+                size = size.max(term.abs());
+            }
+            worst = worst.max(g.abs());
+        }
+        assert!(worst <= 1e-8 * size, "{worst:e} of {size:e}");
+    }
+
+    /// The pseudo-inverse is the Moore–Penrose inverse of the (weighted)
+    /// Jacobian: `J P J = J`, `P J P = P`, with the structural rank 4.
+    #[test]
+    fn pseudo_inverse_properties() {
+        let s = Sleigh::from_params(&Params::defaults(Sleigh::INFO.params)).unwrap();
+        let e = Sleigh::INFO.embedding.unwrap();
+        let d = consistent(&s);
+        let mut r = Reduction::new(2);
+        r.reset(&s, &e, 0.0, &d).unwrap();
+        assert_eq!(r.rank_u(), Some(4));
+        for first in [8, 6] {
+            r.d.copy_from_slice(&d);
+            r.jacobian(&s, &e, 0.0, first).unwrap();
+            let j = r.jacobian_matrix(first);
+            let cols = 14 - first;
+            let p = DMatrix::from_row_slice(cols, 6, &r.pinv[..cols * 6]);
+            let jpj = &j * &p * &j;
+            assert!((&jpj - &j).amax() <= 1e-10 * j.amax(), "first = {first}");
+            let pjp = &p * &j * &p;
+            assert!((&pjp - &p).amax() <= 1e-10 * p.amax(), "first = {first}");
+        }
+    }
+}

@@ -1,0 +1,576 @@
+//! The explicit (ODE) form of formulation A (`src/ode.rs`): `q⁗` from A's
+//! derivative array against C's Taylor coefficients, the explicit form
+//! against the implicit form and against C, convergence orders, drift of
+//! the hidden constraints, the guard, and the cost of a right-hand side.
+//!
+//! C (`nonholo_vakonomic`) only supplies initial data and reference values;
+//! A's explicit form never consults it.
+
+use std::time::Instant;
+
+use nonholo_core::integrate::{
+    ImplicitSystem, IntegrateError, Method, OdeSystem, Options, SystemError, solve,
+};
+use nonholo_core::scene::MAX_SINGULAR;
+use nonholo_core::{Initial, Model, Params, Run, RunConfig, Scalar, Scene, SceneInfo, simulate};
+use nonholo_embedding::{Embedding, OPTIONS};
+use nonholo_scenes::Sleigh;
+use nonholo_vakonomic::Vakonomic;
+
+fn pairs(items: &[(&str, &str)]) -> Vec<(String, String)> {
+    items
+        .iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect()
+}
+
+/// The sleigh with default parameters (a = 0.4, α = 0.3) and `potential`.
+fn sleigh(potential: &str) -> Sleigh {
+    let given = pairs(&[("potential", potential)]);
+    Sleigh::from_params(&Params::resolve(Sleigh::INFO.params, &given, "parameter").unwrap())
+        .unwrap()
+}
+
+fn embedding<S: Scene>(scene: S, opts: &[(&str, &str)]) -> Embedding<S> {
+    Embedding::new(
+        scene,
+        Params::resolve(OPTIONS, &pairs(opts), "option").unwrap(),
+    )
+    .unwrap()
+}
+
+fn vakonomic(s: &Sleigh) -> Vakonomic<Sleigh> {
+    Vakonomic::new(s.clone(), Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap()
+}
+
+/// C's state `(x, y, φ, ẋ, ẏ, φ̇, λ)` at the origin for forward speed `u`.
+fn c_state(phi: f64, u: f64, omega: f64, lambda: f64) -> [f64; 7] {
+    [0.0, 0.0, phi, u * phi.cos(), u * phi.sin(), omega, lambda]
+}
+
+/// C's Taylor coefficients `(q̈, q⃛, q⁗)` of `(x, y)` at `(t, y)`.
+fn taylor(c: &mut Vakonomic<Sleigh>, t: f64, y: &[f64]) -> [[f64; 2]; 3] {
+    let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
+    c.taylor(t, y, &mut yd, &mut ydd, &mut yddd).unwrap();
+    [[yd[3], yd[4]], [ydd[3], ydd[4]], [yddd[3], yddd[4]]]
+}
+
+/// A's initial data matched with C at `(t, y)` (as the lab matches them:
+/// C's Taylor coefficients `q̈`, `q⃛`; A completes and checks them).
+fn matched(c: &mut Vakonomic<Sleigh>, t: f64, y: &[f64]) -> Initial {
+    let [second, third, _] = taylor(c, t, y);
+    Initial {
+        t0: t,
+        q: y[..3].to_vec(),
+        qd: y[3..6].to_vec(),
+        extra: vec![
+            ("x_ddot".into(), second[0]),
+            ("y_ddot".into(), second[1]),
+            ("x_dddot".into(), third[0]),
+            ("y_dddot".into(), third[1]),
+        ],
+    }
+}
+
+fn config(method: Method, rtol: f64, t_end: f64, every: f64) -> RunConfig {
+    let n = (t_end / every).round() as usize;
+    RunConfig {
+        method,
+        options: Options {
+            rtol,
+            atol: rtol,
+            output: (0..=n).map(|i| (i as f64 * every).min(t_end)).collect(),
+            ..Options::default()
+        },
+        t_end,
+        project_init: false,
+    }
+}
+
+/// C from `y` (with its λ0) by DOP853 at 1e-12.
+fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64) -> Run {
+    let init = Initial {
+        t0: 0.0,
+        q: y[..3].to_vec(),
+        qd: y[3..6].to_vec(),
+        extra: vec![("lambda".into(), y[6])],
+    };
+    simulate(
+        Box::new(vakonomic(s)),
+        init,
+        config(Method::Dop853, 1e-12, t_end, every),
+    )
+    .unwrap()
+}
+
+/// `max |(x, y)_a − (x, y)_b|` over common samples.
+fn position_difference(a: &Run, b: &Run) -> f64 {
+    assert_eq!(a.solution.t.len(), b.solution.t.len());
+    a.samples
+        .iter()
+        .zip(&b.samples)
+        .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// First zero of C's forward speed `u = ẋ cos φ + ẏ sin φ` on its samples.
+fn c_reversal(c: &Run) -> f64 {
+    let u: Vec<f64> = c
+        .samples
+        .iter()
+        .map(|o| o.qd[0] * o.q[2].cos() + o.qd[1] * o.q[2].sin())
+        .collect();
+    let t = &c.solution.t;
+    let i = (1..u.len())
+        .find(|&i| u[i - 1] * u[i] <= 0.0)
+        .expect("C reverses");
+    t[i - 1] + (t[i] - t[i - 1]) * u[i - 1] / (u[i - 1] - u[i])
+}
+
+/// The sleigh with its embedding map evaluated by a quadrant-switching
+/// `atan2`. num-dual computes the derivatives of `atan2(y, x)` through
+/// `atan(y/x)` (num-dual 0.15, `impl_derivatives.rs`), whose derivatives
+/// lose accuracy like `(|v|/ẋ)ᵏ` when the heading passes π/2; the order-4
+/// jets of the derivative array amplify that until the explicit form stops
+/// (for the default motion at t ≈ 0.884, ẋ = 0.002 m/s). Same map, same
+/// Lagrangian, same physics: only the evaluation of the map's derivatives
+/// differs. Used to show that the explicit form itself reaches t = 0.9.
+#[derive(Clone)]
+struct QuadrantSleigh(Sleigh);
+
+fn atan2_by_quadrant<D: Scalar>(y: D, x: D) -> D {
+    let (yr, xr) = (y.re(), x.re());
+    if xr.abs() >= yr.abs() {
+        (y / x).atan() + (yr.atan2(xr) - (yr / xr).atan())
+    } else {
+        -(x / y).atan() + (yr.atan2(xr) + (xr / yr).atan())
+    }
+}
+
+impl Scene for QuadrantSleigh {
+    const INFO: &'static SceneInfo = Sleigh::INFO;
+    fn from_params(p: &Params) -> Result<Self, nonholo_core::Error> {
+        Sleigh::from_params(p).map(QuadrantSleigh)
+    }
+    fn params(&self) -> &Params {
+        self.0.params()
+    }
+    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D {
+        self.0.lagrangian(t, q, qd)
+    }
+    fn nonholonomic<D: Scalar>(&self, t: D, q: &[D], qd: &[D], out: &mut [D]) {
+        self.0.nonholonomic(t, q, qd, out)
+    }
+    fn embedding<D: Scalar>(&self, _t: D, _q: &[D], qd: &[D], dep: &mut [D]) {
+        dep[0] = atan2_by_quadrant(qd[1], qd[0]);
+    }
+    fn embedding_singularity(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        self.0.embedding_singularity(t, q, qd, r)
+    }
+    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
+        self.0.velocities_from(q, chart, qd)
+    }
+}
+
+/// (a) Along C's motions (both potentials, λ0 ∈ {0, 0.5, −1}, up to 0.1 s
+/// before C's reversal), A's `w(z) = q⁗` — at C's own `z` and at A's
+/// completion of C's `(q, q̇, q̈)` — equals C's Taylor coefficient `q⁗`, and
+/// equals the `q⁗` of the consistent completion A uses for the implicit
+/// form's initial slope.
+#[test]
+fn fourth_derivative_equals_vakonomic_along_its_motion() {
+    let mut worst = (0.0f64, 0.0f64, 0.0f64);
+    let mut count = 0;
+    for potential in ["paper", "com"] {
+        let s = sleigh(potential);
+        for lambda0 in [0.0, 0.5, -1.0] {
+            let y0 = c_state(0.2, 2.0, 0.7, lambda0);
+            let c_run = run_c(&s, &y0, 1.5, 0.05);
+            let t_rev = c_reversal(&c_run);
+            let mut c = vakonomic(&s);
+            let mut a = embedding(s.clone(), &[]);
+            for (i, &t) in c_run.solution.t.iter().enumerate() {
+                if t > t_rev - 0.1 {
+                    break;
+                }
+                let y = c_run.solution.row(i);
+                let [second, third, fourth] = taylor(&mut c, t, y);
+                let scale = fourth[0].abs().max(fourth[1].abs());
+                let rel =
+                    |w: &[f64], v: &[f64; 2]| (w[0] - v[0]).abs().max((w[1] - v[1]).abs()) / scale;
+                // At C's own z.
+                let zc = [
+                    y[0], y[1], y[3], y[4], second[0], second[1], third[0], third[1],
+                ];
+                let init = matched(&mut c, t, y);
+                let z = a.initial_state(&init).unwrap();
+                let yp0 = a.initial_slope().unwrap();
+                let at_c = rel(a.fourth_derivative(t, &zc).unwrap(), &fourth);
+                // At A's completion (z moved onto A's hidden constraints).
+                let w = a.fourth_derivative(t, &z).unwrap().to_vec();
+                let at_a = rel(&w, &fourth);
+                let vs_slope = rel(&w, &[yp0[6], yp0[7]]);
+                assert!(
+                    at_c < 1e-8 && at_a < 1e-8 && vs_slope < 1e-10,
+                    "{potential}, λ0 = {lambda0}, t = {t}: w(z_C) {at_c:e}, w(z_A) {at_a:e} from \
+                     C's q⁗ {fourth:?}; {vs_slope:e} from the completion's q⁗"
+                );
+                worst = (worst.0.max(at_c), worst.1.max(at_a), worst.2.max(vs_slope));
+                count += 1;
+            }
+        }
+    }
+    eprintln!(
+        "w(z) vs C's q⁗ over {count} states of C's motions: worst relative {:.1e} at C's z, \
+         {:.1e} at A's completion; vs the completion's q⁗ {:.1e}",
+        worst.0, worst.1, worst.2
+    );
+}
+
+/// (b) From the same consistent initial data (matched with C at λ0 = 0,
+/// completed by `initial_state`), A's explicit form by DOP853 at 1e-10
+/// (projection on) reproduces A's implicit form by Radau at 1e-10 and C
+/// (DOP853, 1e-12) in position to 1e-7, sampled every 1e-3 s: with the
+/// sleigh as it is up to t = 0.875 (its map's AD limits the explicit form
+/// near heading π/2, t ≈ 0.884, see `QuadrantSleigh`), and with the
+/// quadrant-switching map up to t = 0.9 (C reverses at 0.923).
+#[test]
+fn explicit_form_reproduces_implicit_form_and_vakonomic() {
+    let s = sleigh("paper");
+    let y0 = c_state(0.2, 2.0, 0.7, 0.0);
+    let init = matched(&mut vakonomic(&s), 0.0, &y0);
+    for (quadrant, t_end) in [(false, 0.875), (true, 0.9)] {
+        let c = run_c(&s, &y0, t_end, 1e-3);
+        // Default options: stab = projection (ignored by the implicit form).
+        let model = |_implicit: bool| -> Box<dyn Model> {
+            if quadrant {
+                Box::new(embedding(QuadrantSleigh(s.clone()), &[]))
+            } else {
+                Box::new(embedding(s.clone(), &[]))
+            }
+        };
+        let start = Instant::now();
+        let ode = simulate(
+            model(false),
+            init.clone(),
+            config(Method::Dop853, 1e-10, t_end, 1e-3),
+        )
+        .unwrap();
+        let ode_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let dae = simulate(
+            model(true),
+            init.clone(),
+            config(Method::Radau5, 1e-10, t_end, 1e-3),
+        )
+        .unwrap();
+        let dae_ms = start.elapsed().as_secs_f64() * 1e3;
+        assert!(ode.completed(), "{:?}", ode.failure);
+        assert!(dae.completed(), "{:?}", dae.failure);
+        let (vs_dae, vs_c, dae_c) = (
+            position_difference(&ode, &dae),
+            position_difference(&ode, &c),
+            position_difference(&dae, &c),
+        );
+        let st = &ode.solution.stats;
+        eprintln!(
+            "to t = {t_end} ({}): explicit vs implicit {vs_dae:.1e}, explicit vs C {vs_c:.1e}, \
+             implicit vs C {dae_c:.1e}; explicit {} steps ({} rejected, {} rhs) {ode_ms:.0} ms, \
+             implicit {} steps {dae_ms:.0} ms",
+            if quadrant {
+                "quadrant-switching atan2"
+            } else {
+                "sleigh as it is"
+            },
+            st.steps,
+            st.rejected_steps,
+            st.rhs_evals,
+            dae.solution.stats.steps
+        );
+        assert!(vs_dae < 1e-7 && vs_c < 1e-7, "{vs_dae:e} {vs_c:e}");
+    }
+}
+
+/// Final state at t = 0.5 of A's explicit form from the default matched
+/// data (projection on).
+fn final_state(method: Method, opts: Options) -> Vec<f64> {
+    let s = sleigh("paper");
+    let init = matched(&mut vakonomic(&s), 0.0, &c_state(0.2, 2.0, 0.7, 0.0));
+    let mut a = embedding(s, &[]);
+    let z0 = a.initial_state(&init).unwrap();
+    let opts = Options {
+        dense: false,
+        ..opts
+    };
+    solve(method, &mut a, 0.0, &z0, 0.5, &opts).unwrap().y_last
+}
+
+fn fixed(n: usize) -> Options {
+    Options {
+        fixed_step: Some(0.5 / n as f64),
+        ..Options::default()
+    }
+}
+
+/// Largest component of `|a − b| / (1 + |b|)`.
+fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / (1.0 + y.abs()))
+        .fold(0.0, f64::max)
+}
+
+/// (c) Fixed-step orders on [0, 0.5]: RK4 4, DOPRI5 5 (±0.3). Reference:
+/// DOP853 with 50 fixed steps; its error, estimated from a second
+/// reference with 25 steps (order 8: error(50) ≈ |z₂₅ − z₅₀| / 255), is far
+/// below the errors measured.
+#[test]
+fn fixed_step_orders_of_the_explicit_form() {
+    let reference = final_state(Method::Dop853, fixed(50));
+    let second = final_state(Method::Dop853, fixed(25));
+    let ref_error = distance(&second, &reference) / 255.0;
+    eprintln!(
+        "reference (DOP853, 50 steps): estimated error {ref_error:.1e} (|z₂₅ − z₅₀| = {:.1e})",
+        distance(&second, &reference)
+    );
+    for (method, steps, order) in [
+        (Method::Rk4, [25, 50, 100], 4.0),
+        (Method::Dopri5, [20, 40, 80], 5.0),
+    ] {
+        let errors: Vec<f64> = steps
+            .iter()
+            .map(|&n| distance(&final_state(method, fixed(n)), &reference))
+            .collect();
+        let orders: Vec<f64> = errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect();
+        let shown: Vec<String> = errors.iter().map(|e| format!("{e:.2e}")).collect();
+        eprintln!("{method:?}: steps {steps:?}, errors {shown:?}, orders {orders:.2?}");
+        assert!(errors[2] > 100.0 * ref_error, "{errors:?} vs {ref_error:e}");
+        let last = orders[orders.len() - 1];
+        assert!((last - order).abs() <= 0.3, "{method:?}: {orders:?}");
+    }
+}
+
+/// (d) Without projection the hidden-constraint residual grows along a
+/// DOP853 run (1e-8) from round-off to the level of the local errors (and
+/// stays there over the run: the manifold is not repelling); with
+/// projection every accepted state is put back on A's hidden constraints to
+/// round-off. The residual is the derivative array's, relative to the terms
+/// that cancel in each row ([`Embedding::hidden_residual`]).
+#[test]
+fn hidden_constraints_drift_without_projection() {
+    let s = sleigh("paper");
+    let init = matched(&mut vakonomic(&s), 0.0, &c_state(0.2, 2.0, 0.7, 0.0));
+    let mut logs = Vec::new();
+    for stab in ["none", "projection"] {
+        let mut a = embedding(s.clone(), &[("stab", stab)]);
+        let z0 = a.initial_state(&init).unwrap();
+        a.record_hidden(true);
+        let opts = Options {
+            rtol: 1e-8,
+            atol: 1e-8,
+            ..Options::default()
+        };
+        let sol = solve(Method::Dop853, &mut a, 0.0, &z0, 0.8, &opts).unwrap();
+        let log = a.hidden_log().to_vec();
+        assert_eq!(log.len(), sol.stats.steps);
+        let at = |t: f64| {
+            log.iter()
+                .find(|r| r[0] >= t)
+                .map(|r| (r[1], r[2]))
+                .unwrap()
+        };
+        let before = log.iter().fold(0.0f64, |m, r| m.max(r[1]));
+        let after = log.iter().fold(0.0f64, |m, r| m.max(r[2]));
+        let stats = a.reduction_stats();
+        eprintln!(
+            "stab = {stab}: hidden residual before/after each step at t ≈ 0.2 {:.1e}/{:.1e}, \
+             0.4 {:.1e}/{:.1e}, 0.6 {:.1e}/{:.1e}, 0.8 {:.1e}/{:.1e}; max {before:.1e}/{after:.1e}; \
+             {} steps, largest projection |Δq⃛|/|q⃛| {:.1e}",
+            at(0.2).0,
+            at(0.2).1,
+            at(0.4).0,
+            at(0.4).1,
+            at(0.6).0,
+            at(0.6).1,
+            at(0.8).0,
+            at(0.8).1,
+            sol.stats.steps,
+            stats.max_third_change
+        );
+        logs.push(log);
+    }
+    let (none, projected) = (&logs[0], &logs[1]);
+    let grown = none.last().unwrap()[2];
+    let kept = projected.iter().fold(0.0f64, |m, r| m.max(r[2]));
+    assert!(kept < 1e-13, "with projection: {kept:e}");
+    assert!(
+        grown > 100.0 * kept && grown > 1e3 * none[0][2],
+        "without projection the residual should grow: {grown:e} at the end, {:e} after the \
+         first step, {kept:e} with projection",
+        none[0][2]
+    );
+}
+
+/// (e) The explicit form stops at the embedding map's singular set as the
+/// implicit form does (same guard, located on the step polynomial); a stage
+/// beyond the set is refused by both forms with the same error.
+#[test]
+fn guard_and_stage_check_as_in_the_implicit_form() {
+    let s = sleigh("paper");
+    let y0 = c_state(0.2, 2.0, 0.7, -1.0);
+    let init = matched(&mut vakonomic(&s), 0.0, &y0);
+    // A larger singular_tol: near zero speed the terms of the derivative
+    // array grow like powers of |q̈|/|v| and the explicit form ends (with
+    // an error saying so) a few ms before the default guard.
+    let tol = [("singular_tol", "0.1")];
+    let mut stops = Vec::new();
+    for method in [Method::Dop853, Method::Radau5] {
+        let run = simulate(
+            Box::new(embedding(s.clone(), &tol)),
+            init.clone(),
+            config(method, 1e-10, 2.0, 0.01),
+        )
+        .unwrap();
+        match run.failure {
+            Some(IntegrateError::Stopped { t, reason }) => {
+                assert!(
+                    reason.contains("zero speed") && reason.contains("extrapolated zero"),
+                    "{reason}"
+                );
+                stops.push(t);
+            }
+            other => panic!("{method:?} should stop at the singular set, got {other:?}"),
+        }
+    }
+    eprintln!(
+        "singular_tol = 0.1: explicit form stops at {:.9}, implicit at {:.9}",
+        stops[0], stops[1]
+    );
+    assert!((stops[0] - stops[1]).abs() < 1e-6, "{stops:?}");
+
+    // With the default guard the explicit form ends before it, and says why.
+    let c = run_c(&s, &y0, 1.0, 1e-3);
+    let t_rev = c_reversal(&c);
+    let run = simulate(
+        Box::new(embedding(s.clone(), &[])),
+        init.clone(),
+        config(Method::Dop853, 1e-10, 2.0, 0.01),
+    )
+    .unwrap();
+    match &run.failure {
+        Some(IntegrateError::System { t, source }) => {
+            assert!(source.message.contains("[E; Ė; Ë]"), "{source}");
+            assert!(
+                *t > t_rev - 0.02 && *t < t_rev,
+                "{t} vs C's reversal {t_rev}"
+            );
+            eprintln!(
+                "default singular_tol: explicit form ends at {t:.6} (C reverses at {t_rev:.6})"
+            );
+        }
+        other => panic!("expected the explicit form to end before the guard, got {other:?}"),
+    }
+
+    // A stage beyond the set (velocity reversed against the direction at
+    // the start) is refused by both forms with the same error.
+    let mut a = embedding(s.clone(), &[]);
+    let z0 = a.initial_state(&init).unwrap();
+    let yp0 = a.initial_slope().unwrap();
+    assert_eq!(
+        OdeSystem::guard(&mut a, 0.0, &z0),
+        ImplicitSystem::guard(&mut a, 0.0, &z0)
+    );
+    let mut back = z0.clone();
+    back[2] = -z0[2];
+    back[3] = -z0[3];
+    let mut dy = vec![0.0; 8];
+    let ode_err: SystemError = OdeSystem::rhs(&mut a, 0.0, &back, &mut dy).unwrap_err();
+    let dae_err = a.residual(0.0, &back, &yp0, &mut dy).unwrap_err();
+    assert!(
+        ode_err.message.contains("crossed the singular set"),
+        "{ode_err}"
+    );
+    assert_eq!(ode_err, dae_err);
+}
+
+/// Records the states at which a run evaluates the right-hand side.
+struct Recorder<'a, S: Scene> {
+    a: &'a mut Embedding<S>,
+    calls: Vec<(f64, Vec<f64>)>,
+}
+
+impl<S: Scene> OdeSystem for Recorder<'_, S> {
+    fn dim(&self) -> usize {
+        OdeSystem::dim(self.a)
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        self.calls.push((t, y.to_vec()));
+        OdeSystem::rhs(self.a, t, y, dy)
+    }
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        OdeSystem::after_step(self.a, t, y)
+    }
+}
+
+/// The cost of one right-hand side of the explicit form, measured by
+/// replaying the stage states of a DOP853 run (1e-10, [0, 0.8]) in order,
+/// so that every call has the warm start it has in a run; against one
+/// residual of the implicit form. Printed (`--nocapture`), not asserted.
+#[test]
+fn cost_of_a_right_hand_side() {
+    let s = sleigh("paper");
+    let init = matched(&mut vakonomic(&s), 0.0, &c_state(0.2, 2.0, 0.7, 0.0));
+    let mut a = embedding(s.clone(), &[("stab", "none")]);
+    let z0 = a.initial_state(&init).unwrap();
+    let yp0 = a.initial_slope().unwrap();
+    let opts = Options {
+        rtol: 1e-10,
+        atol: 1e-10,
+        ..Options::default()
+    };
+    let mut rec = Recorder {
+        a: &mut a,
+        calls: Vec::new(),
+    };
+    solve(Method::Dop853, &mut rec, 0.0, &z0, 0.8, &opts).unwrap();
+    let calls = rec.calls;
+    let mut dy = vec![0.0; 8];
+    let mut best = f64::INFINITY;
+    let mut stats = None;
+    for _ in 0..3 {
+        a.initial_state(&init).unwrap();
+        let start = Instant::now();
+        for (t, z) in &calls {
+            OdeSystem::rhs(&mut a, *t, z, &mut dy).unwrap();
+        }
+        best = best.min(start.elapsed().as_secs_f64() / calls.len() as f64);
+        stats = Some(a.reduction_stats());
+    }
+    let stats = stats.unwrap();
+    let n = 20_000;
+    let mut res = vec![0.0; 8];
+    let start = Instant::now();
+    for _ in 0..n {
+        a.residual(0.0, &z0, &yp0, &mut res).unwrap();
+    }
+    let residual = start.elapsed().as_secs_f64() / n as f64;
+    let per = |k: usize| k as f64 / stats.solves as f64;
+    eprintln!(
+        "explicit-form right-hand side: {:.1} µs per call over {} calls of a DOP853 run \
+         ({:.2} Jacobians, {:.2} evaluations of D, {:.2} iterations per call); implicit-form \
+         residual {:.2} µs; ratio {:.0}",
+        best * 1e6,
+        calls.len(),
+        per(stats.jacobians),
+        per(stats.evaluations),
+        per(stats.iterations),
+        residual * 1e6,
+        best / residual
+    );
+}

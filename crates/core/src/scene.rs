@@ -16,6 +16,33 @@ use crate::param::{ParamSpec, Params};
 pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
 impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
+/// `atan2(y, x)` whose derivatives stay accurate in every quadrant.
+///
+/// num-dual 0.15 differentiates `atan2` through `y/x`; its high-order
+/// derivatives then lose accuracy like `(√(x² + y²)/x)ᵏ` as `x → 0` (the
+/// sleigh's heading through ±π/2: formulation A's fourth-order jets failed
+/// there at `ẋ ≈ 0.002 m/s`). This evaluates `atan(y/x)` where `|x| ≥ |y|`
+/// and `±π/2 − atan(x/y)` elsewhere, plus the constant that puts the value
+/// on `atan2`'s branch `(−π, π]`: the same function, with a ratio of at most
+/// one inside the arctangent.
+pub fn atan2<D: Scalar>(y: D, x: D) -> D {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let (yr, xr) = (y.re(), x.re());
+    if xr.abs() >= yr.abs() {
+        let offset = if xr >= 0.0 {
+            0.0
+        } else if yr.is_sign_negative() {
+            -PI
+        } else {
+            PI
+        };
+        (y / x).atan() + offset
+    } else {
+        let offset = if yr > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 };
+        -(x / y).atan() + offset
+    }
+}
+
 /// A named quantity: coordinate, convenience value or invariant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Named {
@@ -317,5 +344,56 @@ impl<S: Scene> VectorField for Holonomic<'_, S> {
     #[inline]
     fn eval<D: Scalar>(&self, t: D, q: &[D], _qd: &[D], out: &mut [D]) {
         self.0.holonomic(t, q, out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::atan2;
+    use num_dual::{Dual3_64, DualNum};
+
+    /// The value is `f64::atan2`'s in every quadrant and on the axes.
+    #[test]
+    fn atan2_values_match_the_standard_branch() {
+        for i in 0..720 {
+            let th = -std::f64::consts::PI + (i as f64 + 0.5) * std::f64::consts::PI / 360.0;
+            for r in [1e-3, 1.0, 7.0] {
+                let (y, x) = (r * th.sin(), r * th.cos());
+                assert!((atan2(y, x) - y.atan2(x)).abs() < 2e-15, "θ = {th}");
+            }
+        }
+        for (y, x) in [
+            (0.0, 1.0),
+            (1.0, 0.0),
+            (0.0, -1.0),
+            (-1.0, 0.0),
+            (-0.0, -1.0),
+        ] {
+            assert_eq!(atan2(y, x), f64::atan2(y, x), "({y}, {x})");
+        }
+    }
+
+    /// Along `(x, y) = r(t)(cos θ(t), sin θ(t))` the function is `θ(t)`, so
+    /// its derivatives are `θ̇ = ω`, `θ̈ = α`, `θ⃛ = 0` — also with `x ≈ 0`,
+    /// where differentiating through `y/x` loses them.
+    #[test]
+    fn atan2_derivatives_are_accurate_near_the_vertical() {
+        let (w, a) = (0.7, -1.3);
+        for th0 in [
+            0.3,
+            std::f64::consts::FRAC_PI_2 - 1e-7,
+            2.0,
+            -std::f64::consts::FRAC_PI_2 + 3e-8,
+            3.1,
+        ] {
+            let t = Dual3_64::new(0.0, 1.0, 0.0, 0.0);
+            let th = t * t * (0.5 * a) + t * w + th0;
+            let r = t * 0.3 + 1.0;
+            let v = atan2(r * th.sin(), r * th.cos());
+            assert!((v.re - th0).abs() < 1e-15);
+            assert!((v.v1 - w).abs() < 1e-13, "θ0 = {th0}: {}", v.v1);
+            assert!((v.v2 - a).abs() < 1e-12, "θ0 = {th0}: {}", v.v2);
+            assert!(v.v3.abs() < 1e-11, "θ0 = {th0}: {}", v.v3);
+        }
     }
 }

@@ -61,11 +61,12 @@
 //! explicit form ends (with an error naming the cause) at
 //! `|v| ≈ 0.07–0.1 m/s`, a few ms before the default guard `singular_tol = 1e-3`.
 //! Steps that no longer contract even with a fresh Jacobian are accepted
-//! as that round-off when they are below 1e-7 relative. num-dual evaluates
-//! the derivatives of the sleigh map `atan2(ẏ, ẋ)` through `ẏ/ẋ`, which
-//! loses accuracy like `(|v|/ẋ)ᵏ` as the heading passes π/2; with the
-//! order-4 jets this ends the explicit form there (default motion:
-//! t = 0.884, ẋ = 0.002 m/s) unless the map is evaluated by quadrants.
+//! as that round-off when they are below 1e-7 relative. The map's own
+//! derivatives must be accurate to order 4: num-dual differentiates
+//! `atan2(y, x)` through `y/x`, which loses accuracy like `(|v|/ẋ)ᵏ` as the
+//! sleigh's heading passes π/2 and ended the explicit form there (default
+//! motion: t = 0.884, ẋ = 0.002 m/s); the sleigh now evaluates its map with
+//! the quadrant-switching [`nonholo_core::scene::atan2`].
 //!
 //! **Projection** ([`Reduction::project`]). An explicit integrator keeps `D`'s
 //! solvable part exactly but lets `h(z)` drift. After each accepted step the
@@ -362,9 +363,8 @@ impl Reduction {
                     return Err(format!(
                         "no convergence (relative step {size:.3e}, contraction {theta:.2}): \
                          round-off in [E; Ė; Ë] no longer determines q⁗ here — their terms \
-                         cancel more and more towards the singular set, and the derivatives \
-                         of the embedding map can lose accuracy on their own (the sleigh's \
-                         atan2(ẏ, ẋ) near ẋ = 0); the implicit form (radau5) does not use Ë"
+                         cancel more and more towards the singular set (stop earlier with a \
+                         larger singular_tol); the implicit form (radau5) does not use Ë"
                     ));
                 }
                 restarts += 1;

@@ -11,8 +11,7 @@ use std::time::Instant;
 use nonholo_core::integrate::{
     ImplicitSystem, IntegrateError, Method, OdeSystem, Options, SystemError, solve,
 };
-use nonholo_core::scene::MAX_SINGULAR;
-use nonholo_core::{Initial, Model, Params, Run, RunConfig, Scalar, Scene, SceneInfo, simulate};
+use nonholo_core::{Initial, Model, Params, Run, RunConfig, Scene, simulate};
 use nonholo_embedding::{Embedding, OPTIONS};
 use nonholo_scenes::Sleigh;
 use nonholo_vakonomic::Vakonomic;
@@ -127,57 +126,6 @@ fn c_reversal(c: &Run) -> f64 {
     t[i - 1] + (t[i] - t[i - 1]) * u[i - 1] / (u[i - 1] - u[i])
 }
 
-/// The sleigh with its embedding map evaluated by a quadrant-switching
-/// `atan2`. num-dual computes the derivatives of `atan2(y, x)` through
-/// `atan(y/x)` (num-dual 0.15, `impl_derivatives.rs`), whose derivatives
-/// lose accuracy like `(|v|/ẋ)ᵏ` when the heading passes π/2; the order-4
-/// jets of the derivative array amplify that until the explicit form stops
-/// (for the default motion at t ≈ 0.884, ẋ = 0.002 m/s). Same map, same
-/// Lagrangian, same physics: only the evaluation of the map's derivatives
-/// differs. Used to show that the explicit form itself reaches t = 0.9.
-#[derive(Clone)]
-struct QuadrantSleigh(Sleigh);
-
-fn atan2_by_quadrant<D: Scalar>(y: D, x: D) -> D {
-    let (yr, xr) = (y.re(), x.re());
-    if xr.abs() >= yr.abs() {
-        (y / x).atan() + (yr.atan2(xr) - (yr / xr).atan())
-    } else {
-        -(x / y).atan() + (yr.atan2(xr) + (xr / yr).atan())
-    }
-}
-
-impl Scene for QuadrantSleigh {
-    const INFO: &'static SceneInfo = Sleigh::INFO;
-    fn from_params(p: &Params) -> Result<Self, nonholo_core::Error> {
-        Sleigh::from_params(p).map(QuadrantSleigh)
-    }
-    fn params(&self) -> &Params {
-        self.0.params()
-    }
-    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], qd: &[D]) -> D {
-        self.0.lagrangian(t, q, qd)
-    }
-    fn nonholonomic<D: Scalar>(&self, t: D, q: &[D], qd: &[D], out: &mut [D]) {
-        self.0.nonholonomic(t, q, qd, out)
-    }
-    fn embedding<D: Scalar>(&self, _t: D, _q: &[D], qd: &[D], dep: &mut [D]) {
-        dep[0] = atan2_by_quadrant(qd[1], qd[0]);
-    }
-    fn embedding_singularity(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        r: &mut [f64; MAX_SINGULAR],
-    ) -> usize {
-        self.0.embedding_singularity(t, q, qd, r)
-    }
-    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
-        self.0.velocities_from(q, chart, qd)
-    }
-}
-
 /// (a) Along C's motions (both potentials, λ0 ∈ {0, 0.5, −1}, up to 0.1 s
 /// before C's reversal), A's `w(z) = q⁗` — at C's own `z` and at A's
 /// completion of C's `(q, q̇, q̈)` — equals C's Taylor coefficient `q⁗`, and
@@ -236,65 +184,50 @@ fn fourth_derivative_equals_vakonomic_along_its_motion() {
 /// (b) From the same consistent initial data (matched with C at λ0 = 0,
 /// completed by `initial_state`), A's explicit form by DOP853 at 1e-10
 /// (projection on) reproduces A's implicit form by Radau at 1e-10 and C
-/// (DOP853, 1e-12) in position to 1e-7, sampled every 1e-3 s: with the
-/// sleigh as it is up to t = 0.875 (its map's AD limits the explicit form
-/// near heading π/2, t ≈ 0.884, see `QuadrantSleigh`), and with the
-/// quadrant-switching map up to t = 0.9 (C reverses at 0.923).
+/// (DOP853, 1e-12) in position to 1e-7, sampled every 1e-3 s, up to t = 0.9
+/// (C reverses at 0.923). The heading passes π/2 at t ≈ 0.884, where the
+/// map's derivatives need the quadrant-switching arctangent of
+/// `nonholo_core::scene::atan2` (num-dual's `atan2`, differentiated through
+/// `ẏ/ẋ`, stopped the explicit form there).
 #[test]
 fn explicit_form_reproduces_implicit_form_and_vakonomic() {
     let s = sleigh("paper");
     let y0 = c_state(0.2, 2.0, 0.7, 0.0);
     let init = matched(&mut vakonomic(&s), 0.0, &y0);
-    for (quadrant, t_end) in [(false, 0.875), (true, 0.9)] {
-        let c = run_c(&s, &y0, t_end, 1e-3);
-        // Default options: stab = projection (ignored by the implicit form).
-        let model = |_implicit: bool| -> Box<dyn Model> {
-            if quadrant {
-                Box::new(embedding(QuadrantSleigh(s.clone()), &[]))
-            } else {
-                Box::new(embedding(s.clone(), &[]))
-            }
-        };
-        let start = Instant::now();
-        let ode = simulate(
-            model(false),
-            init.clone(),
-            config(Method::Dop853, 1e-10, t_end, 1e-3),
-        )
-        .unwrap();
-        let ode_ms = start.elapsed().as_secs_f64() * 1e3;
-        let start = Instant::now();
-        let dae = simulate(
-            model(true),
-            init.clone(),
-            config(Method::Radau5, 1e-10, t_end, 1e-3),
-        )
-        .unwrap();
-        let dae_ms = start.elapsed().as_secs_f64() * 1e3;
-        assert!(ode.completed(), "{:?}", ode.failure);
-        assert!(dae.completed(), "{:?}", dae.failure);
-        let (vs_dae, vs_c, dae_c) = (
-            position_difference(&ode, &dae),
-            position_difference(&ode, &c),
-            position_difference(&dae, &c),
-        );
-        let st = &ode.solution.stats;
-        eprintln!(
-            "to t = {t_end} ({}): explicit vs implicit {vs_dae:.1e}, explicit vs C {vs_c:.1e}, \
-             implicit vs C {dae_c:.1e}; explicit {} steps ({} rejected, {} rhs) {ode_ms:.0} ms, \
-             implicit {} steps {dae_ms:.0} ms",
-            if quadrant {
-                "quadrant-switching atan2"
-            } else {
-                "sleigh as it is"
-            },
-            st.steps,
-            st.rejected_steps,
-            st.rhs_evals,
-            dae.solution.stats.steps
-        );
-        assert!(vs_dae < 1e-7 && vs_c < 1e-7, "{vs_dae:e} {vs_c:e}");
-    }
+    let t_end = 0.9;
+    let c = run_c(&s, &y0, t_end, 1e-3);
+    // Default options: stab = projection (ignored by the implicit form).
+    let start = Instant::now();
+    let ode = simulate(
+        Box::new(embedding(s.clone(), &[])),
+        init.clone(),
+        config(Method::Dop853, 1e-10, t_end, 1e-3),
+    )
+    .unwrap();
+    let ode_ms = start.elapsed().as_secs_f64() * 1e3;
+    let start = Instant::now();
+    let dae = simulate(
+        Box::new(embedding(s.clone(), &[])),
+        init.clone(),
+        config(Method::Radau5, 1e-10, t_end, 1e-3),
+    )
+    .unwrap();
+    let dae_ms = start.elapsed().as_secs_f64() * 1e3;
+    assert!(ode.completed(), "{:?}", ode.failure);
+    assert!(dae.completed(), "{:?}", dae.failure);
+    let (vs_dae, vs_c, dae_c) = (
+        position_difference(&ode, &dae),
+        position_difference(&ode, &c),
+        position_difference(&dae, &c),
+    );
+    let st = &ode.solution.stats;
+    eprintln!(
+        "to t = {t_end}: explicit vs implicit {vs_dae:.1e}, explicit vs C {vs_c:.1e}, \
+         implicit vs C {dae_c:.1e}; explicit {} steps ({} rejected, {} rhs) {ode_ms:.0} ms, \
+         implicit {} steps {dae_ms:.0} ms",
+        st.steps, st.rejected_steps, st.rhs_evals, dae.solution.stats.steps
+    );
+    assert!(vs_dae < 1e-7 && vs_c < 1e-7, "{vs_dae:e} {vs_c:e}");
 }
 
 /// Final state at t = 0.5 of A's explicit form from the default matched

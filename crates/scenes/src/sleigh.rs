@@ -7,6 +7,7 @@ use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{
     ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
+    atan2,
 };
 
 /// Which potential energy the Lagrangian carries.
@@ -172,9 +173,11 @@ impl Scene for Sleigh {
         out[0] = qd[1] * c - qd[0] * s;
     }
 
-    /// Eq. (21) with the quadrant-correct arctangent: `φ = atan2(ẏ, ẋ)`.
+    /// Eq. (21) with the quadrant-correct arctangent: `φ = atan2(ẏ, ẋ)`
+    /// (evaluated so that its derivatives stay accurate at every heading,
+    /// see [`nonholo_core::scene::atan2`]).
     fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], qd_ind: &[D], q_dep: &mut [D]) {
-        q_dep[0] = qd_ind[1].atan2(qd_ind[0]);
+        q_dep[0] = atan2(qd_ind[1], qd_ind[0]);
     }
 
     /// The velocity `(ẋ, ẏ)`: atan2 has no value at zero speed.

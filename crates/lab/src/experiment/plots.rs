@@ -37,7 +37,7 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 .join(" × ")
         ),
         s if s.starts_with("sweep-") => format!(
-            "Divergence from {} at the end of the common span, over the sweep ({}); missing points failed before the first common sample.",
+            "Divergence from {} at the end of the common span, over the sweep ({}); failed runs are left out (reasons in runs.csv); on logarithmic axes the legend gives the fitted slope.",
             exp.reference,
             exp.axes
                 .iter()
@@ -294,7 +294,18 @@ fn log_axis(x: &[f64], numeric: bool) -> bool {
     numeric && lo > 0.0 && hi / lo > 100.0
 }
 
+/// The divergence of `label` from `reference` at the end of their common
+/// span; none if either run failed (its span ends where it failed, so the
+/// value would not be comparable with the other points').
 fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> {
+    let failed = |l: &str| {
+        r.formulations
+            .iter()
+            .any(|f| f.label == l && f.status == "failed")
+    };
+    if failed(reference) || failed(label) {
+        return None;
+    }
     r.pairs
         .iter()
         .find(|p| (p.a == reference && p.b == label) || (p.b == reference && p.a == label))

@@ -30,3 +30,12 @@ scenes:
 # Run one motion: just simulate --scene sleigh-incline ...
 simulate *ARGS:
     cargo run --release --bin nonholo -- simulate {{ARGS}}
+
+# Peers side by side (diffsol, ode_solvers): results/peers/peers.csv, docs/peers.md has the numbers.
+peers *ARGS:
+    cargo run --release -p nonholo-bench --features peers --bin peers -- {{ARGS}}
+
+# Benchmark one right-hand side per formulation against the hand-written sleigh equations.
+bench:
+    cargo bench -p nonholo-bench --bench rhs
+    cargo run --release -p nonholo-bench --bin rhs-report

@@ -1,0 +1,218 @@
+//! Prints the cost of one right-hand-side evaluation of every formulation
+//! (automatic differentiation) against the hand-written sleigh equations,
+//! as a markdown table with the ratio AD / hand-written.
+//!
+//! `cargo run --release -p nonholo-bench --bin rhs-report [-- --batches N --batch-ms MS]`
+//!
+//! Criterion (`cargo bench -p nonholo-bench --bench rhs`) times the same
+//! evaluations with confidence intervals; this binary gives the table.
+
+use std::process::ExitCode;
+
+use nonholo_bench::setup::{RhsCase, embedding_explicit, reduced_c_case, residual_case, rhs_pairs};
+use nonholo_bench::timing::{keep, paired_ns};
+
+struct Args {
+    batches: usize,
+    batch_ms: f64,
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut args = Args {
+        batches: 31,
+        batch_ms: 20.0,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match a.as_str() {
+            "--batches" => {
+                let v = value("--batches")?;
+                args.batches = v
+                    .parse()
+                    .map_err(|_| format!("--batches: cannot read `{v}` as a count"))?;
+            }
+            "--batch-ms" => {
+                let v = value("--batch-ms")?;
+                args.batch_ms = v
+                    .parse()
+                    .map_err(|_| format!("--batch-ms: cannot read `{v}` as milliseconds"))?;
+            }
+            "-h" | "--help" => {
+                println!("usage: rhs-report [--batches N] [--batch-ms MS]");
+                std::process::exit(0);
+            }
+            other => return Err(format!("unknown argument `{other}` (try --help)")),
+        }
+    }
+    Ok(args)
+}
+
+/// Checks that a case evaluates, with its name in the message.
+fn check(case: &mut RhsCase, dy: &mut [f64]) -> Result<(), String> {
+    case.eval(dy)
+        .map_err(|e| format!("{}: {}", case.name, e.message))
+}
+
+fn run() -> Result<(), String> {
+    let args = parse_args()?;
+    let mut pairs = rhs_pairs().map_err(|e| e.to_string())?;
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "One evaluation at the generic sleigh state (a = 0.4, α = 0.3, potential = com); \
+         AD and baseline timed in {} alternating batches of ~{} ms each, medians, and the \
+         median of the per-batch ratios; load average before: {}.\n",
+        args.batches,
+        args.batch_ms,
+        load.split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!(
+        "| right-hand side by AD | dim | AD (ns) | hand-written baseline | dim | hand (ns) | ratio AD/hand |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let (batches, ms) = (args.batches, args.batch_ms);
+    let mut jac_lines = Vec::new();
+    for (ad, hand) in pairs.iter_mut() {
+        let (mut dy_ad, mut dy_hand) = (vec![0.0; ad.dim()], vec![0.0; hand.dim()]);
+        check(ad, &mut dy_ad)?;
+        check(hand, &mut dy_hand)?;
+        let (t_ad, t_hand, ratio) = paired_ns(
+            || {
+                let _ = keep(ad.eval(keep(&mut dy_ad)));
+            },
+            || {
+                let _ = keep(hand.eval(keep(&mut dy_hand)));
+            },
+            batches,
+            ms,
+        );
+        println!(
+            "| {} | {} | {t_ad:.0} | {} | {} | {t_hand:.1} | {ratio:.1} |",
+            ad.what,
+            ad.dim(),
+            hand.what,
+            hand.dim(),
+        );
+        if ad.name != "B" && ad.name != "visc" {
+            continue;
+        }
+        let dim = ad.dim();
+        let mut jac = vec![0.0; dim * dim];
+        if !ad
+            .jacobian(&mut jac)
+            .map_err(|e| format!("{}: {}", ad.name, e.message))?
+        {
+            return Err(format!("{}: no Jacobian", ad.name));
+        }
+        // The Jacobian against one evaluation of the same right-hand side
+        // (one system, two closures: a RefCell, whose cost is negligible
+        // against microseconds).
+        let (t_jac, per_rhs) = {
+            let shared = std::cell::RefCell::new(&mut *ad);
+            let (t_jac, _, per_rhs) = paired_ns(
+                || {
+                    let _ = keep(shared.borrow_mut().jacobian(keep(&mut jac)));
+                },
+                || {
+                    let _ = keep(shared.borrow_mut().eval(keep(&mut dy_ad)));
+                },
+                batches,
+                ms,
+            );
+            (t_jac, per_rhs)
+        };
+        // And against the analytic Jacobian of the reduced equations (B).
+        let versus_hand = if ad.name == "B" {
+            let hd = hand.dim();
+            let mut hjac = vec![0.0; hd * hd];
+            let (_, t_hj, r) = paired_ns(
+                || {
+                    let _ = keep(ad.jacobian(keep(&mut jac)));
+                },
+                || {
+                    let _ = keep(hand.jacobian(keep(&mut hjac)));
+                },
+                batches,
+                ms,
+            );
+            format!("analytic, {} | {t_hj:.1} | {r:.1}", hand.what)
+        } else {
+            "— | — | —".to_string()
+        };
+        jac_lines.push(format!(
+            "| {} | {dim} | {t_jac:.0} | {per_rhs:.1} | {versus_hand} |",
+            ad.what
+        ));
+    }
+    let mut reduced_c = reduced_c_case().map_err(|e| e.to_string())?;
+    let mut dy_c = vec![0.0; reduced_c.dim()];
+    check(&mut reduced_c, &mut dy_c)?;
+    let mut a = residual_case().map_err(|e| e.to_string())?;
+    let mut res = vec![0.0; a.dim()];
+    a.eval(&mut res)
+        .map_err(|e| format!("A residual: {}", e.message))?;
+    let (t_a, t_c, ratio) = paired_ns(
+        || {
+            let _ = keep(a.eval(keep(&mut res)));
+        },
+        || {
+            let _ = keep(reduced_c.eval(keep(&mut dy_c)));
+        },
+        batches,
+        ms,
+    );
+    println!(
+        "| A (embedding), residual F(t, y, y′) of (19) | {} | {t_a:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
+        a.dim(),
+        reduced_c.what,
+        reduced_c.dim(),
+    );
+    match embedding_explicit().map_err(|e| e.to_string())? {
+        Some(mut ae) => {
+            let mut dy = vec![0.0; ae.dim()];
+            check(&mut ae, &mut dy)?;
+            let (t, t_c, ratio) = paired_ns(
+                || {
+                    let _ = keep(ae.eval(keep(&mut dy)));
+                },
+                || {
+                    let _ = keep(reduced_c.eval(keep(&mut dy_c)));
+                },
+                batches,
+                ms,
+            );
+            println!(
+                "| {} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
+                ae.what,
+                ae.dim(),
+                reduced_c.what,
+                reduced_c.dim(),
+            );
+        }
+        None => println!(
+            "| A's explicit form | — | not provided by this version of the embedding crate | | | | |"
+        ),
+    }
+    println!();
+    println!(
+        "| Jacobian ∂f/∂y by AD | dim | AD (ns) | AD Jacobian / AD rhs | hand-written baseline | hand (ns) | ratio AD/hand |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for line in jac_lines {
+        println!("{line}");
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("rhs-report: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

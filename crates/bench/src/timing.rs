@@ -1,0 +1,85 @@
+//! A plain median timer for the report binary (criterion does the
+//! benchmark proper; this gives one number per evaluation for tables).
+
+use std::hint::black_box;
+use std::time::Instant;
+
+/// Median time of one call of `f`, in nanoseconds: the number of calls per
+/// batch is chosen so that a batch takes about `batch_ms` milliseconds, and
+/// the median over `batches` batches is returned (the calibration warms up).
+pub fn median_ns<F: FnMut()>(mut f: F, batches: usize, batch_ms: f64) -> f64 {
+    let calls = calibrate(&mut f, batch_ms);
+    let mut per_call: Vec<f64> = (0..batches.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            for _ in 0..calls {
+                f();
+            }
+            start.elapsed().as_secs_f64() * 1e9 / calls as f64
+        })
+        .collect();
+    median(&mut per_call)
+}
+
+/// Median of `v` (sorted in place); NaN if empty.
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Keeps `x` observable to the optimiser.
+pub fn keep<T>(x: T) -> T {
+    black_box(x)
+}
+
+/// Calls per batch so that one batch of `f` takes about `batch_ms`.
+fn calibrate<F: FnMut()>(f: &mut F, batch_ms: f64) -> usize {
+    let mut calls = 1usize;
+    loop {
+        let start = Instant::now();
+        for _ in 0..calls {
+            f();
+        }
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        if ms >= batch_ms / 4.0 || calls > 1 << 30 {
+            return ((calls as f64) * batch_ms / ms.max(1e-6)).ceil().max(1.0) as usize;
+        }
+        calls *= 4;
+    }
+}
+
+/// Times `a` and `b` in alternating batches (so both see the same load on
+/// a shared machine): `(median ns per call of a, of b, median of the
+/// per-pair ratios a/b)`.
+pub fn paired_ns<A: FnMut(), B: FnMut()>(
+    mut a: A,
+    mut b: B,
+    batches: usize,
+    batch_ms: f64,
+) -> (f64, f64, f64) {
+    let (na, nb) = (calibrate(&mut a, batch_ms), calibrate(&mut b, batch_ms));
+    let time = |f: &mut dyn FnMut(), n: usize| {
+        let start = Instant::now();
+        for _ in 0..n {
+            f();
+        }
+        start.elapsed().as_secs_f64() * 1e9 / n as f64
+    };
+    let (mut ta, mut tb, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..batches.max(1) {
+        let x = time(&mut a, na);
+        let y = time(&mut b, nb);
+        ta.push(x);
+        tb.push(y);
+        ratio.push(x / y);
+    }
+    (median(&mut ta), median(&mut tb), median(&mut ratio))
+}

@@ -244,7 +244,11 @@ fn pivot(rows: &[Row], problem: &str, cols: &[Col], cell: &dyn Fn(&Row) -> Strin
 
 const VISC_COLS: &[Col] = &[
     col("ours Radau IIA", "nonholo", "Radau IIA (radau5)"),
-    col("ours, full Newton", "nonholo", "Radau IIA (radau5), full Newton"),
+    col(
+        "ours, full Newton",
+        "nonholo",
+        "Radau IIA (radau5), full Newton",
+    ),
     col("diffsol BDF", "diffsol", "BDF (NDF, order 1-5)"),
     col("BDF, no cap", "diffsol", "BDF, no failure cap"),
     col("ESDIRK34", "diffsol", "ESDIRK34"),

@@ -769,7 +769,31 @@ fn draw_line_plot<DB: DrawingBackend>(
             areas = label_areas(&area, &xa, &ya)?;
         }
     }
-    let mut chart = build_chart(&area, &xa, &ya, areas, right)?;
+    // A legend that would cover curves wherever it sits inside the plot,
+    // for many series, goes into a column to the right of it instead.
+    let mut legend_at = None;
+    let mut side = None;
+    if !data.series.is_empty() {
+        let chart = build_chart(&area, &xa, &ya, areas, right)?;
+        let (covered, at, (w, _)) = legend_position(&chart, &xa, &ya, data)?;
+        legend_at = Some(at);
+        if covered > 0 && data.series.len() >= OUTSIDE_LEGEND_SERIES {
+            legend_at = None;
+            let (aw, _) = area.dim_in_pixel();
+            side = Some(area.split_horizontally(aw as i32 - w - 16));
+        }
+    }
+    let plot_area = side.as_ref().map(|(l, _)| l).unwrap_or(&area);
+    let mut chart = build_chart(
+        plot_area,
+        &xa,
+        &ya,
+        areas,
+        if side.is_some() { 16 } else { right },
+    )?;
+    if let Some((_, legend_area)) = &side {
+        draw_side_legend(legend_area, data)?;
+    }
     draw_axes(&mut chart, &xa, &ya, &p.x_label, &p.y_label, true)?;
 
     for (k, s) in data.series.iter().enumerate() {
@@ -821,8 +845,7 @@ fn draw_line_plot<DB: DrawingBackend>(
             });
         }
     }
-    if !data.series.is_empty() {
-        let (lx, ly) = legend_position(&chart, &xa, &ya, data)?;
+    if let Some((lx, ly)) = legend_at {
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::Coordinate(lx, ly))
@@ -840,15 +863,60 @@ fn draw_line_plot<DB: DrawingBackend>(
     root.present().map_err(draw_err)
 }
 
+/// The legend as a column of entries (sample line, dot, text) at the top of
+/// `area`, for plots with too many series to keep it inside.
+fn draw_side_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    data: &LineData,
+) -> Result<(), String> {
+    let style = text(LEGEND_PX);
+    let len = LEGEND_SAMPLE_PX as i32 - 14;
+    let row = (LEGEND_PX * 1.25) as i32;
+    let top = 12 + row / 2;
+    for (k, s) in data.series.iter().enumerate() {
+        let y = top + k as i32 * row;
+        let colour = series_colour(k);
+        let line = colour.stroke_width(LINE_PX);
+        if series_dashed(k) {
+            area.draw(&DashedPathElement::new(
+                vec![(4, y), (4 + len, y)],
+                9,
+                5,
+                line,
+            ))
+            .map_err(draw_err)?;
+        } else {
+            area.draw(&PathElement::new(vec![(4, y), (4 + len, y)], line))
+                .map_err(draw_err)?;
+        }
+        if s.markers {
+            area.draw(&Circle::new((4 + len / 2, y), MARKER_PX, colour.filled()))
+                .map_err(draw_err)?;
+        }
+        area.draw(&Text::new(
+            s.label.clone(),
+            (len + 14, y),
+            style.pos(Pos::new(HPos::Left, VPos::Center)),
+        ))
+        .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Series count from which a legend that covers curves everywhere inside the
+/// plot is drawn to the right of it.
+const OUTSIDE_LEGEND_SERIES: usize = 6;
+
 /// Top-left corner (pixels within the plotting area) of the legend box: the
 /// first of the corners (upper right, upper left, lower right, lower left)
-/// and edge middles that covers the fewest points sampled along the curves.
+/// and edge middles that covers the fewest points sampled along the curves;
+/// with the number of points it covers there and the box's size.
 fn legend_position<DB: DrawingBackend>(
     chart: &Chart<'_, DB>,
     xa: &Axis,
     ya: &Axis,
     data: &LineData,
-) -> Result<(i32, i32), String> {
+) -> Result<(usize, (i32, i32), (i32, i32)), String> {
     let area = chart.plotting_area().strip_coord_spec();
     let (pw, ph) = area.dim_in_pixel();
     let (pw, ph) = (pw as f64, ph as f64);
@@ -910,9 +978,8 @@ fn legend_position<DB: DrawingBackend>(
             (covered, (x, y))
         })
         .min_by_key(|c| c.0)
-        .map(|c| c.1)
-        .unwrap_or((left, top));
-    Ok(best)
+        .unwrap_or((0, (left, top)));
+    Ok((best.0, best.1, (w, h)))
 }
 
 // ---------------------------------------------------------------------------

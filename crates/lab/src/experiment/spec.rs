@@ -241,17 +241,17 @@ pub struct RefSpec {
 impl RefSpec {
     /// The default reference of formulation `name`: DOPRI5 at 1e-13 checked
     /// by DOP853 at 3e-14 — measured on the sleigh's closed form over 20 s,
-    /// 7e-13 and 3e-12 at most on the grid, where Radau IIA's dense output
-    /// (degree 3) gives 2e-10; A (implicit only, tolerance floor ~1e-10):
-    /// Radau IIA at 1e-10 checked by Radau IIA at 1e-9.
+    /// 7e-13 and 3e-12 at most on the grid. A: its explicit form by DOP853
+    /// at 1e-13, checked by DOPRI5 at 1e-13 (its implicit form by Radau IIA
+    /// cannot go below ~1e-10).
     pub fn default_for(name: &str) -> RefSpec {
         if name == nonholo_embedding::INFO.name {
             RefSpec {
                 closed_form: true,
-                integrator: "radau5".into(),
-                rtol: 1e-10,
-                check_integrator: "radau5".into(),
-                check_rtol: 1e-9,
+                integrator: "dop853".into(),
+                rtol: 1e-13,
+                check_integrator: "dopri5".into(),
+                check_rtol: 1e-13,
                 max_wall_time: Some(600.0),
             }
         } else {

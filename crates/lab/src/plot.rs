@@ -1329,11 +1329,28 @@ fn write_outputs(
     }
     let (png_path, svg_path) = (with_suffix(stem, ".png"), with_suffix(stem, ".svg"));
 
+    // Rendered into memory and encoded here: the best deflate level with
+    // adaptive filters makes the committed figures 2–3 times smaller than
+    // plotters' own encoder.
+    let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+    png(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area())?;
+    let mut bytes = Vec::new();
+    {
+        let mut enc = ::png::Encoder::new(&mut bytes, SIZE.0, SIZE.1);
+        enc.set_color(::png::ColorType::Rgb);
+        enc.set_depth(::png::BitDepth::Eight);
+        enc.set_compression(::png::Compression::Best);
+        enc.set_adaptive_filter(::png::AdaptiveFilterType::Adaptive);
+        let mut w = enc
+            .write_header()
+            .map_err(|e| format!("cannot encode {}: {e}", png_path.display()))?;
+        w.write_image_data(&pixels)
+            .map_err(|e| format!("cannot encode {}: {e}", png_path.display()))?;
+    }
     let tmp = temp_path(&png_path, ".png");
-    let drawn = png(BitMapBackend::new(&tmp, SIZE).into_drawing_area());
-    if let Err(e) = drawn {
+    if let Err(e) = fs::write(&tmp, &bytes) {
         let _ = fs::remove_file(&tmp);
-        return Err(e);
+        return Err(format!("cannot write {}: {e}", png_path.display()));
     }
     commit(&tmp, &png_path)?;
 

@@ -1,6 +1,7 @@
 //! One right-hand-side evaluation per formulation (automatic
 //! differentiation) against the hand-written sleigh equations, at the
-//! generic state of `nonholo_bench::setup`; one Jacobian of B and visc; one
+//! generic state of `nonholo_bench::setup`; one Jacobian of B and of visc
+//! (both forms); one
 //! residual of formulation A (and its explicit right-hand side where the
 //! embedding crate has one).
 //!
@@ -58,7 +59,7 @@ fn rhs(c: &mut Criterion) {
         bench_rhs(c, "rhs", hand);
     }
     for (ad, hand) in pairs.iter_mut() {
-        if ad.name == "B" || ad.name == "visc" {
+        if ad.name == "B" || ad.name == "visc" || ad.name == "visc adapted" {
             bench_jacobian(c, ad);
         }
         if hand.name == "B reduced" {

@@ -40,6 +40,34 @@ pub enum Formulation {
     /// `visc(k)` hand-written in the adapted state `(x, y, φ, u, w, ω)`
     /// ([`BodyVisc`]); samples are mapped back to `(q, q̇)`.
     ViscBody { k: f64 },
+    /// `visc(k)` with `form = adapted`: the generic AD form in `(q, c, w)`
+    /// (right-hand side and Jacobian by AD); samples mapped back to `(q, q̇)`
+    /// by the model.
+    ViscAdapted { k: f64 },
+}
+
+/// The map of a problem's state to `(q, q̇)`.
+pub enum ToCartesian {
+    Identity,
+    Body,
+    Adapted(Box<Visc<Sleigh>>),
+}
+
+impl ToCartesian {
+    /// `y` (the problem's state at `t`) as `(q, q̇)`, in place.
+    pub fn apply(&mut self, t: f64, y: &mut [f64]) -> Result<(), String> {
+        match self {
+            ToCartesian::Identity => Ok(()),
+            ToCartesian::Body => {
+                BodyVisc::to_cartesian(y);
+                Ok(())
+            }
+            ToCartesian::Adapted(v) => {
+                let state = y.to_vec();
+                v.to_cartesian(t, &state, y).map_err(|e| e.message)
+            }
+        }
+    }
 }
 
 /// One initial value problem on the sleigh.
@@ -71,10 +99,8 @@ impl Problem {
                 let y0 = b.initial_state(&init).map_err(|e| e.to_string())?;
                 Ok((Box::new(b), y0))
             }
-            Formulation::Visc { k } => {
-                let opts =
-                    options(visc::OPTIONS, &[("k", &k.to_string())]).map_err(|e| e.to_string())?;
-                let mut v = Visc::new(self.scene.clone(), opts).map_err(|e| e.to_string())?;
+            Formulation::Visc { k } | Formulation::ViscAdapted { k } => {
+                let mut v = self.visc(k)?;
                 let y0 = v.initial_state(&init).map_err(|e| e.to_string())?;
                 Ok((Box::new(v), y0))
             }
@@ -90,22 +116,32 @@ impl Problem {
         }
     }
 
-    /// Whether the state is the adapted one (mapped by [`Problem::to_cartesian`]).
-    pub fn is_body(&self) -> bool {
-        matches!(self.formulation, Formulation::ViscBody { .. })
+    /// `visc(k)` in the problem's form (`cartesian` or `adapted`).
+    fn visc(&self, k: f64) -> Result<Visc<Sleigh>, String> {
+        let form = match self.formulation {
+            Formulation::ViscAdapted { .. } => "adapted",
+            _ => "cartesian",
+        };
+        let opts = options(visc::OPTIONS, &[("k", &k.to_string()), ("form", form)])
+            .map_err(|e| e.to_string())?;
+        Visc::new(self.scene.clone(), opts).map_err(|e| e.to_string())
     }
 
-    /// A state of this problem as `(q, q̇)`, in place.
-    pub fn to_cartesian(&self, y: &mut [f64]) {
-        if self.is_body() {
-            BodyVisc::to_cartesian(y);
-        }
+    /// The map of this problem's states to `(q, q̇)`.
+    pub fn to_cartesian(&self) -> Result<ToCartesian, String> {
+        Ok(match self.formulation {
+            Formulation::ViscBody { .. } => ToCartesian::Body,
+            Formulation::ViscAdapted { k } => ToCartesian::Adapted(Box::new(self.visc(k)?)),
+            _ => ToCartesian::Identity,
+        })
     }
 
     /// The parameter that labels the problem in tables: `k` or `a`.
     pub fn label(&self) -> String {
         match self.formulation {
-            Formulation::Visc { k } | Formulation::ViscBody { k } => format!("k={k:.0e}"),
+            Formulation::Visc { k }
+            | Formulation::ViscBody { k }
+            | Formulation::ViscAdapted { k } => format!("k={k:.0e}"),
             Formulation::B => format!("a={}", self.scene.a),
         }
     }
@@ -161,14 +197,14 @@ impl Outcome {
     }
 
     /// Samples and final state as `(q, q̇)`.
-    fn into_cartesian(mut self, problem: &Problem) -> Self {
-        if problem.is_body() {
-            for row in self.y.chunks_mut(self.dim) {
-                problem.to_cartesian(row);
-            }
-            problem.to_cartesian(&mut self.y_end);
+    fn into_cartesian(mut self, problem: &Problem) -> Result<Self, String> {
+        let mut map = problem.to_cartesian()?;
+        for (row, &t) in self.y.chunks_mut(self.dim).zip(&self.t) {
+            map.apply(t, row)?;
         }
-        self
+        map.apply(problem.t_end, &mut self.y_end)?;
+        // The continuous extension stays in the problem's own state.
+        Ok(self)
     }
 }
 
@@ -267,7 +303,13 @@ impl Solver {
                 run_diffsol(problem, method, max_fails, tol, grid)
             }
         };
-        attempt.map(|o| o.into_cartesian(problem))
+        let outcome = attempt?;
+        let (work, wall_s) = (outcome.work.clone(), outcome.wall_s);
+        outcome.into_cartesian(problem).map_err(|message| Failed {
+            message: format!("mapping the samples to (q, q̇) failed: {message}"),
+            work,
+            wall_s,
+        })
     }
 }
 
@@ -672,9 +714,12 @@ fn run_ode_solvers(problem: &Problem, tol: f64, grid: &[f64]) -> Attempt {
 
 /// A reference solution: values at any time in `[0, t_end]`.
 pub enum Reference {
-    /// Our continuous extension of a tight run; `body`: of the adapted
-    /// state, mapped to `(q, q̇)`.
-    Dense { dense: Dense, body: bool },
+    /// Our continuous extension of a tight run, of the problem's own state,
+    /// mapped to `(q, q̇)` by `map`.
+    Dense {
+        dense: Dense,
+        map: RefCell<ToCartesian>,
+    },
     /// The scene's closed form.
     Closed(Problem),
 }
@@ -682,12 +727,9 @@ pub enum Reference {
 impl Reference {
     pub fn eval(&self, t: f64, out: &mut [f64]) -> Result<(), String> {
         match self {
-            Reference::Dense { dense, body } => {
+            Reference::Dense { dense, map } => {
                 if dense.eval(t, out) {
-                    if *body {
-                        BodyVisc::to_cartesian(out);
-                    }
-                    Ok(())
+                    map.borrow_mut().apply(t, out)
                 } else {
                     Err(format!("t = {t} outside the reference's span"))
                 }

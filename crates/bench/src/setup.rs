@@ -7,7 +7,8 @@
 //! speed `u = 2`, turning rate `ω = 0.7`. B and C start on the constraint
 //! (C with `λ = 0.5`); the realisations get a small sideways slip
 //! `w = g = 0.01` so that their friction / added-mass terms are non-zero
-//! (the compliance form with `λ = N w`, its invariant value).
+//! (the compliance form with `λ = N w`, its invariant value; `visc`'s
+//! adapted form at the same motion, in its own state).
 
 use nonholo_chetaev::Chetaev;
 use nonholo_core::integrate::{ImplicitSystem, OdeSystem, SystemError};
@@ -17,7 +18,7 @@ use nonholo_realise::{Mass, Visc, mass, visc};
 use nonholo_scenes::Sleigh;
 use nonholo_vakonomic::Vakonomic;
 
-use crate::hand::{BodyFrame, Constants, Realisation, ReducedB, ReducedC};
+use crate::hand::{BodyFrame, BodyVisc, Constants, Realisation, ReducedB, ReducedC};
 
 fn pairs(items: &[(&str, &str)]) -> Vec<(String, String)> {
     items
@@ -84,6 +85,14 @@ pub const N: f64 = 1e4;
 pub fn cartesian(q: [f64; 3], u: f64, w: f64, omega: f64) -> [f64; 6] {
     let (s, c) = q[2].sin_cos();
     [q[0], q[1], q[2], u * c - w * s, u * s + w * c, omega]
+}
+
+/// The state of `visc` with `form = adapted` on the sleigh, `(x, y, φ, u,
+/// c_ω, w)`, for forward speed `u`, slip `w` and turning rate `ω`: its frame
+/// column for `w` is `N = M⁻¹Gᵀ/(G M⁻¹ Gᵀ) = (−sin φ, cos φ, −a/J)`, so
+/// `φ̇ = c_ω − a w/J` (checked against the AD form in `tests/hand.rs`).
+pub fn adapted_state(c: &Constants, q: [f64; 3], u: f64, w: f64, omega: f64) -> [f64; 6] {
+    [q[0], q[1], q[2], u, omega + c.a * w / c.j, w]
 }
 
 /// An explicit right-hand side and the state it is evaluated at.
@@ -153,7 +162,14 @@ pub fn rhs_pairs() -> Result<Vec<(RhsCase, RhsCase)>, Error> {
 
     let b = Chetaev::new(s.clone(), Params::defaults(nonholo_chetaev::OPTIONS))?;
     let cc = Vakonomic::new(s.clone(), Params::defaults(nonholo_vakonomic::OPTIONS))?;
-    let v = Visc::new(s.clone(), options(visc::OPTIONS, &[("k", &k)])?)?;
+    let v = Visc::new(
+        s.clone(),
+        options(visc::OPTIONS, &[("k", &k), ("form", "cartesian")])?,
+    )?;
+    let va = Visc::new(
+        s.clone(),
+        options(visc::OPTIONS, &[("k", &k), ("form", "adapted")])?,
+    )?;
     let mc = Mass::new(s.clone(), options(mass::OPTIONS, &[("N", &n)])?)?;
     let md = Mass::new(s, options(mass::OPTIONS, &[("N", &n), ("form", "direct")])?)?;
 
@@ -193,6 +209,20 @@ pub fn rhs_pairs() -> Result<Vec<(RhsCase, RhsCase)>, Error> {
                 "body-frame visc, same state",
                 body(Realisation::Visc, K),
                 off.to_vec(),
+            ),
+        ),
+        (
+            RhsCase::new(
+                "visc adapted",
+                "visc (k = 1e4), adapted form (q, u, c_ω, w)",
+                Box::new(va),
+                adapted_state(&c, Q, U, SLIP, OMEGA).to_vec(),
+            ),
+            RhsCase::new(
+                "visc body-frame",
+                "body-frame visc in (x, y, φ, u, w, ω), same motion",
+                Box::new(BodyVisc { c, k: K }),
+                vec![Q[0], Q[1], Q[2], U, SLIP, OMEGA],
             ),
         ),
         (

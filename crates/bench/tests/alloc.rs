@@ -88,6 +88,8 @@ fn counting_allocator_counts() {
 
 #[test]
 fn rhs_of_b_c_visc_and_mass_allocate_nothing() {
+    // Every pair of `rhs_pairs`, `visc`'s adapted form and its body-frame
+    // baseline included.
     for (mut ad, mut hand) in rhs_pairs().unwrap() {
         assert_rhs_allocates_nothing(&mut ad);
         assert_rhs_allocates_nothing(&mut hand);
@@ -137,7 +139,8 @@ fn explicit_rhs_of_a_allocates_nothing() {
     }
 }
 
-/// Every AD Jacobian (B again, C, visc, both forms of mass).
+/// Every AD Jacobian (B again, C, visc in both forms — the adapted one by
+/// nested dual numbers —, both forms of mass).
 #[test]
 fn every_ad_jacobian_allocates_nothing() {
     for (mut ad, _) in rhs_pairs().unwrap() {

@@ -151,8 +151,11 @@ fn body_frame_is_the_realisations() {
             let scale = 1.0 + gain * w.abs() * (1.0 + u.abs() + om.abs()) / c.m;
             let g = gain.to_string();
 
-            let mut v =
-                Visc::new(s.clone(), options(visc::OPTIONS, &[("k", &g)]).unwrap()).unwrap();
+            let mut v = Visc::new(
+                s.clone(),
+                options(visc::OPTIONS, &[("k", &g), ("form", "cartesian")]).unwrap(),
+            )
+            .unwrap();
             let (mut ad, mut hand) = ([0.0; 6], [0.0; 6]);
             v.rhs(0.0, &y, &mut ad).unwrap();
             let mut bv = BodyFrame {
@@ -249,8 +252,15 @@ fn body_visc_is_visc_in_adapted_velocities() {
             for i in 0..6 {
                 assert!((back[i] - y[i]).abs() < 1e-12);
             }
-            let mut v =
-                Visc::new(s, options(visc::OPTIONS, &[("k", &k.to_string())]).unwrap()).unwrap();
+            let mut v = Visc::new(
+                s,
+                options(
+                    visc::OPTIONS,
+                    &[("k", &k.to_string()), ("form", "cartesian")],
+                )
+                .unwrap(),
+            )
+            .unwrap();
             let mut ad = [0.0; 6];
             v.rhs(0.0, &y, &mut ad).unwrap();
             let mut db = [0.0; 6];
@@ -272,6 +282,51 @@ fn body_visc_is_visc_in_adapted_velocities() {
                     &format!("body visc {potential} k={k:e} [{i}]"),
                 );
                 close(db[i], y[3 + i], 1.0, "kinematics");
+            }
+        }
+    }
+}
+
+/// The AD adapted form (`visc`, `form = adapted`, state `(q, u, c_ω, w)`)
+/// is the body-frame `BodyVisc` (state `(q, u, w, ω)`) in other
+/// quasi-velocities: its frame column for `w` is `N = (−sin φ, cos φ, −a/J)`,
+/// so `c_ω = ω + a w/J` and `ċ_ω = ω̇ + a ẇ/J`.
+#[test]
+fn body_visc_is_the_adapted_form() {
+    use nonholo_bench::hand::BodyVisc;
+    use nonholo_bench::setup::adapted_state;
+    let mut r = Lcg(5);
+    for potential in ["paper", "com"] {
+        for _ in 0..CASES {
+            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
+            let c = Constants::of(&s);
+            let (phi, u, w, om) = (
+                r.uniform(-3.0, 3.0),
+                r.uniform(-3.0, 3.0),
+                r.uniform(-0.5, 0.5),
+                r.uniform(-2.0, 2.0),
+            );
+            let k = 10f64.powf(r.uniform(0.0, 8.0));
+            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
+            let ya = adapted_state(&c, q, u, w, om);
+            let yb = [q[0], q[1], q[2], u, w, om];
+            let mut v = Visc::new(
+                s,
+                options(visc::OPTIONS, &[("k", &k.to_string()), ("form", "adapted")]).unwrap(),
+            )
+            .unwrap();
+            let (mut da, mut db) = ([0.0; 6], [0.0; 6]);
+            v.rhs(0.0, &ya, &mut da).unwrap();
+            BodyVisc { c, k }.rhs(0.0, &yb, &mut db).unwrap();
+            let expect = [db[0], db[1], db[2], db[3], db[5] + c.a * db[4] / c.j, db[4]];
+            let scale = 1.0 + k * w.abs() / c.m;
+            for i in 0..6 {
+                close(
+                    da[i],
+                    expect[i],
+                    scale,
+                    &format!("adapted visc {potential} k={k:e} [{i}]"),
+                );
             }
         }
     }

@@ -29,7 +29,7 @@ fn reference(p: &Problem, method: Method, g: &[f64]) -> Reference {
     let r = Solver::Ours(method).run(p, 1e-12, g, true).unwrap();
     Reference::Dense {
         dense: r.dense.unwrap(),
-        body: p.is_body(),
+        map: std::cell::RefCell::new(p.to_cartesian().unwrap()),
     }
 }
 
@@ -54,36 +54,40 @@ fn ode_solvers_dop853_takes_our_steps_on_b() {
     assert!((e_ours - e_peer).abs() < 1e-8, "{e_ours} vs {e_peer}");
 }
 
-/// diffsol's BDF on `visc(1e2)` through the closure adapter, and on the
-/// same motion in body-frame velocities (forward-difference Jacobian).
+/// diffsol's BDF on `visc(1e2)` through the closure adapter, on the same
+/// motion in body-frame velocities (forward-difference Jacobian) and in the
+/// generic adapted form (AD Jacobian).
 #[test]
-fn diffsol_bdf_solves_mild_visc_in_both_states() {
+fn diffsol_bdf_solves_mild_visc_in_every_state() {
     let g = grid(5.0);
     let cart = problem(0.4, Formulation::Visc { k: 1e2 }, 5.0);
     let body = problem(0.4, Formulation::ViscBody { k: 1e2 }, 5.0);
+    let adapted = problem(0.4, Formulation::ViscAdapted { k: 1e2 }, 5.0);
     let r = reference(&cart, Method::Radau5, &g);
     let bdf = Solver::Diffsol {
         method: DiffsolMethod::Bdf,
         max_fails: DIFFSOL_DEFAULT_CAP,
     };
-    for p in [&cart, &body] {
+    for p in [&cart, &body, &adapted] {
         let out = bdf.run(p, 1e-8, &g, false).unwrap();
         let (e_end, e_max, _) = errors(&out, &r, 5.0).unwrap();
         assert!(
             e_max < 1e-5 && e_end <= e_max,
-            "{}: {e_end:e} {e_max:e}",
-            p.is_body()
+            "{:?}: {e_end:e} {e_max:e}",
+            p.formulation
         );
         assert!(out.work.jac > 0 && out.work.steps > 0);
     }
-    // The two references agree: the body-frame state is the same motion.
-    let rb = reference(&body, Method::Radau5, &g);
-    let (mut a, mut b) = ([0.0; 6], [0.0; 6]);
-    for &t in &g {
-        r.eval(t, &mut a).unwrap();
-        rb.eval(t, &mut b).unwrap();
-        for i in 0..6 {
-            assert!((a[i] - b[i]).abs() < 1e-8, "t = {t}: {a:?} vs {b:?}");
+    // The three references agree: the other states are the same motion.
+    for other in [&body, &adapted] {
+        let rb = reference(other, Method::Radau5, &g);
+        let (mut a, mut b) = ([0.0; 6], [0.0; 6]);
+        for &t in &g {
+            r.eval(t, &mut a).unwrap();
+            rb.eval(t, &mut b).unwrap();
+            for i in 0..6 {
+                assert!((a[i] - b[i]).abs() < 1e-8, "t = {t}: {a:?} vs {b:?}");
+            }
         }
     }
 }

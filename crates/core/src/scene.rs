@@ -217,7 +217,12 @@ pub trait Scene: Send + Sync + 'static {
 
     /// Velocities `q̇` from positions `q` and the convenience values of
     /// [`SceneInfo::velocity_chart`] (in chart order).
-    fn velocities_from(&self, _q: &[f64], _chart: &[f64], _qd: &mut [f64]) {}
+    ///
+    /// Generic like [`Scene::lagrangian`]: `f64` for initial data, dual
+    /// numbers where a formulation differentiates the chart (`visc` with
+    /// `form = adapted` takes `∂q̇/∂chart` as the columns of its velocity
+    /// frame, and their rate along the motion).
+    fn velocities_from<D: Scalar>(&self, _q: &[D], _chart: &[D], _qd: &mut [D]) {}
 
     /// The closed-form motion from `(q0, q̇0)` at `t0 = 0`, evaluated at `t`;
     /// `Err` says why it does not apply to these parameters or initial data.

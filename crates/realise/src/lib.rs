@@ -5,10 +5,13 @@
 //! say which of the ideal formulations a physical sleigh follows.
 //!
 //! Both are built from the scene's Lagrangian and constraints only; nothing
-//! here knows a scene. Holonomic constraints `f`, if a scene has them, stay
+//! here knows a scene. `visc` is integrated in `(q, q̇)` or, where the
+//! constraints allow it, in velocities adapted to them ([`adapted`]: the
+//! scene's velocity chart and the violation `w = g` itself), the default. Holonomic constraints `f`, if a scene has them, stay
 //! ideal and are enforced at acceleration level as in B (without
 //! stabilisation; their drift is in the diagnostics).
 
+pub mod adapted;
 pub mod mass;
 pub mod visc;
 

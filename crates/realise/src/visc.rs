@@ -12,17 +12,31 @@
 //! for large `k`; as `k → ∞` motions tend to those of B (Kozlov; Karapetyan).
 //! The friction force plays the part of B's constraint force, so the
 //! multiplier reported is `λ = −k g` (B's convention `M q̈ − Q = Gᵀλ`), and
-//! it tends to B's `λ`. State `y = (q, q̇)`, started on the constraints.
+//! it tends to B's `λ`. Started on the constraints, from the same data as B.
+//!
+//! Two states for the same equations (`form`):
+//!
+//! * `cartesian`: `y = (q, q̇)`. The stiff direction `Gᵀ(q)` turns with the
+//!   configuration, so the friction's Jacobian has entries `~k·|q̇|` that
+//!   change along a step: implicit solvers see Newton failures from
+//!   `k ~ 1e4` on.
+//! * `adapted`: `y = (q, c, w)` with `q̇ = K(q) c + N(q) w` (module
+//!   [`crate::adapted`]): `c` the scene's velocity chart, `w = g` the
+//!   violation itself; the friction acts on `ẇ` only and linearly. For
+//!   constraints linear and homogeneous in `q̇`, no holonomic constraints,
+//!   and a chart linear in its values.
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::integrate::{OdeSystem, RadauNewton, SystemError};
 use nonholo_core::kkt::{GRows, Kkt};
 use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
-use nonholo_core::param::{Bound, ParamSpec, Params};
+use nonholo_core::param::{Bound, ParamSpec, Params, Value};
 use nonholo_core::scene::{Lagrangian, MAX_CONSTRAINTS, Scene, SceneInfo};
 use nonholo_core::stab::{SINGULAR_TOL, Stabilisation, StepHooks};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::Dual64;
+
+use crate::adapted::Rates;
 
 /// The viscous gain `k`.
 pub const K: ParamSpec = ParamSpec::real(
@@ -35,24 +49,54 @@ pub const K: ParamSpec = ParamSpec::real(
      the violation decays at rates ~k/m",
 );
 
+/// Which state the equations are integrated in.
+pub const FORM: ParamSpec = ParamSpec::choice(
+    "form",
+    &["auto", "adapted", "cartesian"],
+    "adapted: state (q, c, w), q̇ = K c + N w with c the scene's velocity chart and w = g the \
+     violation (N = M⁻¹Gᵀ(G M⁻¹ Gᵀ)⁻¹), in which the friction is linear in w alone: no Newton \
+     failures at any k; needs constraints linear and homogeneous in q̇, no holonomic \
+     constraints and a chart linear in its values. cartesian: state (q, q̇), every scene. \
+     auto: adapted where it applies, else cartesian (the run records which)",
+);
+
 /// Options of `visc`.
-pub const OPTIONS: &[ParamSpec] = &[K, SINGULAR_TOL];
+pub const OPTIONS: &[ParamSpec] = &[K, FORM, SINGULAR_TOL];
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "visc",
     letter: "VISC(k)",
     title: "Viscous realisation: friction −k Gᵀg against constraint violation",
     description: "M q̈ − Q = −k Gᵀ g, no constraint imposed; tends to B as k → ∞; stiff (~k/m); \
-                  state (q, q̇)",
+                  state (q, q̇) or, form = adapted, (q, c, w) with w = g",
     options: OPTIONS,
     applicable: crate::applicable,
 };
+
+/// The two states of `visc`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Form {
+    /// `(q, q̇)`.
+    Cartesian,
+    /// `(q, c, w)`, `q̇ = K c + N w`, `w = g`.
+    Adapted,
+}
+
+/// Workspaces of the adapted form: the right-hand side over `f64`, and over
+/// `Dual64` for the Jacobian.
+struct AdaptedWs {
+    rates: Rates<f64>,
+    rates_dual: Rates<Dual64>,
+    y_dual: Vec<Dual64>,
+    dy_dual: Vec<Dual64>,
+}
 
 /// The viscous realisation bound to a scene.
 pub struct Visc<S: Scene> {
     scene: S,
     options: Params,
     k: f64,
+    form: Form,
     n: usize,
     s: usize,
     kkt: Kkt<f64>,
@@ -60,9 +104,12 @@ pub struct Visc<S: Scene> {
     y_dual: Vec<Dual64>,
     g: [f64; MAX_CONSTRAINTS],
     hooks: StepHooks,
+    adapted: Option<Box<AdaptedWs>>,
 }
 
 impl<S: Scene> Visc<S> {
+    /// Binds `visc` to `scene`; `form = auto` resolves here (and
+    /// [`Model::options`] then says which form runs).
     pub fn new(scene: S, options: Params) -> Result<Self, Error> {
         let info = scene.info();
         crate::applicable(info).map_err(|reason| Error::NotApplicable {
@@ -71,8 +118,44 @@ impl<S: Scene> Visc<S> {
             reason,
         })?;
         let (n, s, k) = (info.n(), info.s(), info.k());
+        let gain = options.real("k");
+        let mut options = options;
+        let form = match options.choice("form") {
+            "cartesian" => Form::Cartesian,
+            "adapted" => {
+                crate::adapted::applicable(&scene).map_err(|reason| Error::NotApplicable {
+                    formulation: INFO.name.into(),
+                    scene: info.name.into(),
+                    reason: format!("form = adapted: {reason} (form = cartesian applies)"),
+                })?;
+                Form::Adapted
+            }
+            _ => match crate::adapted::applicable(&scene) {
+                Ok(()) => Form::Adapted,
+                Err(_) => Form::Cartesian,
+            },
+        };
+        // `auto` is recorded as what it resolved to.
+        options.set(
+            "form",
+            Value::Choice(match form {
+                Form::Adapted => "adapted",
+                Form::Cartesian => "cartesian",
+            }),
+            "option",
+        )?;
+        let adapted = match form {
+            Form::Cartesian => None,
+            Form::Adapted => Some(Box::new(AdaptedWs {
+                rates: Rates::new(n, s, gain),
+                rates_dual: Rates::new(n, s, gain),
+                y_dual: vec![Dual64::from_re(0.0); 2 * n],
+                dy_dual: vec![Dual64::from_re(0.0); 2 * n],
+            })),
+        };
         Ok(Visc {
-            k: options.real("k"),
+            k: gain,
+            form,
             hooks: StepHooks::unstabilised(&scene, options.real("singular_tol")),
             options,
             n,
@@ -81,8 +164,30 @@ impl<S: Scene> Visc<S> {
             kkt_dual: Kkt::new(n, s, k),
             y_dual: vec![Dual64::from_re(0.0); 2 * n],
             g: [0.0; MAX_CONSTRAINTS],
+            adapted,
             scene,
         })
+    }
+
+    /// The state the equations are integrated in.
+    pub fn form(&self) -> Form {
+        self.form
+    }
+
+    /// `(q, q̇)` of state `y` at `t` into `out` (length `2n`): a copy in the
+    /// Cartesian form, `q̇ = T(q, t) v` in the adapted one.
+    pub fn to_cartesian(&mut self, t: f64, y: &[f64], out: &mut [f64]) -> Result<(), SystemError> {
+        let n = self.n;
+        match self.adapted.as_mut() {
+            None => out.copy_from_slice(y),
+            Some(a) => {
+                let (q, v) = y.split_at(n);
+                a.rates.velocities(&self.scene, t, q, v)?;
+                out[..n].copy_from_slice(q);
+                out[n..].copy_from_slice(&a.rates.qd);
+            }
+        }
+        Ok(())
     }
 
     pub fn scene(&self) -> &S {
@@ -116,6 +221,13 @@ impl<S: Scene> OdeSystem for Visc<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
+        if let Some(a) = self.adapted.as_mut() {
+            let (q, v) = y.split_at(n);
+            a.rates.velocities(&self.scene, t, q, v)?;
+            self.hooks.check_stage(&self.scene, t, q, &a.rates.qd)?;
+            dy[..n].copy_from_slice(&a.rates.qd);
+            return a.rates.accelerations(&self.scene, t, q, v, &mut dy[n..]);
+        }
         let (q, qd) = y.split_at(n);
         self.hooks.check_stage(&self.scene, t, q, qd)?;
         self.solve_at(t, q, qd)?;
@@ -124,10 +236,26 @@ impl<S: Scene> OdeSystem for Visc<S> {
         Ok(())
     }
 
-    /// `∂f/∂y`: the solve repeated with one dual direction per column of `y`.
+    /// `∂f/∂y`: the right-hand side repeated with one dual direction per
+    /// column of `y` (Cartesian: the KKT solve; adapted: the whole
+    /// right-hand side, its inner time-jet pass over `Dual<Dual64>`).
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
         let n = self.n;
         let dim = 2 * n;
+        if let Some(a) = self.adapted.as_mut() {
+            for j in 0..dim {
+                for (d, &v) in a.y_dual.iter_mut().zip(y) {
+                    *d = Dual64::from_re(v);
+                }
+                a.y_dual[j].eps = 1.0;
+                a.rates_dual
+                    .eval(&self.scene, Dual64::from_re(t), &a.y_dual, &mut a.dy_dual)?;
+                for i in 0..dim {
+                    jac[i * dim + j] = a.dy_dual[i].eps;
+                }
+            }
+            return Ok(true);
+        }
         jac.fill(0.0);
         for i in 0..n {
             jac[i * dim + n + i] = 1.0;
@@ -156,19 +284,41 @@ impl<S: Scene> OdeSystem for Visc<S> {
         Ok(true)
     }
 
+    /// Diagnostics and the guard on `(q, q̇)` (nothing is projected: the
+    /// hooks are unstabilised, so the state is never changed).
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (q, qd) = y.split_at_mut(self.n);
-        self.hooks.after_step(&self.scene, t, q, qd)
+        let (q, rest) = y.split_at_mut(self.n);
+        match self.adapted.as_mut() {
+            None => self.hooks.after_step(&self.scene, t, q, rest),
+            Some(a) => {
+                a.rates.velocities(&self.scene, t, q, rest)?;
+                let changed = self.hooks.after_step(&self.scene, t, q, &mut a.rates.qd)?;
+                debug_assert!(!changed, "visc's hooks never project");
+                Ok(false)
+            }
+        }
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let (q, qd) = y.split_at(self.n);
-        self.hooks.guard(&self.scene, t, q, qd)
+        let (q, rest) = y.split_at(self.n);
+        match self.adapted.as_mut() {
+            None => self.hooks.guard(&self.scene, t, q, rest),
+            Some(a) => {
+                a.rates.velocities(&self.scene, t, q, rest).ok()?;
+                self.hooks.guard(&self.scene, t, q, &a.rates.qd)
+            }
+        }
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        let (q, qd) = y.split_at(self.n);
-        self.hooks.guard_reason(&self.scene, t, q, qd)
+        let (q, rest) = y.split_at(self.n);
+        match self.adapted.as_mut() {
+            None => self.hooks.guard_reason(&self.scene, t, q, rest),
+            Some(a) => match a.rates.velocities(&self.scene, t, q, rest) {
+                Ok(()) => self.hooks.guard_reason(&self.scene, t, q, &a.rates.qd),
+                Err(e) => e.message,
+            },
+        }
     }
 }
 
@@ -177,14 +327,27 @@ impl<S: Scene> Model for Visc<S> {
         Some(self)
     }
 
-    /// Full Newton: the stiff force `−k Gᵀ g` turns with the configuration
-    /// (for the sleigh `∂(k Gᵀ g)/∂φ` is of order `k u`), so the Jacobian
-    /// frozen at the step start stops contracting. Measured on the sleigh over
-    /// 5 s at tolerance 1e-10: the simplified iteration rejects 794 of 1368
-    /// steps at k = 1e6 (2123 of 3661 at k = 1e8) and errs by 5e-8 (2e-7);
-    /// full Newton takes 84 (99) steps with 0 (17) rejections and errs by 9e-10 (3e-10).
+    /// Cartesian form, full Newton: the stiff force `−k Gᵀ g` turns with the
+    /// configuration (for the sleigh `∂(k Gᵀ g)/∂φ` is of order `k u`), so the
+    /// Jacobian frozen at the step start stops contracting. Measured on the
+    /// sleigh over 5 s at tolerance 1e-10: the simplified iteration rejects
+    /// 794 of 1368 steps at k = 1e6 (2123 of 3661 at k = 1e8) and errs by
+    /// 5e-8 (2e-7); full Newton takes 84 (99) steps with 0 (17) rejections
+    /// and errs by 9e-10 (3e-10).
+    ///
+    /// Adapted form, simplified Newton: the stiff block `−k (G M⁻¹ Gᵀ)` acts
+    /// on `w` alone and is (nearly) constant, so the Jacobian frozen at the
+    /// step start keeps contracting. Measured on the sleigh over 5 s, k = 1e4
+    /// … 1e8: no Newton failure either way; at tolerance 1e-10 simplified
+    /// 77–86 steps, 38–39 Jacobians, 2.3–2.6 ms, error 3.3–4.1e-8, full 73–81
+    /// steps, 364–408 Jacobians, 10–12 ms, error 3.7–5.5e-8 (the same errors
+    /// from 1e-6 on; only at 1e-4 is full Newton more accurate, 3e-4 against
+    /// 4e-3 for k ≥ 1e6).
     fn radau_newton(&self) -> RadauNewton {
-        RadauNewton::Full
+        match self.form {
+            Form::Cartesian => RadauNewton::Full,
+            Form::Adapted => RadauNewton::Simplified,
+        }
     }
 
     fn scene_info(&self) -> &'static SceneInfo {
@@ -217,13 +380,35 @@ impl<S: Scene> Model for Visc<S> {
         check_or_project(&self.scene, init, project)
     }
 
+    /// `(q0, q̇0)`; in the adapted form `(q0, v0)` with `T(q0, t0) v0 = q̇0`,
+    /// so that `w0 = g(q0, q̇0)` (zero to rounding for consistent data).
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
         self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
-        Ok(init.q.iter().chain(&init.qd).copied().collect())
+        let mut y: Vec<f64> = init.q.iter().chain(&init.qd).copied().collect();
+        if let Some(a) = self.adapted.as_mut() {
+            a.rates
+                .adapted(&self.scene, init.t0, &init.q, &init.qd, &mut y[self.n..])
+                .map_err(|e| {
+                    Error::Numerical(format!("visc: initial velocities: {}", e.message))
+                })?;
+        }
+        Ok(y)
     }
 
+    /// `(q, q̇)`, and `λ = −k g`: in the adapted form `−k w`, the state itself.
     fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
         let (n, s) = (self.n, self.s);
+        if let Some(a) = self.adapted.as_mut() {
+            let (q, v) = y.split_at(n);
+            a.rates.velocities(&self.scene, t, q, v)?;
+            obs.q.copy_from_slice(q);
+            obs.qd.copy_from_slice(&a.rates.qd);
+            // No holonomic constraints in this form: the multipliers are λ only.
+            for (m, w) in obs.multipliers.iter_mut().zip(&v[n - s..]) {
+                *m = -self.k * w;
+            }
+            return Ok(());
+        }
         let (q, qd) = y.split_at(n);
         obs.q.copy_from_slice(q);
         obs.qd.copy_from_slice(qd);

@@ -2,124 +2,14 @@
 //! independent derivation in the body frame, their Jacobians, their initial
 //! data, and their convergence to B (`visc`) and to C (`mass`) with measured rates.
 
+mod common;
+
+use common::*;
 use nonholo_core::integrate::{IntegrateError, Method, OdeSystem, Options, solve};
-use nonholo_core::{Initial, Model, Params, RunConfig, Scene, init, simulate};
+use nonholo_core::{Model, Params};
 use nonholo_realise::{Mass, Visc, mass, visc};
 use nonholo_scenes::{AppellHamel, Pendulum, Sleigh};
 use rand::{Rng, SeedableRng};
-
-fn pairs(items: &[(&str, &str)]) -> Vec<(String, String)> {
-    items
-        .iter()
-        .map(|(a, b)| (a.to_string(), b.to_string()))
-        .collect()
-}
-
-fn scene<S: Scene>(params: &[(&str, &str)]) -> S {
-    S::from_params(&Params::resolve(S::INFO.params, &pairs(params), "parameter").unwrap()).unwrap()
-}
-
-fn options(specs: &'static [nonholo_core::ParamSpec], given: &[(&str, &str)]) -> Params {
-    Params::resolve(specs, &pairs(given), "option").unwrap()
-}
-
-/// The sleigh in body-frame quasi-velocities `u` (forward), `w = g`
-/// (sideways) and `ω`, for any kinetic energy `T = ½m(u² + w² + Jω² + 2aωw)
-/// + ½N w²`, by Kirchhoff's equations on SE(2):
-///
-/// ```text
-/// d/dt ∂T/∂u = ω ∂T/∂w + F_u
-/// d/dt ∂T/∂w = −ω ∂T/∂u + F_w − k w
-/// d/dt ∂T/∂ω = w ∂T/∂u − u ∂T/∂w + τ
-/// ```
-///
-/// with gravity `F = m g sin α (cos φ, −sin φ)` at the blade, `τ = −[com] m g a
-/// sin α sin φ`. `N = 0` is `visc(k)`, `k = 0` is `mass(N)`. Derived by
-/// hand, independently of the automatic differentiation under test.
-struct Body {
-    m: f64,
-    j: f64,
-    a: f64,
-    gs: f64,
-    com: f64,
-    k: f64,
-    n: f64,
-}
-
-impl Body {
-    fn of(s: &Sleigh, potential: &str, k: f64, n: f64) -> Self {
-        Body {
-            m: s.m,
-            j: s.j,
-            a: s.a,
-            gs: s.g * s.alpha.sin(),
-            com: if potential == "com" { 1.0 } else { 0.0 },
-            k,
-            n,
-        }
-    }
-
-    /// `(u̇, ẇ, ω̇)` at `(φ, u, w, ω)`.
-    fn rates(&self, phi: f64, u: f64, w: f64, om: f64) -> (f64, f64, f64) {
-        let (m, a, j) = (self.m, self.a, self.j);
-        let pw = m * (w + a * om) + self.n * w;
-        let ud = (om * pw + m * self.gs * phi.cos()) / m;
-        // [m + N, m a; m a, m J] (ẇ, ω̇) = (r1, r2)
-        let r1 = -om * m * u - m * self.gs * phi.sin() - self.k * w;
-        let r2 = w * m * u - u * pw - self.com * m * self.gs * a * phi.sin();
-        let (a11, a12, a22) = (m + self.n, m * a, m * j);
-        let det = a11 * a22 - a12 * a12;
-        let wd = (r1 * a22 - a12 * r2) / det;
-        let omd = (a11 * r2 - a12 * r1) / det;
-        (ud, wd, omd)
-    }
-
-    /// `q̈` at `(φ, u, w, ω)`.
-    fn qdd(&self, phi: f64, u: f64, w: f64, om: f64) -> [f64; 3] {
-        let (ud, wd, omd) = self.rates(phi, u, w, om);
-        let (c, s) = (phi.cos(), phi.sin());
-        [
-            ud * c - u * om * s - wd * s - w * om * c,
-            ud * s + u * om * c + wd * c - w * om * s,
-            omd,
-        ]
-    }
-}
-
-/// A random sleigh (both potentials) and a random state off the constraint.
-fn random_case(rng: &mut impl Rng, potential: &str) -> (Sleigh, [f64; 4]) {
-    let a: f64 = rng.random_range(-1.0..1.0);
-    let j = a * a + rng.random_range(0.1..2.0);
-    let m: f64 = rng.random_range(0.5..3.0);
-    let alpha: f64 = rng.random_range(0.0..1.4);
-    let s: Sleigh = scene(&[
-        ("a", &a.to_string()),
-        ("J", &j.to_string()),
-        ("m", &m.to_string()),
-        ("alpha", &alpha.to_string()),
-        ("potential", potential),
-    ]);
-    let state = [
-        rng.random_range(-4.0..4.0),
-        rng.random_range(-3.0..3.0),
-        rng.random_range(-1.0..1.0),
-        rng.random_range(-3.0..3.0),
-    ];
-    (s, state)
-}
-
-/// `(x, y, φ, ẋ, ẏ, φ̇)` from `(φ, u, w, ω)`.
-fn cartesian(phi: f64, u: f64, w: f64, om: f64) -> [f64; 6] {
-    let (c, s) = (phi.cos(), phi.sin());
-    [0.3, -0.2, phi, u * c - w * s, u * s + w * c, om]
-}
-
-fn assert_close(got: f64, expect: f64, scale: f64, what: &str) {
-    assert!(
-        (got - expect).abs() <= 1e-12 * (scale + expect.abs()),
-        "{what}: {got} vs {expect}"
-    );
-}
 
 /// `visc`'s AD-derived `q̈` equals the body-frame equations with friction
 /// `−k w` at 300 random states off the constraint, `k` from 1 to 1e8.
@@ -131,7 +21,14 @@ fn visc_accelerations_match_body_frame_equations() {
             let (s, [phi, u, w, om]) = random_case(&mut rng, potential);
             let k = 10f64.powf(rng.random_range(0.0..8.0));
             let body = Body::of(&s, potential, k, 0.0);
-            let mut v = Visc::new(s, options(visc::OPTIONS, &[("k", &k.to_string())])).unwrap();
+            let mut v = Visc::new(
+                s,
+                options(
+                    visc::OPTIONS,
+                    &[("k", &k.to_string()), ("form", "cartesian")],
+                ),
+            )
+            .unwrap();
             let y = cartesian(phi, u, w, om);
             let mut dy = [0.0; 6];
             v.rhs(0.0, &y, &mut dy).unwrap();
@@ -202,36 +99,15 @@ fn mass_accelerations_match_body_frame_equations() {
     }
 }
 
-/// Central differences of the right-hand side against the AD Jacobians.
-fn check_jacobian(sys: &mut dyn OdeSystem, y: &[f64], what: &str) {
-    let dim = y.len();
-    let mut jac = vec![0.0; dim * dim];
-    assert!(sys.jacobian(0.0, y, &mut jac).unwrap());
-    let (mut fp, mut fm) = (vec![0.0; dim], vec![0.0; dim]);
-    for j in 0..dim {
-        let h = 1e-6 * (1.0 + y[j].abs());
-        let (mut yp, mut ym) = (y.to_vec(), y.to_vec());
-        yp[j] += h;
-        ym[j] -= h;
-        sys.rhs(0.0, &yp, &mut fp).unwrap();
-        sys.rhs(0.0, &ym, &mut fm).unwrap();
-        let col_scale = (0..dim).fold(1.0f64, |m, i| m.max(jac[i * dim + j].abs()));
-        for i in 0..dim {
-            let fd = (fp[i] - fm[i]) / (2.0 * h);
-            assert!(
-                (jac[i * dim + j] - fd).abs() < 1e-7 * col_scale,
-                "{what}: ∂f{i}/∂y{j} = {} vs {fd}",
-                jac[i * dim + j]
-            );
-        }
-    }
-}
-
 #[test]
 fn jacobians_match_finite_differences() {
     let s: Sleigh = scene(&[("a", "0.4"), ("potential", "com"), ("alpha", "0.5")]);
     let y = cartesian(0.3, 1.7, 0.02, -0.6);
-    let mut v = Visc::new(s.clone(), options(visc::OPTIONS, &[("k", "1e3")])).unwrap();
+    let mut v = Visc::new(
+        s.clone(),
+        options(visc::OPTIONS, &[("k", "1e3"), ("form", "cartesian")]),
+    )
+    .unwrap();
     check_jacobian(&mut v, &y, "visc");
     let mut d = Mass::new(
         s.clone(),
@@ -245,42 +121,6 @@ fn jacobians_match_finite_differences() {
     check_jacobian(&mut c, &yc, "mass compliance");
 }
 
-/// Initial data; `lambda` is accepted when `with_lambda`.
-fn initial<S: Scene>(s: &S, given: &[(&str, &str)], with_lambda: bool) -> Initial {
-    let extra = if with_lambda {
-        nonholo_vakonomic::lambda_names(1)
-    } else {
-        Vec::new()
-    };
-    init::resolve(s, &pairs(given), &extra).unwrap()
-}
-
-fn run_model(
-    model: Box<dyn Model>,
-    init: Initial,
-    method: Method,
-    tol: f64,
-    t_end: f64,
-    grid: &[f64],
-) -> nonholo_core::Run {
-    simulate(
-        model,
-        init,
-        RunConfig {
-            method,
-            options: Options {
-                rtol: tol,
-                atol: tol,
-                output: grid.to_vec(),
-                ..Options::default()
-            },
-            t_end,
-            project_init: false,
-        },
-    )
-    .unwrap()
-}
-
 /// Largest distance between two runs in `(x, y)` over their common grid.
 fn distance(a: &nonholo_core::Run, b: &nonholo_core::Run) -> f64 {
     a.samples
@@ -288,13 +128,6 @@ fn distance(a: &nonholo_core::Run, b: &nonholo_core::Run) -> f64 {
         .zip(&b.samples)
         .map(|(p, q)| (p.q[0] - q.q[0]).hypot(p.q[1] - q.q[1]))
         .fold(0.0, f64::max)
-}
-
-fn sci(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| format!("{x:.4e}"))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Least-squares slope of `log d` against `log x`.
@@ -308,11 +141,10 @@ fn slope(x: &[f64], d: &[f64]) -> f64 {
     cov / var
 }
 
-const SLEIGH_INIT: &[(&str, &str)] = &[("phi", "0.2"), ("u", "2"), ("omega", "0.7")];
-
 /// `visc(k)` tends to B like `1/k`: the largest distance in position over
-/// `t ∈ [0, 5]` against B, for `k = 1e3, 1e4, 1e5` (Radau IIA at 1e-11; B by
-/// DOP853 at 1e-13). The friction multiplier `λ = −k g` tends to B's `λ`.
+/// `t ∈ [0, 5]` against B, for `k = 1e3, 1e4, 1e5` (Radau IIA at 1e-11, the
+/// default form — adapted on the sleigh; B by DOP853 at 1e-13). The
+/// friction multiplier `λ = −k g` tends to B's `λ`.
 #[test]
 fn visc_tends_to_b_at_rate_one_over_k() {
     let grid: Vec<f64> = (0..=100).map(|i| i as f64 * 0.05).collect();
@@ -357,9 +189,11 @@ fn visc_tends_to_b_at_rate_one_over_k() {
             dlambda.push(dl);
         }
         let rate = slope(&ks, &dist);
-        // λ = −k g reads the fast variable g scaled by k, so the solver's
-        // error in g comes back multiplied by k: the rate is taken where that
-        // error is negligible (k = 1e3, 1e4; at 1e5 it is ~1e-5 of λ).
+        // λ = −k g reads the fast variable g scaled by k. In the Cartesian
+        // form g is recomputed from q̇ and its error comes back multiplied by
+        // k (at k = 1e5 ~1e-5 of λ), so the rate is taken on k = 1e3, 1e4.
+        // Here the default form is the adapted one, λ = −k w with w a state,
+        // and the k = 1e5 point lies on the line too (2.734e-5, 1.505e-5).
         let rate_lambda = slope(&ks[..2], &dlambda[..2]);
         eprintln!(
             "{potential}: distances {}, rate {rate:.4}; λ {}, rate {rate_lambda:.4}",

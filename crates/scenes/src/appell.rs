@@ -137,11 +137,12 @@ impl Scene for AppellHamel {
         2
     }
 
-    fn velocities_from(&self, _q: &[f64], chart: &[f64], qd: &mut [f64]) {
+    /// Nonlinear in the chart `(ρ, β)` (as the constraint is in `q̇`).
+    fn velocities_from<D: Scalar>(&self, _q: &[D], chart: &[D], qd: &mut [D]) {
         let (rho, beta) = (chart[0], chart[1]);
         qd[0] = rho * beta.cos();
         qd[1] = rho * beta.sin();
-        qd[2] = -self.c * rho;
+        qd[2] = rho * (-self.c);
     }
 
     /// Under B the horizontal path is a straight line with `ρ̇ = c g/(1 + c²)`

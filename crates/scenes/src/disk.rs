@@ -118,10 +118,10 @@ impl Scene for RollingDisk {
         out[1] = qd[1] - qd[3] * s * self.r;
     }
 
-    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
+    fn velocities_from<D: Scalar>(&self, q: &[D], chart: &[D], qd: &mut [D]) {
         let (s, c) = q[2].sin_cos();
-        qd[0] = self.r * chart[1] * c;
-        qd[1] = self.r * chart[1] * s;
+        qd[0] = chart[1] * c * self.r;
+        qd[1] = chart[1] * s * self.r;
         qd[2] = chart[0];
         qd[3] = chart[1];
     }

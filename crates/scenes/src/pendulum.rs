@@ -102,7 +102,7 @@ impl Scene for Pendulum {
         vec![self.l * THETA0.sin(), -self.l * THETA0.cos()]
     }
 
-    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
+    fn velocities_from<D: Scalar>(&self, q: &[D], chart: &[D], qd: &mut [D]) {
         qd[0] = -chart[0] * q[1];
         qd[1] = chart[0] * q[0];
     }

@@ -193,7 +193,7 @@ impl Scene for Sleigh {
         2
     }
 
-    fn velocities_from(&self, q: &[f64], chart: &[f64], qd: &mut [f64]) {
+    fn velocities_from<D: Scalar>(&self, q: &[D], chart: &[D], qd: &mut [D]) {
         let (u, omega) = (chart[0], chart[1]);
         let (s, c) = q[2].sin_cos();
         qd[0] = u * c;

@@ -1,5 +1,6 @@
 //! Peers side by side, in one run: `visc(k)` on the sleigh by our Radau IIA
-//! and diffsol's BDF, ESDIRK34 and TR-BDF2; B on the sleigh by our DOP853
+//! and diffsol's BDF, ESDIRK34 and TR-BDF2, in three states (Cartesian and
+//! adapted by AD, body frame by hand); B on the sleigh by our DOP853
 //! and ode_solvers' DOP853; errors against references whose own error is
 //! measured, wall time (median of repeats), work counters.
 //!
@@ -286,6 +287,10 @@ fn summary(visc: &[Row], b: &[Row], refs: &[Row]) -> String {
             "visc-body",
             "state (x, y, φ, u, w, ω), hand-written, forward-difference Jacobian",
         ),
+        (
+            "visc-adapted",
+            "form = adapted, state (q, c, w), generic: right-hand side and Jacobian by AD",
+        ),
     ] {
         let _ = writeln!(s, "#### `{problem}`: {what}\n");
         let _ = writeln!(
@@ -349,13 +354,12 @@ fn our_reference(
     g: &[f64],
 ) -> Result<Reference, String> {
     match Solver::Ours(method).run(problem, tol, g, true) {
-        Ok(out) => out
-            .dense
-            .map(|dense| Reference::Dense {
-                dense,
-                body: problem.is_body(),
-            })
-            .ok_or_else(|| "the reference run kept no continuous extension".to_string()),
+        Ok(out) => {
+            let map = std::cell::RefCell::new(problem.to_cartesian()?);
+            out.dense
+                .map(|dense| Reference::Dense { dense, map })
+                .ok_or_else(|| "the reference run kept no continuous extension".to_string())
+        }
         Err(f) => Err(format!(
             "reference {} at {tol:e} failed: {}",
             method.name(),
@@ -377,15 +381,17 @@ const TR_BDF2: Solver = Solver::Diffsol {
     max_fails: DIFFSOL_DEFAULT_CAP,
 };
 
-fn visc_problem(scene: &nonholo_scenes::Sleigh, k: f64, body: bool) -> Problem {
+/// `visc(k)` in one of its states: `visc` (`(q, q̇)`, AD), `visc-body`
+/// (body frame, hand-written), `visc-adapted` (the generic adapted form, AD).
+fn visc_problem(scene: &nonholo_scenes::Sleigh, k: f64, name: &str) -> Problem {
     Problem {
-        name: if body { "visc-body" } else { "visc" }.into(),
+        name: name.into(),
         scene: scene.clone(),
         potential: "paper",
-        formulation: if body {
-            Formulation::ViscBody { k }
-        } else {
-            Formulation::Visc { k }
+        formulation: match name {
+            "visc-body" => Formulation::ViscBody { k },
+            "visc-adapted" => Formulation::ViscAdapted { k },
+            _ => Formulation::Visc { k },
         },
         phi: 0.2,
         u: 2.0,
@@ -420,8 +426,9 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
     let g = grid(5.0, 100);
     let scene = sleigh(0.4, 0.3, "paper").map_err(|e| e.to_string())?;
     for &k in ks {
-        let problem = visc_problem(&scene, k, false);
-        let body = visc_problem(&scene, k, true);
+        let problem = visc_problem(&scene, k, "visc");
+        let body = visc_problem(&scene, k, "visc-body");
+        let adapted = visc_problem(&scene, k, "visc-adapted");
         eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13");
         let reference = our_reference(&problem, Method::Radau5, 1e-13, &g)?;
         let ref_name = "ours radau5 @1e-13";
@@ -467,6 +474,20 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
             ),
             refs,
         );
+        eprintln!("  second reference: Radau IIA at 1e-13 in the adapted form (AD)");
+        second(
+            measure(
+                &adapted,
+                Solver::Ours(Method::Radau5),
+                1e-13,
+                &g,
+                &reference,
+                ref_name,
+                f64::NAN,
+                1,
+            ),
+            refs,
+        );
         if k <= 1e6 {
             eprintln!("  second reference: our DOP853 at 1e-13");
             second(
@@ -499,7 +520,7 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
         }
         let ref_err = distances.iter().copied().fold(f64::NAN, f64::min);
         for &tol in tols {
-            for p in [&problem, &body] {
+            for p in [&problem, &body, &adapted] {
                 for solver in [
                     Solver::Ours(Method::Radau5),
                     Solver::OursFullNewton,

@@ -96,7 +96,7 @@ fn run() -> Result<(), String> {
             hand.what,
             hand.dim(),
         );
-        if ad.name != "B" && ad.name != "visc" {
+        if !matches!(ad.name, "B" | "visc" | "visc adapted") {
             continue;
         }
         let dim = ad.dim();

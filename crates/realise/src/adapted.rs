@@ -1,0 +1,448 @@
+//! `visc` in velocities adapted to the constraint (`form = adapted`).
+//!
+//! The state is `(q, v)` with `q̇ = T(q, t) v`, `v = (c, w)`:
+//!
+//! * `c ∈ R^{n−s}`: the values of the scene's velocity chart
+//!   ([`Scene::velocities_from`], e.g. the sleigh's `(u, ω)`); the chart must
+//!   be linear in them, and its columns `K(q) = ∂q̇/∂c` are read off it
+//!   (`K e_j = velocities_from(q, e_j)`);
+//! * `w ∈ R^s`: along `N(q, t) = M⁻¹Gᵀ(G M⁻¹ Gᵀ)⁻¹`, the velocities that
+//!   violate the constraint, nearest to the admissible ones in the kinetic
+//!   metric (`Kᵀ M N = (G K)ᵀ (G M⁻¹ Gᵀ)⁻¹ = 0`).
+//!
+//! For constraints linear and homogeneous in `q̇` (`g = G(q, t) q̇`) with a
+//! chart on them (`G K = 0`), `g(q, T v) = G N w = w`: the violation is a
+//! coordinate of the state. The friction force `−k Gᵀ w` enters
+//! `v̇ = T⁻¹ M⁻¹(…)` as `T⁻¹ N (G M⁻¹ Gᵀ)(−k w)`, i.e. in `ẇ` only,
+//! `ẇ = −k (G M⁻¹ Gᵀ) w + …`: the stiff part of the equations is a block of
+//! its own, linear in `w`, which no longer turns with the configuration.
+//!
+//! Right-hand side: `q̈` from the KKT solve of the Cartesian form at
+//! `(q, T v)` (`GRows::Viscous(k)`), then `v̇ = T⁻¹(q̈ − Ṫ v)` with `Ṫ v` the
+//! derivative of `T(q, t) v` along `(q̇, 1)` at fixed `v`, by one pass of the
+//! frame over dual numbers. Everything is generic over the scalar, so the
+//! Jacobian is the same code over `Dual64` (nested with the inner pass:
+//! `Dual<Dual64>`, and `HyperDual<Dual<Dual64>>` inside the mass matrix).
+//! `M` and `G` of the frame are evaluated at `q̇ = 0` (they depend on `q`
+//! and `t` only for a kinetic energy quadratic in `q̇` and constraints linear
+//! in it; in any case `T` is then a function of `(q, t)`, which is all the
+//! construction needs).
+
+use nalgebra::DMatrix;
+use nonholo_core::ad::Jet;
+use nonholo_core::integrate::SystemError;
+use nonholo_core::kkt::{GRows, Kkt};
+use nonholo_core::linalg::Lu;
+use nonholo_core::scene::{ConstraintKind, Lagrangian, Nonholonomic, Scalar, Scene};
+use nonholo_core::stab::Stabilisation;
+use num_dual::Dual;
+
+const WHAT: &str = "formulation visc (form = adapted)";
+
+/// The velocity frame `T(q, t) = [K | N]` over the scalar `D`, with its workspace.
+#[derive(Debug, Clone)]
+pub(crate) struct Frame<D: Scalar> {
+    n: usize,
+    s: usize,
+    jet: Jet<D>,
+    /// `q̇ = 0`, where `M` and `G` are evaluated.
+    zeros: Vec<D>,
+    /// A unit chart vector (length `n − s`).
+    unit: Vec<D>,
+    /// `M`, then its LU factors.
+    mass: DMatrix<D>,
+    lu_m: Lu,
+    /// `g` and `ġ₀` at `q̇ = 0` (by-products of the Jacobian pass).
+    gval: Vec<D>,
+    grate: Vec<D>,
+    /// `G`, `s × n`.
+    g: DMatrix<D>,
+    /// `M⁻¹Gᵀ`, column `j` at `x[j n..(j + 1) n]`.
+    x: Vec<D>,
+    /// `(G M⁻¹ Gᵀ)ᵀ`, then its LU factors.
+    schur_t: DMatrix<D>,
+    lu_s: Lu,
+    /// Buffer of length `max(n, s)`.
+    col: Vec<D>,
+    /// `T = [K | N]`, `n × n`.
+    pub t: DMatrix<D>,
+}
+
+impl<D: Scalar> Frame<D> {
+    pub(crate) fn new(n: usize, s: usize) -> Self {
+        let z = D::from(0.0);
+        Frame {
+            n,
+            s,
+            jet: Jet::new(n, s),
+            zeros: vec![z; n],
+            unit: vec![z; n - s],
+            mass: DMatrix::from_element(n, n, z),
+            lu_m: Lu::new(n),
+            gval: vec![z; s],
+            grate: vec![z; s],
+            g: DMatrix::from_element(s, n, z),
+            x: vec![z; n * s],
+            schur_t: DMatrix::from_element(s, s, z),
+            lu_s: Lu::new(s),
+            col: vec![z; n.max(s)],
+            t: DMatrix::from_element(n, n, z),
+        }
+    }
+
+    /// `T(q, t)` into [`Frame::t`].
+    pub(crate) fn evaluate<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: D,
+        q: &[D],
+    ) -> Result<(), SystemError> {
+        let (n, s) = (self.n, self.s);
+        let r = n - s;
+        // K: the chart is linear in its values (checked at construction).
+        for j in 0..r {
+            self.unit.fill(D::from(0.0));
+            self.unit[j] = D::from(1.0);
+            scene.velocities_from(q, &self.unit, &mut self.col[..n]);
+            for i in 0..n {
+                self.t[(i, j)] = self.col[i];
+            }
+        }
+        // N = M⁻¹Gᵀ (G M⁻¹ Gᵀ)⁻¹.
+        self.jet.mass(
+            &Lagrangian(scene),
+            t,
+            q,
+            &self.zeros,
+            &[],
+            &mut self.mass.view_mut((0, 0), (n, n)),
+        );
+        self.jet.velocity_jacobian(
+            &Nonholonomic(scene),
+            t,
+            q,
+            &self.zeros,
+            &mut self.gval,
+            &mut self.g.view_mut((0, 0), (s, n)),
+            &mut self.grate,
+        );
+        self.lu_m.factor(&mut self.mass).map_err(|e| {
+            SystemError::new(format!(
+                "{WHAT}: mass matrix singular ({e}): the kinetic energy is degenerate"
+            ))
+        })?;
+        for j in 0..s {
+            let xj = &mut self.x[j * n..(j + 1) * n];
+            for i in 0..n {
+                xj[i] = self.g[(j, i)];
+            }
+            self.lu_m.solve(&self.mass, xj);
+        }
+        for a in 0..s {
+            for b in 0..s {
+                let mut v = D::from(0.0);
+                for i in 0..n {
+                    v += self.g[(b, i)] * self.x[a * n + i];
+                }
+                // (G M⁻¹ Gᵀ)_{ba}, stored transposed.
+                self.schur_t[(a, b)] = v;
+            }
+        }
+        self.lu_s.factor(&mut self.schur_t).map_err(|e| {
+            SystemError::new(format!(
+                "{WHAT}: G M⁻¹ Gᵀ singular ({e}): the constraints are dependent"
+            ))
+        })?;
+        // Row i of N = X S⁻¹: Sᵀ N_iᵀ = X_iᵀ.
+        for i in 0..n {
+            for a in 0..s {
+                self.col[a] = self.x[a * n + i];
+            }
+            self.lu_s.solve(&self.schur_t, &mut self.col[..s]);
+            for a in 0..s {
+                self.t[(i, r + a)] = self.col[a];
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The adapted right-hand side over base scalar `T`: `(q̇, v̇)` from `(q, v)`.
+#[derive(Debug, Clone)]
+pub(crate) struct Rates<T: Scalar> {
+    n: usize,
+    k: f64,
+    frame: Frame<T>,
+    /// The frame along the time jet `(q + τ q̇, t + τ)`.
+    frame_jet: Frame<Dual<T>>,
+    kkt: Kkt<T>,
+    q_jet: Vec<Dual<T>>,
+    /// `T`, then its LU factors.
+    t_lu: DMatrix<T>,
+    lu_t: Lu,
+    /// `q̇ = T v`.
+    pub qd: Vec<T>,
+    /// `q̈ − Ṫ v`, then `v̇`.
+    b: Vec<T>,
+}
+
+impl<T: Scalar> Rates<T> {
+    pub(crate) fn new(n: usize, s: usize, k: f64) -> Self {
+        let z = T::from(0.0);
+        Rates {
+            n,
+            k,
+            frame: Frame::new(n, s),
+            frame_jet: Frame::new(n, s),
+            kkt: Kkt::new(n, s, 0),
+            q_jet: vec![Dual::from_re(z); n],
+            t_lu: DMatrix::from_element(n, n, z),
+            lu_t: Lu::new(n),
+            qd: vec![z; n],
+            b: vec![z; n],
+        }
+    }
+
+    /// `q̇ = T(q, t) v` into [`Rates::qd`].
+    pub(crate) fn velocities<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: T,
+        q: &[T],
+        v: &[T],
+    ) -> Result<(), SystemError> {
+        self.frame.evaluate(scene, t, q)?;
+        for i in 0..self.n {
+            let mut x = T::from(0.0);
+            for j in 0..self.n {
+                x += self.frame.t[(i, j)] * v[j];
+            }
+            self.qd[i] = x;
+        }
+        Ok(())
+    }
+
+    /// LU factors of the frame of the last evaluation.
+    fn factor_frame(&mut self) -> Result<(), SystemError> {
+        self.t_lu.copy_from(&self.frame.t);
+        self.lu_t.factor(&mut self.t_lu).map_err(|e| {
+            SystemError::new(format!(
+                "{WHAT}: velocity frame [K | N] singular ({e}): the chart's velocities are \
+                 dependent here"
+            ))
+        })
+    }
+
+    /// `v = T(q, t)⁻¹ q̇` into `v`: the adapted velocities of `(q, q̇)`.
+    pub(crate) fn adapted<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: T,
+        q: &[T],
+        qd: &[T],
+        v: &mut [T],
+    ) -> Result<(), SystemError> {
+        self.frame.evaluate(scene, t, q)?;
+        self.factor_frame()?;
+        v.copy_from_slice(qd);
+        self.lu_t.solve(&self.t_lu, v);
+        Ok(())
+    }
+
+    /// `v̇` at `(t, q, v)` into `vd`, after [`Rates::velocities`] at the same
+    /// point (`q̇` in [`Rates::qd`]).
+    pub(crate) fn accelerations<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: T,
+        q: &[T],
+        v: &[T],
+        vd: &mut [T],
+    ) -> Result<(), SystemError> {
+        let n = self.n;
+        self.kkt.solve_rows(
+            &Lagrangian(scene),
+            &[],
+            scene,
+            Stabilisation::None,
+            GRows::Viscous(self.k),
+            t,
+            q,
+            &self.qd,
+            WHAT,
+        )?;
+        // Ṫ v: T(q + τ q̇, t + τ) v at fixed v, its τ-derivative.
+        for i in 0..n {
+            self.q_jet[i] = Dual::new(q[i], self.qd[i]);
+        }
+        self.frame_jet
+            .evaluate(scene, Dual::new(t, T::from(1.0)), &self.q_jet)?;
+        for i in 0..n {
+            let mut tv = T::from(0.0);
+            for j in 0..n {
+                tv += self.frame_jet.t[(i, j)].eps * v[j];
+            }
+            self.b[i] = self.kkt.qdd()[i] - tv;
+        }
+        self.factor_frame()?;
+        self.lu_t.solve(&self.t_lu, &mut self.b);
+        vd.copy_from_slice(&self.b);
+        Ok(())
+    }
+
+    /// `(q̇, v̇)` at `(t, y = (q, v))` into `dy`.
+    pub(crate) fn eval<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: T,
+        y: &[T],
+        dy: &mut [T],
+    ) -> Result<(), SystemError> {
+        let n = self.n;
+        let (q, v) = y.split_at(n);
+        self.velocities(scene, t, q, v)?;
+        let (dq, dv) = dy.split_at_mut(n);
+        dq.copy_from_slice(&self.qd);
+        self.accelerations(scene, t, q, v, dv)
+    }
+}
+
+/// `x > bound`, or `x` NaN.
+fn exceeds(x: f64, bound: f64) -> bool {
+    x.is_nan() || x > bound
+}
+
+/// Why `form = adapted` does not apply to `scene`, if it does not.
+///
+/// Structural conditions from [`nonholo_core::SceneInfo`] (constraints
+/// linear in `q̇`, no holonomic constraints, a chart of `n − s` values), then
+/// numerical ones at three sample configurations (the scene's default `q0`
+/// and two displaced ones, `t = 0`): the constraints homogeneous
+/// (`g(q, 0) = 0`), the chart linear in its values
+/// (`velocities_from(q, c) = Σ c_j velocities_from(q, e_j)` at two
+/// pseudo-random `c`), on the constraints (`G K = 0`), and the frame
+/// `[K | N]` regular.
+pub(crate) fn applicable<S: Scene>(scene: &S) -> Result<(), String> {
+    let info = scene.info();
+    let (n, s, k) = (info.n(), info.s(), info.k());
+    let mut reasons: Vec<String> = Vec::new();
+    if info.constraint_kind == ConstraintKind::Nonlinear {
+        reasons.push(format!(
+            "the constraint {} is nonlinear in the velocities, so no velocity coordinates \
+             make the violation g a coordinate (g(q, T v) = w needs g linear and homogeneous \
+             in q̇)",
+            info.nonholonomic.join(", ")
+        ));
+    }
+    if k > 0 {
+        reasons.push(format!(
+            "the scene has holonomic constraints ({}), which the adapted velocities do not \
+             carry",
+            info.holonomic.join(", ")
+        ));
+    }
+    let chart: Vec<&str> = info.velocity_chart.iter().map(|c| c.name).collect();
+    if s >= n || chart.len() != n - s {
+        reasons.push(format!(
+            "its velocity chart ({}) has {} values, not n − s = {n} − {s}",
+            chart.join(", "),
+            chart.len(),
+        ));
+        return Err(reasons.join("; "));
+    }
+    let q0 = scene.default_q();
+    let mut samples = vec![q0.clone()];
+    for f in [1.0, -2.0] {
+        samples.push(
+            q0.iter()
+                .enumerate()
+                .map(|(i, x)| x + f * (0.31 + 0.17 * i as f64))
+                .collect(),
+        );
+    }
+    let r = n - s;
+    let mut unit = vec![0.0; r];
+    let mut kcols = vec![0.0; n * r];
+    let (mut qd, mut lin, mut g) = (vec![0.0; n], vec![0.0; n], vec![0.0; s]);
+    let mut nonlinear_chart = None;
+    let mut off_constraint = None;
+    let mut affine = None;
+    for q in &samples {
+        let zeros = vec![0.0; n];
+        scene.nonholonomic(0.0, q, &zeros, &mut g);
+        if g.iter().any(|x| exceeds(x.abs(), 1e-12)) && affine.is_none() {
+            affine = Some(format!("g(q, 0) = {g:?} ≠ 0 at q = {q:?}"));
+        }
+        for j in 0..r {
+            unit.fill(0.0);
+            unit[j] = 1.0;
+            scene.velocities_from(q, &unit, &mut kcols[j * n..(j + 1) * n]);
+            scene.nonholonomic(0.0, q, &kcols[j * n..(j + 1) * n], &mut g);
+            let scale = 1.0
+                + kcols[j * n..(j + 1) * n]
+                    .iter()
+                    .fold(0.0f64, |m, x| m.max(x.abs()));
+            if g.iter().any(|x| exceeds(x.abs(), 1e-10 * scale)) && off_constraint.is_none() {
+                off_constraint = Some(format!(
+                    "chart value {} = 1 gives velocities with g = {g:?} at q = {q:?}",
+                    chart[j]
+                ));
+            }
+        }
+        for seed in [0.0, 1.0] {
+            let c: Vec<f64> = (0..r)
+                .map(|j| 0.73 - 1.37 * seed + 0.61 * (j as f64 + 1.0) * (1.0 - 2.0 * seed))
+                .collect();
+            scene.velocities_from(q, &c, &mut qd);
+            for i in 0..n {
+                lin[i] = (0..r).map(|j| kcols[j * n + i] * c[j]).sum();
+            }
+            let scale = 1.0 + qd.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let dev = qd
+                .iter()
+                .zip(&lin)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            if exceeds(dev, 1e-10 * scale) && nonlinear_chart.is_none() {
+                nonlinear_chart = Some(format!(
+                    "its velocity chart ({}) is not linear in its values: at q = {q:?}, \
+                     chart {c:?} gives q̇ = {qd:?}, the linear combination of the unit \
+                     charts {lin:?}",
+                    chart.join(", ")
+                ));
+            }
+        }
+    }
+    reasons.extend(nonlinear_chart);
+    if info.constraint_kind == ConstraintKind::Linear {
+        if let Some(a) = affine {
+            reasons.push(format!(
+                "the constraints are affine, not homogeneous, in the velocities ({a})"
+            ));
+        }
+        if let Some(o) = off_constraint {
+            reasons.push(format!(
+                "the chart's velocities violate the constraints ({o})"
+            ));
+        }
+    }
+    if reasons.is_empty() {
+        let mut frame = Frame::<f64>::new(n, s);
+        for q in &samples {
+            frame
+                .evaluate(scene, 0.0, q)
+                .map_err(|e| format!("at q = {q:?}: {}", e.message))?;
+            let mut t = frame.t.clone();
+            if let Err(e) = Lu::new(n).factor(&mut t) {
+                reasons.push(format!(
+                    "the velocity frame [K | N] is singular at q = {q:?} ({e})"
+                ));
+                break;
+            }
+        }
+    }
+    if reasons.is_empty() {
+        Ok(())
+    } else {
+        Err(reasons.join("; "))
+    }
+}

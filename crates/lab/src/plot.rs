@@ -775,9 +775,10 @@ fn draw_line_plot<DB: DrawingBackend>(
     let mut side = None;
     if !data.series.is_empty() {
         let chart = build_chart(&area, &xa, &ya, areas, right)?;
-        let (covered, at, (w, _)) = legend_position(&chart, &xa, &ya, data)?;
-        legend_at = Some(at);
-        if covered > 0 && data.series.len() >= OUTSIDE_LEGEND_SERIES {
+        let spot = legend_position(&chart, &xa, &ya, data)?;
+        legend_at = Some(spot.at);
+        let w = spot.size.0;
+        if spot.covered > 0 && data.series.len() >= OUTSIDE_LEGEND_SERIES {
             legend_at = None;
             let (aw, _) = area.dim_in_pixel();
             side = Some(area.split_horizontally(aw as i32 - w - 16));
@@ -903,6 +904,14 @@ fn draw_side_legend<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Where a legend box goes inside the plotting area: its top-left corner,
+/// how many curve points it covers there, its size in pixels.
+struct LegendSpot {
+    covered: usize,
+    at: (i32, i32),
+    size: (i32, i32),
+}
+
 /// Series count from which a legend that covers curves everywhere inside the
 /// plot is drawn to the right of it.
 const OUTSIDE_LEGEND_SERIES: usize = 6;
@@ -916,7 +925,7 @@ fn legend_position<DB: DrawingBackend>(
     xa: &Axis,
     ya: &Axis,
     data: &LineData,
-) -> Result<(usize, (i32, i32), (i32, i32)), String> {
+) -> Result<LegendSpot, String> {
     let area = chart.plotting_area().strip_coord_spec();
     let (pw, ph) = area.dim_in_pixel();
     let (pw, ph) = (pw as f64, ph as f64);
@@ -979,7 +988,11 @@ fn legend_position<DB: DrawingBackend>(
         })
         .min_by_key(|c| c.0)
         .unwrap_or((0, (left, top)));
-    Ok((best.0, best.1, (w, h)))
+    Ok(LegendSpot {
+        covered: best.0,
+        at: best.1,
+        size: (w, h),
+    })
 }
 
 // ---------------------------------------------------------------------------
@@ -1314,9 +1327,191 @@ fn commit(tmp: &Path, target: &Path) -> Result<(), String> {
     result
 }
 
+// ---------------------------------------------------------------------------
+// Status grids
+
+/// How a cell of a [`StatusGrid`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellStatus {
+    /// Ran to the end.
+    Completed,
+    /// Stopped where the formulation stops by design (a singular set).
+    Stopped,
+    /// Failed (integrator error, budget, set-up error).
+    Failed,
+    /// Not run.
+    Missing,
+}
+
+/// One cell: its status and a short text drawn in it (a number, a time).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cell {
+    pub status: CellStatus,
+    pub text: String,
+}
+
+/// A table drawn as a figure: rows (cases) × columns (methods), each cell
+/// coloured by how the run ended, with a short text; the stability map of a
+/// catalogue of cases.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StatusGrid {
+    pub title: String,
+    /// Row names, top to bottom.
+    pub rows: Vec<String>,
+    /// Column names, left to right (drawn vertically above the columns).
+    pub columns: Vec<String>,
+    /// `cells[row][column]`.
+    pub cells: Vec<Vec<Cell>>,
+    /// A line under the grid saying what the numbers are.
+    pub note: String,
+}
+
+const STATUS_FILL: [(CellStatus, RGBColor, &str); 4] = [
+    (CellStatus::Completed, RGBColor(198, 232, 190), "completed"),
+    (CellStatus::Stopped, RGBColor(253, 222, 160), "stopped at a singular set"),
+    (CellStatus::Failed, RGBColor(242, 170, 170), "failed"),
+    (CellStatus::Missing, RGBColor(225, 225, 225), "not run"),
+];
+
+/// Draws `g` and writes `<stem>.png` and `<stem>.svg` (PNG first). The figure
+/// is 1200 px wide and as tall as the rows need.
+pub fn status_grid(g: &StatusGrid, stem: &Path) -> Result<Vec<PathBuf>, String> {
+    if g.cells.len() != g.rows.len() || g.cells.iter().any(|r| r.len() != g.columns.len()) {
+        return Err(format!(
+            "status grid `{}`: {} rows × {} columns but cells are {}",
+            g.title,
+            g.rows.len(),
+            g.columns.len(),
+            g.cells
+                .iter()
+                .map(|r| r.len().to_string())
+                .collect::<Vec<_>>()
+                .join("/")
+        ));
+    }
+    let size = (SIZE.0, grid_height(g));
+    write_outputs_sized(
+        stem,
+        size,
+        |root| draw_status_grid(&root, g),
+        |root| draw_status_grid(&root, g),
+    )
+}
+
+const GRID_ROW_PX: u32 = 52;
+const GRID_HEADER_PX: u32 = 260;
+
+fn grid_height(g: &StatusGrid) -> u32 {
+    90 + GRID_HEADER_PX + GRID_ROW_PX * g.rows.len().max(1) as u32 + 110
+}
+
+fn draw_status_grid<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    g: &StatusGrid,
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(draw_err)?;
+    let area = root
+        .margin(8, 8, 8, 8)
+        .titled(&g.title, title_text())
+        .map_err(draw_err)?;
+    let (aw, _) = area.dim_in_pixel();
+    let label = text(LEGEND_PX);
+    let small = text(TICK_PX);
+    let row_w = max_label_width(&area, &g.rows)? + 24;
+    let cols = g.columns.len().max(1) as i32;
+    let col_w = ((aw as i32 - row_w as i32 - 16) / cols).max(20);
+    let (x0, y0) = (row_w as i32, GRID_HEADER_PX as i32);
+    let row_h = GRID_ROW_PX as i32;
+    // Column names, vertical, bottom-aligned on the grid.
+    for (c, name) in g.columns.iter().enumerate() {
+        let x = x0 + c as i32 * col_w + col_w / 2;
+        let style = label
+            .transform(FontTransform::Rotate270)
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        area.draw(&Text::new(name.clone(), (x, y0 - 10), style))
+            .map_err(draw_err)?;
+    }
+    for (r, name) in g.rows.iter().enumerate() {
+        let y = y0 + r as i32 * row_h;
+        area.draw(&Text::new(
+            name.clone(),
+            (x0 - 12, y + row_h / 2),
+            label.pos(Pos::new(HPos::Right, VPos::Center)),
+        ))
+        .map_err(draw_err)?;
+        for (c, cell) in g.cells[r].iter().enumerate() {
+            let x = x0 + c as i32 * col_w;
+            let fill = STATUS_FILL
+                .iter()
+                .find(|f| f.0 == cell.status)
+                .map(|f| f.1)
+                .unwrap_or(WHITE);
+            area.draw(&Rectangle::new(
+                [(x, y), (x + col_w, y + row_h)],
+                fill.filled(),
+            ))
+            .map_err(draw_err)?;
+            area.draw(&Rectangle::new(
+                [(x, y), (x + col_w, y + row_h)],
+                BLACK.mix(0.35).stroke_width(1),
+            ))
+            .map_err(draw_err)?;
+            area.draw(&Text::new(
+                cell.text.clone(),
+                (x + col_w / 2, y + row_h / 2),
+                small.pos(Pos::new(HPos::Center, VPos::Center)),
+            ))
+            .map_err(draw_err)?;
+        }
+    }
+    // Key and note under the grid.
+    let ky = y0 + g.rows.len() as i32 * row_h + 24;
+    let mut kx = x0;
+    for (_, colour, what) in STATUS_FILL {
+        area.draw(&Rectangle::new(
+            [(kx, ky), (kx + SWATCH_PX as i32, ky + SWATCH_PX as i32)],
+            colour.filled(),
+        ))
+        .map_err(draw_err)?;
+        area.draw(&Rectangle::new(
+            [(kx, ky), (kx + SWATCH_PX as i32, ky + SWATCH_PX as i32)],
+            BLACK.mix(0.35),
+        ))
+        .map_err(draw_err)?;
+        let tx = kx + SWATCH_PX as i32 + 8;
+        area.draw(&Text::new(
+            what,
+            (tx, ky + SWATCH_PX as i32 / 2),
+            small.pos(Pos::new(HPos::Left, VPos::Center)),
+        ))
+        .map_err(draw_err)?;
+        let (w, _) = area.estimate_text_size(what, &small).map_err(draw_err)?;
+        kx = tx + w as i32 + 28;
+    }
+    if !g.note.is_empty() {
+        area.draw(&Text::new(
+            g.note.clone(),
+            (x0, ky + SWATCH_PX as i32 + 30),
+            small.pos(Pos::new(HPos::Left, VPos::Center)),
+        ))
+        .map_err(draw_err)?;
+    }
+    root.present().map_err(draw_err)
+}
+
 /// Renders the PNG and the SVG of one figure and writes both atomically.
 fn write_outputs(
     stem: &Path,
+    png: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), String>,
+    svg: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<(), String>,
+) -> Result<Vec<PathBuf>, String> {
+    write_outputs_sized(stem, SIZE, png, svg)
+}
+
+/// [`write_outputs`] for a figure of `size` pixels.
+fn write_outputs_sized(
+    stem: &Path,
+    size: (u32, u32),
     png: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> Result<(), String>,
     svg: impl FnOnce(DrawingArea<SVGBackend<'_>, Shift>) -> Result<(), String>,
 ) -> Result<Vec<PathBuf>, String> {
@@ -1332,11 +1527,11 @@ fn write_outputs(
     // Rendered into memory and encoded here: the best deflate level with
     // adaptive filters makes the committed figures 2–3 times smaller than
     // plotters' own encoder.
-    let mut pixels = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-    png(BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area())?;
+    let mut pixels = vec![0u8; (size.0 * size.1 * 3) as usize];
+    png(BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area())?;
     let mut bytes = Vec::new();
     {
-        let mut enc = ::png::Encoder::new(&mut bytes, SIZE.0, SIZE.1);
+        let mut enc = ::png::Encoder::new(&mut bytes, size.0, size.1);
         enc.set_color(::png::ColorType::Rgb);
         enc.set_depth(::png::BitDepth::Eight);
         enc.set_compression(::png::Compression::Best);
@@ -1355,7 +1550,7 @@ fn write_outputs(
     commit(&tmp, &png_path)?;
 
     let mut doc = String::new();
-    svg(SVGBackend::with_string(&mut doc, SIZE).into_drawing_area())?;
+    svg(SVGBackend::with_string(&mut doc, size).into_drawing_area())?;
     let tmp = temp_path(&svg_path, ".svg");
     if let Err(e) = fs::write(&tmp, doc.as_bytes()) {
         let _ = fs::remove_file(&tmp);

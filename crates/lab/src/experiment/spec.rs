@@ -42,7 +42,8 @@
 //! ```
 //!
 //! Swept names: `param.<p>`, `init.<v>` (all formulations), `option.<o>`
-//! (every formulation that has option `o`), and
+//! (every formulation that has option `o`), `case` (a name for the point,
+//! e.g. in a zip sweep over a catalogue of cases), and
 //! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
 //! `<label>.rtol|atol|step|integrator|radau_newton` (one formulation).
 
@@ -274,6 +275,8 @@ pub enum Target {
     Init(String),
     /// An option of every formulation that has it (`option.k`).
     Option(String),
+    /// The name of a case in a catalogue (`case`): labels the point only.
+    Case,
     FormParam(String, String),
     FormInit(String, String),
     FormOption(String, String),
@@ -413,7 +416,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     let parts: Vec<&str> = name.split('.').collect();
     let bad = || {
         format!(
-            "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, or <label>.param.<p>, \
+            "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, case, or <label>.param.<p>, \
              <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton \
              (labels: {})",
             labels.join(", ")
@@ -423,6 +426,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
         ["param", p] => Ok(Target::Param(p.to_string())),
         ["init", v] => Ok(Target::Init(v.to_string())),
         ["option", o] => Ok(Target::Option(o.to_string())),
+        ["case"] => Ok(Target::Case),
         [label, kind, key] if labels.iter().any(|l| l == label) => match *kind {
             "param" => Ok(Target::FormParam(label.to_string(), key.to_string())),
             "init" => Ok(Target::FormInit(label.to_string(), key.to_string())),
@@ -453,6 +457,7 @@ pub fn apply(
     match target {
         Target::Param(p) => set(scene_params, p),
         Target::Init(v) => set(init, v),
+        Target::Case => {}
         Target::Option(o) => {
             let mut any = false;
             for f in forms.iter_mut() {

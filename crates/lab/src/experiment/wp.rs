@@ -37,7 +37,7 @@ use super::reference::{Reference, ReferenceInfo, compute, q_error};
 use super::spec::{Experiment, Ladder, RefSpec, describe};
 use super::sweep::{Point, resolve};
 use super::{Outcome, RunOptions};
-use crate::plot::{LinePlot, Series, line_plot};
+use crate::plot::{Cell, CellStatus, LinePlot, Series, StatusGrid, line_plot, status_grid};
 use crate::simulate::{RunSpec, execute};
 
 /// Schema of a work-precision point file.
@@ -846,7 +846,73 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
             )?);
         }
     }
+    if points.len() >= 2 {
+        files.extend(stability_map(exp, dir, points)?);
+    }
     Ok(files)
+}
+
+/// The row name of a point: its `case` value if the sweep has one, else the
+/// swept values.
+fn case_name(exp: &Experiment, p: &WpPoint) -> String {
+    exp.axes
+        .iter()
+        .position(|a| a.name == "case")
+        .and_then(|i| p.values.get(i).cloned())
+        .unwrap_or_else(|| compact(&exp.axes, &p.values))
+}
+
+/// The stability map: points (cases) × lines, each cell the run at the
+/// line's finest rung — completed (with its correct digits), stopped at a
+/// singular set, or failed (with the time reached).
+fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<PathBuf>, String> {
+    let cells = points
+        .iter()
+        .map(|p| {
+            exp.formulations
+                .iter()
+                .map(|f| {
+                    let Some(r) = p.rows.iter().rev().find(|r| r.label == f.label) else {
+                        return Cell {
+                            status: CellStatus::Missing,
+                            text: String::new(),
+                        };
+                    };
+                    let at = |t: Option<f64>| t.map(|t| format!(" t={t:.3}")).unwrap_or_default();
+                    match r.status.as_str() {
+                        "completed" => Cell {
+                            status: CellStatus::Completed,
+                            text: r.scd_max.map(|d| format!("{d:.1}")).unwrap_or("—".into()),
+                        },
+                        "stopped" => Cell {
+                            status: CellStatus::Stopped,
+                            text: format!(
+                                "{}{}",
+                                r.scd_max.map(|d| format!("{d:.1},")).unwrap_or_default(),
+                                at(r.error_t)
+                            ),
+                        },
+                        _ => Cell {
+                            status: CellStatus::Failed,
+                            text: format!("fail{}", at(r.error_t)),
+                        },
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    status_grid(
+        &StatusGrid {
+            title: format!("{}: stability map", exp.title),
+            rows: points.iter().map(|p| case_name(exp, p)).collect(),
+            columns: exp.formulations.iter().map(line_name).collect(),
+            cells,
+            note: "numbers: correct digits −log10(max |Δq| / max |q|) against the line's reference at its \
+                   finest rung; t: where a run stopped or failed (reasons in work_precision.csv)"
+                .into(),
+        },
+        &dir.join("plots").join("stability-map"),
+    )
 }
 
 /// `k = 1e6, potential = com` for plot titles.
@@ -876,6 +942,13 @@ fn line_name(f: &super::spec::FormulationSpec) -> String {
 
 /// Caption of a work-precision plot from its stem.
 pub fn caption(exp: &Experiment, stem: &str) -> String {
+    if stem == "stability-map" {
+        return "Stability map: every point (case) against every line at its finest rung — green: \
+                completed, with its correct digits; amber: stopped at a singular set (by design), \
+                with the time; red: failed, with the time (the message is in work_precision.csv); \
+                grey: not run."
+            .into();
+    }
     let mut parts = stem.splitn(3, '-');
     let (_, point, what) = (parts.next(), parts.next(), parts.next().unwrap_or(""));
     let point = point.unwrap_or("0");

@@ -1368,7 +1368,11 @@ pub struct StatusGrid {
 
 const STATUS_FILL: [(CellStatus, RGBColor, &str); 4] = [
     (CellStatus::Completed, RGBColor(198, 232, 190), "completed"),
-    (CellStatus::Stopped, RGBColor(253, 222, 160), "stopped at a singular set"),
+    (
+        CellStatus::Stopped,
+        RGBColor(253, 222, 160),
+        "stopped at a singular set",
+    ),
     (CellStatus::Failed, RGBColor(242, 170, 170), "failed"),
     (CellStatus::Missing, RGBColor(225, 225, 225), "not run"),
 ];

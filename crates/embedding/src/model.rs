@@ -14,7 +14,10 @@
 //! `w = q_I⁗` from A's derivative array (see [`crate::ode`]), for RK4, DOPRI5
 //! and DOP853; option `stab` projects `q⃛` back onto the hidden constraints
 //! after every accepted step. Both forms share the guard at the embedding
-//! map's singular set and the refusal of stages that cross it.
+//! map's singular set and the refusal of stages that cross it; the explicit
+//! form's guard also stops it where `q⁗` is no longer resolved to
+//! [`ODE_RESOLUTION`] (the derivative array's round-off grows towards the
+//! singular set), before its solve would fail.
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::guard::{SingularGuard, magnitude};
@@ -29,7 +32,7 @@ use num_dual::{Dual2, Dual2_64, Dual64};
 
 use crate::analysis::{Completion, Structure, complete, structure};
 use crate::elo::{MAX_DOF, elo_array, reconstruct};
-use crate::ode::{Reduction, ReductionStats};
+use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
 
 /// Where the run stops near the embedding map's singular set.
 pub const SINGULAR_TOL: ParamSpec = ParamSpec::real(
@@ -149,6 +152,11 @@ pub struct Embedding<S: Scene> {
     /// `(t, before, after)` hidden-constraint residuals per accepted step of
     /// the explicit form, if asked for ([`Embedding::record_hidden`]).
     hidden_log: Option<Vec<[f64; 3]>>,
+    /// The explicit form's last guard evaluation that was `<= 0` (the time,
+    /// what was measured; the state in `stop_z`): the integrator stops at
+    /// that state, and its reason then reports what fired there.
+    stop_record: Option<(f64, Result<Resolution, String>)>,
+    stop_z: Vec<f64>,
 }
 
 /// Names of the derivatives A accepts in `--init` for coordinate `c`.
@@ -191,6 +199,8 @@ impl<S: Scene> Embedding<S> {
             report: None,
             reduction: Reduction::new(m),
             hidden_log: None,
+            stop_record: None,
+            stop_z: vec![0.0; 4 * m],
             scene,
         })
     }
@@ -316,12 +326,16 @@ impl<S: Scene> Embedding<S> {
         (p > 0).then(|| self.guard.value(&self.r, p))
     }
 
-    fn guard_text(&mut self, t: f64, y: &[f64]) -> String {
+    /// `|r|` at `(t, y)` and the zero of the guard's signed distance,
+    /// extrapolated linearly from the rate at which `r` falls along its own
+    /// direction (for the sleigh: `d|v|/dt = v·a/|v|`), as text.
+    fn approach(&mut self, t: f64, y: &[f64]) -> (f64, String) {
         let m = self.m;
         let p = self.singular_vector(t, y);
         let size = magnitude(&self.r, p);
-        // Zero crossing extrapolated linearly from the rate at which r falls
-        // along its own direction (for the sleigh: d|v|/dt = v·a/|v|).
+        if p == 0 {
+            return (size, String::new());
+        }
         let h = 1e-7 * (1.0 + t.abs());
         let later: Vec<f64> = (0..2 * m).map(|i| y[i] + h * y[m + i]).collect();
         let along_now = self.guard.value(&self.r, p);
@@ -335,11 +349,36 @@ impl<S: Scene> Embedding<S> {
         } else {
             String::new()
         };
+        (size, crossing)
+    }
+
+    fn guard_text(&mut self, t: f64, y: &[f64]) -> String {
+        let (size, crossing) = self.approach(t, y);
         format!(
             "the motion reached the singular set of the embedding map {} — {} \
              (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
             self.e.formula, self.e.singular_set, self.guard.tol
         )
+    }
+
+    /// The explicit form's guard from its two parts: the singular set's
+    /// signed distance (if the scene has one) and the resolution margin
+    /// `singular_tol · ln(ODE_RESOLUTION / ρ)` (`−singular_tol` where the
+    /// solve fails), in the units of the first. The smaller counts; NaN
+    /// stops the run.
+    fn explicit_guard(
+        &self,
+        singular: Option<f64>,
+        resolution: &Result<Resolution, String>,
+    ) -> f64 {
+        let margin = match resolution {
+            Ok(r) => self.guard.tol * (ODE_RESOLUTION / r.rho).ln(),
+            Err(_) => -self.guard.tol,
+        };
+        match singular {
+            Some(g) if g.is_nan() || g < margin => g,
+            _ => margin,
+        }
     }
 
     /// `q_I⁗ = w(z)` of the explicit form at `(t, z)` (see [`crate::ode`]):
@@ -348,6 +387,19 @@ impl<S: Scene> Embedding<S> {
     pub fn fourth_derivative(&mut self, t: f64, z: &[f64]) -> Result<&[f64], SystemError> {
         self.reduction
             .fourth(&self.scene, &self.e, t, z)
+            .map_err(|msg| {
+                SystemError::new(format!(
+                    "the derivative array of (19) could not be solved for q⁗: {msg}"
+                ))
+            })
+    }
+
+    /// How well the explicit form's `q⁗ = w(z)` is resolved at `(t, z)`
+    /// (see [`Resolution`]); the explicit form stops where `rho` reaches
+    /// [`ODE_RESOLUTION`].
+    pub fn resolution(&mut self, t: f64, z: &[f64]) -> Result<Resolution, SystemError> {
+        self.reduction
+            .resolution(&self.scene, &self.e, t, z)
             .map_err(|msg| {
                 SystemError::new(format!(
                     "the derivative array of (19) could not be solved for q⁗: {msg}"
@@ -544,12 +596,55 @@ impl<S: Scene> OdeSystem for Embedding<S> {
         Ok(moved)
     }
 
+    /// The implicit form's guard at the singular set, and the resolution of
+    /// `q⁗` ([`Embedding::resolution`]; see `explicit_guard`): the run stops
+    /// where the first of them reaches zero, so that it ends by design
+    /// before the round-off of the derivative array keeps `q⁗` from being
+    /// solved for. At an accepted state the solve is the one the right-hand
+    /// side made there (after a projection) or makes next (RK4's first
+    /// stage), and is not repeated. No allocation unless the solve fails.
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        self.guard_value(t, y)
+        let resolution = self.reduction.resolution(&self.scene, &self.e, t, y);
+        let singular = self.guard_value(t, y);
+        let g = self.explicit_guard(singular, &resolution);
+        if g.is_nan() || g <= 0.0 {
+            self.stop_z.copy_from_slice(&y[..4 * self.m]);
+            self.stop_record = Some((t, resolution));
+        }
+        Some(g)
     }
 
+    /// Names the guard that fired at the stop: the singular set (as in the
+    /// implicit form), or the resolution of `q⁗`, with `ρ` and its two
+    /// parts, the speed, the limit and the extrapolated zero of the speed.
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        self.guard_text(t, y)
+        let resolution = match self.stop_record.take() {
+            Some((at, r)) if at == t && self.stop_z[..] == y[..4 * self.m] => r,
+            _ => self.reduction.resolution(&self.scene, &self.e, t, y),
+        };
+        let singular = self.guard_value(t, y);
+        if singular.is_some_and(|g| g <= self.explicit_guard(None, &resolution)) {
+            return self.guard_text(t, y);
+        }
+        let measured = match resolution {
+            Ok(r) => format!(
+                "to {:.2e} relative (conditioning {:.2e}, observed {})",
+                r.rho,
+                r.conditioning,
+                r.observed
+                    .map_or_else(|| "not measured".to_string(), |o| format!("{o:.2e}"))
+            ),
+            Err(msg) => format!("no longer ({msg})"),
+        };
+        let (size, crossing) = self.approach(t, y);
+        format!(
+            "the explicit form reached its resolution limit: the derivative array [E; Ė; Ë] \
+             determines q⁗ only {measured} here, limit {ODE_RESOLUTION:.0e}; its terms grow like \
+             powers of the turning rate and cancel towards the singular set of the embedding map \
+             {} — {} (|r| = {size:.3e}, singular_tol = {:.1e}{crossing}); the implicit form \
+             (radau5) runs on to singular_tol",
+            self.e.formula, self.e.singular_set, self.guard.tol
+        )
     }
 }
 

@@ -57,16 +57,39 @@
 //! **Accuracy.** The terms of `[E; Ė; Ë]` grow like powers of the turning
 //! rate `|q̈|/|v|` and cancel in `D`, so the round-off of `w` grows towards
 //! the singular set: ≤ 1e-12 relative for most of the default sleigh
-//! motion, up to 4e-11 at `|v| = 0.4 m/s` and 1e-8 at `|v| = 0.15 m/s`; the
-//! explicit form ends (with an error naming the cause) at
-//! `|v| ≈ 0.07–0.1 m/s`, a few ms before the default guard `singular_tol = 1e-3`.
+//! motion, 4e-11 at `|v| = 0.4 m/s`, 1e-8 at 0.15 m/s (against C's `q⁗`).
 //! Steps that no longer contract even with a fresh Jacobian are accepted
-//! as that round-off when they are below 1e-7 relative. The map's own
-//! derivatives must be accurate to order 4: num-dual differentiates
+//! as that round-off when they are below 1e-7 relative; beyond that the
+//! solve fails (at `|v| ≈ 0.03–0.05 m/s` on the sleigh's motions). The map's
+//! own derivatives must be accurate to order 4: num-dual differentiates
 //! `atan2(y, x)` through `y/x`, which loses accuracy like `(|v|/ẋ)ᵏ` as the
 //! sleigh's heading passes π/2 and ended the explicit form there (default
 //! motion: t = 0.884, ẋ = 0.002 m/s); the sleigh now evaluates its map with
 //! the quadrant-switching [`nonholo_core::scene::atan2`].
+//!
+//! **Where it stops** ([`Reduction::resolution`]). So that the explicit form
+//! ends by design (`IntegrateError::Stopped`) rather than by a failing
+//! solve, its guard ([`crate::model`]) stops the run where the estimated
+//! relative round-off `ρ` of `q⁗` reaches [`ODE_RESOLUTION`] = 1e-8. `ρ` is
+//! the larger of `NOISE_FACTOR · ε · κ`, with `κ` the condition number of
+//! the equilibrated `∂D/∂u` of the solve (free: its singular values are
+//! computed for the pseudo-inverse), and, only where that is within two
+//! orders of the limit, an observed round-off: `D` at `z` and at four copies
+//! of `z` changed by ~1e-15 relative, the differences mapped to `q⁗` by the
+//! solve's pseudo-inverse (five evaluations of `D`, once per state). At an
+//! accepted state the guard uses the solve the right-hand side made there
+//! (a solve at the `(t, z)` of the previous one returns it), so away from
+//! the limit the guard costs nothing. Measured along C's motions (four
+//! motions, 780 states with `εκ` between 1e-12 and 1e-5), the error of `w`
+//! against C's `q⁗` is at most 0.3 `εκ` on the default motions (λ0 = 0, −1,
+//! both potentials; `εκ` > 1e-10) and at most 1.7 `εκ` (median 0.5–1) on the
+//! sleigh launched up the slope (`εκ` from 1e-10 to 1e-8; up to 4 beyond),
+//! hence `NOISE_FACTOR = 2`; the observed part is 0.07–0.2 `εκ` (median)
+//! on the default motions and 0.5–1.8 up the slope. The limit is reached at
+//! `|v| ≈ 0.30 m/s` on the default motion (t = 0.906451, 17 ms before the
+//! implicit form's stop) and at 0.074 m/s up the slope (25 ms before it:
+//! that sleigh decelerates slowly); the solve would fail only at
+//! `|v| ≈ 0.03–0.05 m/s`.
 //!
 //! **Projection** ([`Reduction::project`]). An explicit integrator keeps `D`'s
 //! solvable part exactly but lets `h(z)` drift. After each accepted step the
@@ -107,6 +130,52 @@ const SLOW: f64 = 0.5;
 /// Relative singular-value threshold for a numerical rank.
 const RANK_RTOL: f64 = 1e-10;
 
+/// The explicit form stops where `q⁗` is resolved only to this relative
+/// accuracy ([`Resolution::rho`]; see the module documentation): the
+/// round-off of the derivative array grows like a power of `1/|v|` towards
+/// the embedding map's singular set, and about an order of magnitude
+/// further the solve no longer converges.
+pub const ODE_RESOLUTION: f64 = 1e-8;
+
+/// The round-off of `q⁗` estimated from the conditioning is
+/// `NOISE_FACTOR · ε · κ`, `κ = σ₁/σ_r` of the equilibrated `∂D/∂u`: the
+/// upper end of the error of `w` measured against C's `q⁗` along C's
+/// motions, 0.02–1.7 `εκ` (module documentation).
+pub const NOISE_FACTOR: f64 = 2.0;
+
+/// The observed round-off ([`Resolution::observed`], five evaluations of
+/// `D`) is measured only where the conditioning estimate is above this
+/// fraction of [`ODE_RESOLUTION`]; below it the estimate alone is used.
+pub const PROBE_FROM: f64 = 1e-2;
+
+/// Relative size of the changes of `z` by which the observed round-off is
+/// measured (a pattern of multiples of it, up to five, per component).
+const PROBE_SIZE: f64 = 2e-16;
+
+/// Changed copies of `z` per measurement of the observed round-off (the
+/// largest response counts: single responses scatter by a factor of ~5
+/// about the error measured against C).
+const PROBE_TRIALS: usize = 4;
+
+/// How well `q⁗ = w(z)` is resolved at a state: estimates of its relative
+/// round-off ([`Reduction::resolution`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Resolution {
+    /// The estimate in use: the larger of the two below.
+    pub rho: f64,
+    /// `NOISE_FACTOR · ε · κ` from the condition number `κ` of the
+    /// equilibrated Jacobian `∂D/∂u` of the solve (free: its singular values
+    /// are computed for the pseudo-inverse anyway).
+    pub conditioning: f64,
+    /// Observed: `D` evaluated at `z` and at four copies of `z` changed by
+    /// about 1e-15 relative (`u` kept), the differences mapped to `q⁗` by
+    /// the solve's pseudo-inverse, relative to `|q⁗|∞`. It catches round-off
+    /// of `D` itself that `κ` does not show (e.g. a map whose jets lose
+    /// accuracy). Measured only where `conditioning ≥ PROBE_FROM ·
+    /// ODE_RESOLUTION`.
+    pub observed: Option<f64>,
+}
+
 /// Work counters of the reduction (not part of any result file).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ReductionStats {
@@ -128,6 +197,13 @@ pub struct ReductionStats {
     /// [`SOLVE_RTOL`], and the largest such step (relative).
     pub stagnations: usize,
     pub max_stagnation: f64,
+    /// Solves answered from the previous one (same `t` and `z`; e.g. the
+    /// guard at an accepted state, then the right-hand side there).
+    pub cache_hits: usize,
+    /// Measurements of the observed round-off ([`Resolution::observed`]),
+    /// `1 + PROBE_TRIALS` evaluations of `D` each (not counted in
+    /// `evaluations`).
+    pub probes: usize,
 }
 
 /// Workspace and warm start of the derivative-array solve (see the module
@@ -160,6 +236,17 @@ pub struct Reduction {
     pinv: Vec<f64>,
     row_scale: Vec<f64>,
     col_scale: Vec<f64>,
+    /// Condition number `σ₁/σ_r` of the equilibrated `∂D/∂u` of the last
+    /// solve's Jacobian.
+    kappa: f64,
+    /// Time of the solve whose `(z, u)` is in `d` (`None` after a failure,
+    /// a projection or a reset): a solve at the same `(t, z)` returns it.
+    solved_at: Option<f64>,
+    /// The observed round-off at that solve, once measured.
+    probed: Option<f64>,
+    /// `D` at the solve and `z` of the solve, for the probe.
+    probe_base: Vec<f64>,
+    probe_z: Vec<f64>,
     stats: ReductionStats,
 }
 
@@ -185,6 +272,11 @@ impl Reduction {
             pinv: vec![0.0; rows * cols],
             row_scale: vec![1.0; rows],
             col_scale: vec![1.0; cols],
+            kappa: f64::INFINITY,
+            solved_at: None,
+            probed: None,
+            probe_base: vec![0.0; rows],
+            probe_z: vec![0.0; 4 * m],
             stats: ReductionStats::default(),
         }
     }
@@ -204,6 +296,8 @@ impl Reduction {
         self.d.copy_from_slice(&d[..7 * m]);
         self.u_good.copy_from_slice(&d[4 * m..7 * m]);
         self.rank_u = None;
+        self.solved_at = None;
+        self.probed = None;
         self.stats = ReductionStats::default();
         self.jacobian(scene, e, t, 4 * m)?;
         self.rank_u = Some(self.kept_rank());
@@ -226,7 +320,8 @@ impl Reduction {
     }
 
     /// `w(z) = q⁗`: solves `D(z, u) = 0` for `u` (least squares off the
-    /// manifold, see the module documentation).
+    /// manifold, see the module documentation). A call at the `(t, z)` of
+    /// the previous solve returns its result.
     pub fn fourth<S: Scene>(
         &mut self,
         scene: &S,
@@ -235,6 +330,12 @@ impl Reduction {
         z: &[f64],
     ) -> Result<&[f64], String> {
         let m = self.m;
+        if self.solved_at == Some(t) && self.d[..4 * m] == z[..4 * m] {
+            self.stats.cache_hits += 1;
+            return Ok(&self.d[4 * m..5 * m]);
+        }
+        self.solved_at = None;
+        self.probed = None;
         self.d[..4 * m].copy_from_slice(&z[..4 * m]);
         self.stats.solves += 1;
         if let Err(msg) = self.iterate(scene, e, t, 4 * m) {
@@ -242,7 +343,81 @@ impl Reduction {
             return Err(msg);
         }
         self.u_good.copy_from_slice(&self.d[4 * m..]);
+        self.solved_at = Some(t);
         Ok(&self.d[4 * m..5 * m])
+    }
+
+    /// How well `w(z)` is resolved at `(t, z)` (solving there unless the
+    /// last solve was there): see [`Resolution`]. The observed part costs
+    /// five evaluations of `D` and is measured once per solve, only near
+    /// the limit ([`PROBE_FROM`]). No allocation.
+    pub fn resolution<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        z: &[f64],
+    ) -> Result<Resolution, String> {
+        self.fourth(scene, e, t, z)?;
+        let conditioning = NOISE_FACTOR * f64::EPSILON * self.kappa;
+        let observed = if conditioning >= PROBE_FROM * ODE_RESOLUTION {
+            let p = match self.probed {
+                Some(p) => p,
+                None => self.probe(scene, e, t),
+            };
+            self.probed = Some(p);
+            Some(p)
+        } else {
+            None
+        };
+        // Written so that a NaN in either part gives NaN.
+        let rho = match observed {
+            Some(o) if o.is_nan() || o > conditioning => o,
+            _ => conditioning,
+        };
+        Ok(Resolution {
+            rho,
+            conditioning,
+            observed,
+        })
+    }
+
+    /// The observed part of [`Reduction::resolution`] at the solve in `d`
+    /// (its pseudo-inverse in `pinv`).
+    fn probe<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: f64) -> f64 {
+        let m = self.m;
+        let rows = LEVELS * m;
+        self.stats.probes += 1;
+        self.probe_z.copy_from_slice(&self.d[..4 * m]);
+        self.evaluate(scene, e, t);
+        self.probe_base.copy_from_slice(&self.value);
+        // Relative to |q⁗|∞, with the floor of the iteration's measure.
+        let floor = 1e-6
+            * self.d[m..4 * m]
+                .iter()
+                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+        let scale = self.d[4 * m..5 * m]
+            .iter()
+            .fold(floor, |a, v| a.max(v.abs()));
+        let mut observed = 0.0f64;
+        for trial in 0..PROBE_TRIALS {
+            for (i, x) in self.d[..4 * m].iter_mut().enumerate() {
+                let pattern = ((i * 7 + trial * 13) % 11) as f64 - 5.0;
+                *x = self.probe_z[i] * (1.0 + PROBE_SIZE * pattern);
+            }
+            self.evaluate(scene, e, t);
+            for k in 0..m {
+                let row = &self.pinv[k * rows..(k + 1) * rows];
+                let s: f64 = (0..rows)
+                    .map(|l| row[l] * (self.value[l] - self.probe_base[l]))
+                    .sum();
+                // NaN propagates (max would drop it).
+                let rel = s.abs() / scale;
+                observed = if rel.is_nan() { rel } else { observed.max(rel) };
+            }
+        }
+        self.d[..4 * m].copy_from_slice(&self.probe_z);
+        observed
     }
 
     /// Moves `q⃛ = z[3m..4m]` onto A's hidden constraints with `q, q̇, q̈`
@@ -257,6 +432,8 @@ impl Reduction {
     ) -> Result<f64, String> {
         let m = self.m;
         self.d[..4 * m].copy_from_slice(&z[..4 * m]);
+        self.solved_at = None;
+        self.probed = None;
         self.stats.projections += 1;
         if let Err(msg) = self.iterate(scene, e, t, 3 * m) {
             self.d[4 * m..].copy_from_slice(&self.u_good);
@@ -373,10 +550,15 @@ impl Reduction {
                 continue;
             }
             prev = size;
-            elo_array::<_, f64, Jet4<f64>>(scene, e, t, &self.d, &mut self.value);
+            self.evaluate(scene, e, t);
             self.stats.evaluations += 1;
         }
         Err(format!("no convergence in {MAX_ITER} iterations"))
+    }
+
+    /// `D` at `d` into `value` (order-4 jet over `f64`).
+    fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: f64) {
+        elo_array::<_, f64, Jet4<f64>>(scene, e, t, &self.d, &mut self.value);
     }
 
     /// `D` and `∂D/∂d[first..7m]` at `d`, equilibrated, and its truncated
@@ -576,6 +758,9 @@ impl Reduction {
                 "the Jacobian of the derivative array lost rank (expected {rank}, numerical {numerical})"
             ));
         }
+        if first == 4 * m {
+            self.kappa = top / norms[self.order[rank - 1]];
+        }
         // P = C⁻¹ V Σ⁻² (AV)ᵀ R⁻¹ over the kept singular triplets.
         self.pinv[..cols * rows].fill(0.0);
         for &j in &self.order[..rank] {
@@ -719,6 +904,37 @@ mod tests {
             worst = worst.max(g.abs());
         }
         assert!(worst <= 1e-8 * size, "{worst:e} of {size:e}");
+    }
+
+    /// The resolution at a well-resolved state: the conditioning estimate
+    /// alone (no probe), the solve reused at the same `(t, z)`; the probe
+    /// leaves the solve untouched and sees round-off only.
+    #[test]
+    fn resolution_reuses_the_solve_and_probe_restores_it() {
+        let s = Sleigh::from_params(&Params::defaults(Sleigh::INFO.params)).unwrap();
+        let e = Sleigh::INFO.embedding.unwrap();
+        let d = consistent(&s);
+        let mut r = Reduction::new(2);
+        r.reset(&s, &e, 0.0, &d).unwrap();
+        let z = d[..8].to_vec();
+        let w = r.fourth(&s, &e, 0.0, &z).unwrap().to_vec();
+        let before = r.stats();
+        let res = r.resolution(&s, &e, 0.0, &z).unwrap();
+        assert_eq!(r.stats().solves, before.solves);
+        assert_eq!(r.stats().cache_hits, before.cache_hits + 1);
+        assert!(res.observed.is_none() && res.rho == res.conditioning);
+        assert!(res.rho > f64::EPSILON && res.rho < 1e-12, "{res:?}");
+        // Another time or state is solved anew.
+        r.fourth(&s, &e, 1e-9, &z).unwrap();
+        assert_eq!(r.stats().solves, before.solves + 1);
+        r.fourth(&s, &e, 0.0, &z).unwrap();
+        let solved = r.d.clone();
+        let observed = r.probe(&s, &e, 0.0);
+        assert_eq!(r.d, solved);
+        assert!(observed > 0.0 && observed < 1e-12, "{observed:e}");
+        let again = r.fourth(&s, &e, 0.0, &z).unwrap();
+        assert_eq!(again, &solved[8..10]);
+        assert!((again[0] - w[0]).abs() <= 1e-12 * w[0].abs().max(w[1].abs()));
     }
 
     /// The pseudo-inverse is the Moore–Penrose inverse of the (weighted)

@@ -1,7 +1,9 @@
 //! The explicit (ODE) form of formulation A (`src/ode.rs`): `q⁗` from A's
 //! derivative array against C's Taylor coefficients, the explicit form
 //! against the implicit form and against C, convergence orders, drift of
-//! the hidden constraints, the guard, and the cost of a right-hand side.
+//! the hidden constraints, the guards (singular set; resolution of `q⁗`,
+//! where the explicit form stops by design), and the cost of a right-hand
+//! side.
 //!
 //! C (`nonholo_vakonomic`) only supplies initial data and reference values;
 //! A's explicit form never consults it.
@@ -12,6 +14,7 @@ use nonholo_core::integrate::{
     ImplicitSystem, IntegrateError, Method, OdeSystem, Options, SystemError, solve,
 };
 use nonholo_core::{Initial, Model, Params, Run, RunConfig, Scene, simulate};
+use nonholo_embedding::ode::ODE_RESOLUTION;
 use nonholo_embedding::{Embedding, OPTIONS};
 use nonholo_scenes::Sleigh;
 use nonholo_vakonomic::Vakonomic;
@@ -88,6 +91,11 @@ fn config(method: Method, rtol: f64, t_end: f64, every: f64) -> RunConfig {
 
 /// C from `y` (with its λ0) by DOP853 at 1e-12.
 fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64) -> Run {
+    run_c_tol(s, y, t_end, every, 1e-12)
+}
+
+/// C from `y` (with its λ0) by DOP853 at `rtol`.
+fn run_c_tol(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64, rtol: f64) -> Run {
     let init = Initial {
         t0: 0.0,
         q: y[..3].to_vec(),
@@ -97,7 +105,7 @@ fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64) -> Run {
     simulate(
         Box::new(vakonomic(s)),
         init,
-        config(Method::Dop853, 1e-12, t_end, every),
+        config(Method::Dop853, rtol, t_end, every),
     )
     .unwrap()
 }
@@ -185,7 +193,8 @@ fn fourth_derivative_equals_vakonomic_along_its_motion() {
 /// completed by `initial_state`), A's explicit form by DOP853 at 1e-10
 /// (projection on) reproduces A's implicit form by Radau at 1e-10 and C
 /// (DOP853, 1e-12) in position to 1e-7, sampled every 1e-3 s, up to t = 0.9
-/// (C reverses at 0.923). The heading passes π/2 at t ≈ 0.884, where the
+/// (C reverses at 0.923; the explicit form's resolution guard would stop it
+/// at 0.906451, see (g)). The heading passes π/2 at t ≈ 0.884, where the
 /// map's derivatives need the quadrant-switching arctangent of
 /// `nonholo_core::scene::atan2` (num-dual's `atan2`, differentiated through
 /// `ẏ/ẋ`, stopped the explicit form there).
@@ -351,17 +360,19 @@ fn hidden_constraints_drift_without_projection() {
 }
 
 /// (e) The explicit form stops at the embedding map's singular set as the
-/// implicit form does (same guard, located on the step polynomial); a stage
-/// beyond the set is refused by both forms with the same error.
+/// implicit form does (same guard, located on the step polynomial) when that
+/// guard fires first (`singular_tol = 0.4`); with the default `singular_tol`
+/// its resolution guard stops it earlier, by design (see (f), (g)). Its
+/// guard is the smaller of the two. A stage beyond the set is refused by
+/// both forms with the same error.
 #[test]
 fn guard_and_stage_check_as_in_the_implicit_form() {
     let s = sleigh("paper");
     let y0 = c_state(0.2, 2.0, 0.7, -1.0);
     let init = matched(&mut vakonomic(&s), 0.0, &y0);
-    // A larger singular_tol: near zero speed the terms of the derivative
-    // array grow like powers of |q̈|/|v| and the explicit form ends (with
-    // an error saying so) a few ms before the default guard.
-    let tol = [("singular_tol", "0.1")];
+    // At 0.4 m/s q⁗ is still resolved to ~1e-9: the singular-set guard
+    // fires first in both forms.
+    let tol = [("singular_tol", "0.4")];
     let mut stops = Vec::new();
     for method in [Method::Dop853, Method::Radau5] {
         let run = simulate(
@@ -382,12 +393,13 @@ fn guard_and_stage_check_as_in_the_implicit_form() {
         }
     }
     eprintln!(
-        "singular_tol = 0.1: explicit form stops at {:.9}, implicit at {:.9}",
+        "singular_tol = 0.4: explicit form stops at {:.9}, implicit at {:.9}",
         stops[0], stops[1]
     );
     assert!((stops[0] - stops[1]).abs() < 1e-6, "{stops:?}");
 
-    // With the default guard the explicit form ends before it, and says why.
+    // With the default guard the explicit form stops at its resolution
+    // limit, before the implicit form's stop and before C's reversal.
     let c = run_c(&s, &y0, 1.0, 1e-3);
     let t_rev = c_reversal(&c);
     let run = simulate(
@@ -397,28 +409,37 @@ fn guard_and_stage_check_as_in_the_implicit_form() {
     )
     .unwrap();
     match &run.failure {
-        Some(IntegrateError::System { t, source }) => {
-            assert!(source.message.contains("[E; Ė; Ë]"), "{source}");
+        Some(IntegrateError::Stopped { t, reason }) => {
+            assert!(reason.contains("resolution limit"), "{reason}");
             assert!(
-                *t > t_rev - 0.02 && *t < t_rev,
+                *t > t_rev - 0.03 && *t < t_rev - 0.005,
                 "{t} vs C's reversal {t_rev}"
             );
             eprintln!(
-                "default singular_tol: explicit form ends at {t:.6} (C reverses at {t_rev:.6})"
+                "default singular_tol: explicit form stops at {t:.6} (C reverses at {t_rev:.6})"
             );
         }
-        other => panic!("expected the explicit form to end before the guard, got {other:?}"),
+        other => {
+            panic!("expected the explicit form to stop at its resolution limit, got {other:?}")
+        }
     }
 
-    // A stage beyond the set (velocity reversed against the direction at
-    // the start) is refused by both forms with the same error.
+    // The explicit form's guard is the smaller of the singular-set guard
+    // and singular_tol · ln(ODE_RESOLUTION / ρ).
     let mut a = embedding(s.clone(), &[]);
     let z0 = a.initial_state(&init).unwrap();
     let yp0 = a.initial_slope().unwrap();
+    let singular = ImplicitSystem::guard(&mut a, 0.0, &z0).unwrap();
+    let rho = a.resolution(0.0, &z0).unwrap();
+    assert!(rho.rho < 1e-12 && rho.observed.is_none(), "{rho:?}");
+    let margin = 1e-3 * (ODE_RESOLUTION / rho.rho).ln();
     assert_eq!(
         OdeSystem::guard(&mut a, 0.0, &z0),
-        ImplicitSystem::guard(&mut a, 0.0, &z0)
+        Some(singular.min(margin))
     );
+
+    // A stage beyond the set (velocity reversed against the direction at
+    // the start) is refused by both forms with the same error.
     let mut back = z0.clone();
     back[2] = -z0[2];
     back[3] = -z0[3];
@@ -430,6 +451,157 @@ fn guard_and_stage_check_as_in_the_implicit_form() {
         "{ode_err}"
     );
     assert_eq!(ode_err, dae_err);
+}
+
+/// `ρ` as reported in a resolution stop's reason ("… only to 1.00e-8 relative …").
+fn reported_rho(reason: &str) -> f64 {
+    let rest = reason
+        .split("only to ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no ρ in {reason}"));
+    rest.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+/// Largest `|(x, y)_a − (x, y)_b|` over the output times both runs reached
+/// (a stopped run ends with a sample at its stop, off the grid).
+fn position_difference_common(a: &Run, b: &Run) -> f64 {
+    let n = a
+        .solution
+        .t
+        .iter()
+        .zip(&b.solution.t)
+        .take_while(|(x, y)| x == y)
+        .count();
+    assert!(n > 100, "{n} common samples");
+    a.samples[..n]
+        .iter()
+        .zip(&b.samples[..n])
+        .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// Whether every sample of a run is finite.
+fn finite(run: &Run) -> bool {
+    run.samples
+        .iter()
+        .all(|o| o.q.iter().chain(&o.qd).all(|v| v.is_finite()))
+}
+
+/// Speed `|v|` of the last sample (at the stop of a stopped run).
+fn last_speed(run: &Run) -> f64 {
+    let o = run.samples.last().unwrap();
+    o.qd[0].hypot(o.qd[1])
+}
+
+/// (f) The sleigh launched up the slope (φ0 = 3, u0 = 2, ω0 = 0.3, gravity
+/// at the centre of mass; matched with C at λ0 = 0) decelerates slowly
+/// through zero speed. The explicit form (DOP853 at 1e-10 and 1e-12, RK4
+/// with h = 1e-3) stops by design where `q⁗` is resolved only to
+/// `ODE_RESOLUTION` (at |v| ≈ 0.075 m/s) — not with a failing solve, as it
+/// did at t ≈ 0.674 —, 25 ms before the implicit form stops at its
+/// singular-set guard (this sleigh decelerates at only ~3 m/s²); every
+/// sample is finite and follows C.
+#[test]
+fn explicit_form_stops_at_its_resolution_limit_up_the_slope() {
+    let s = sleigh("com");
+    let y0 = c_state(3.0, 2.0, 0.3, 0.0);
+    let init = matched(&mut vakonomic(&s), 0.0, &y0);
+    let c = run_c(&s, &y0, 1.0, 1e-3);
+    let t_rev = c_reversal(&c);
+    let dae = simulate(
+        Box::new(embedding(s.clone(), &[])),
+        init.clone(),
+        config(Method::Radau5, 1e-10, 3.0, 1e-3),
+    )
+    .unwrap();
+    let t_dae = match &dae.failure {
+        Some(IntegrateError::Stopped { t, reason }) if reason.contains("zero speed") => *t,
+        other => panic!("the implicit form should stop at the singular set, got {other:?}"),
+    };
+    let mut stops = Vec::new();
+    for (method, rtol, h) in [
+        (Method::Dop853, 1e-10, None),
+        (Method::Dop853, 1e-12, None),
+        (Method::Rk4, 1e-10, Some(1e-3)),
+    ] {
+        let mut cfg = config(method, rtol, 3.0, 1e-3);
+        cfg.options.fixed_step = h;
+        let start = Instant::now();
+        let run = simulate(Box::new(embedding(s.clone(), &[])), init.clone(), cfg).unwrap();
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let (t, reason) = match &run.failure {
+            Some(IntegrateError::Stopped { t, reason }) => (*t, reason.clone()),
+            other => panic!("{method:?} {rtol:e}: should stop by design, got {other:?}"),
+        };
+        // The resolution limit comes first here (the singular-set guard
+        // would be named if it fired first).
+        assert!(reason.contains("resolution limit"), "{reason}");
+        let rho = reported_rho(&reason);
+        let (speed, vs_c) = (last_speed(&run), position_difference_common(&run, &c));
+        let st = &run.solution.stats;
+        eprintln!(
+            "up the slope, {method:?} rtol {rtol:e} h {h:?}: stops at {t:.6} ({:.1} ms before \
+             the implicit form's stop {t_dae:.6}; C reverses at {t_rev:.6}), |v| = {speed:.3} m/s \
+             at the last sample, ρ = {rho:.2e}; positions vs C {vs_c:.1e}; {} steps, {ms:.0} ms",
+            (t_dae - t) * 1e3,
+            st.steps
+        );
+        assert!(finite(&run), "{method:?}: non-finite samples");
+        assert!((ODE_RESOLUTION..5e-8).contains(&rho), "{rho:e}");
+        assert!(t_dae - t > 0.02 && t_dae - t < 0.03, "{t} vs {t_dae}");
+        assert!(speed > 0.06 && speed < 0.09, "{speed}");
+        assert!(vs_c < 1e-10, "{vs_c:e}");
+        stops.push(t);
+    }
+    let spread =
+        stops.iter().fold(0.0f64, |a, &t| a.max(t)) - stops.iter().fold(1.0f64, |a, &t| a.min(t));
+    assert!(spread < 2e-3, "{stops:?}");
+}
+
+/// (g) The default sleigh (a = 0.4, α = 0.3, φ0 = 0.2, u0 = 2, ω0 = 0.7;
+/// matched with C at λ0 = 0; both potentials) integrated to t = 3 by DOP853
+/// at 1e-13 — a reference run — stops at its resolution limit shortly
+/// before C's reversal, its positions agreeing with C (DOP853, 1e-13) up
+/// to the stop.
+#[test]
+fn default_sleigh_at_tight_tolerance_stops_before_the_reversal() {
+    for potential in ["paper", "com"] {
+        let s = sleigh(potential);
+        let y0 = c_state(0.2, 2.0, 0.7, 0.0);
+        let init = matched(&mut vakonomic(&s), 0.0, &y0);
+        let c = run_c_tol(&s, &y0, 1.5, 1e-3, 1e-13);
+        let t_rev = c_reversal(&c);
+        let start = Instant::now();
+        let run = simulate(
+            Box::new(embedding(s.clone(), &[])),
+            init.clone(),
+            config(Method::Dop853, 1e-13, 3.0, 1e-3),
+        )
+        .unwrap();
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let (t, reason) = match &run.failure {
+            Some(IntegrateError::Stopped { t, reason }) => (*t, reason.clone()),
+            other => panic!("{potential}: should stop by design, got {other:?}"),
+        };
+        assert!(reason.contains("resolution limit"), "{reason}");
+        let rho = reported_rho(&reason);
+        let vs_c = position_difference_common(&run, &c);
+        let st = &run.solution.stats;
+        eprintln!(
+            "{potential}: DOP853 1e-13 stops at {t:.6} (C reverses at {t_rev:.6}, {:.1} ms \
+             later), |v| = {:.3} m/s at the last sample, ρ = {rho:.2e}; positions vs C \
+             {vs_c:.1e} over {} samples; {} steps ({} rejected), {ms:.0} ms",
+            (t_rev - t) * 1e3,
+            last_speed(&run),
+            run.samples.len(),
+            st.steps,
+            st.rejected_steps
+        );
+        assert!(finite(&run));
+        assert!((ODE_RESOLUTION..5e-8).contains(&rho), "{rho:e}");
+        assert!(t_rev - t > 0.01 && t_rev - t < 0.022, "{t} vs {t_rev}");
+        assert!(vs_c < 1e-10, "{vs_c:e}");
+    }
 }
 
 /// Records the states at which a run evaluates the right-hand side.

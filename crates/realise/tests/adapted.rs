@@ -454,4 +454,3 @@ fn auto_form_resolves_per_scene_and_is_recorded() {
     assert_eq!(v.form(), visc::Form::Cartesian);
     assert_eq!(v.options().choice("form"), "cartesian");
 }
-

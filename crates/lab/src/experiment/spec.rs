@@ -253,7 +253,7 @@ impl RefSpec {
                 rtol: 1e-13,
                 check_integrator: "dopri5".into(),
                 check_rtol: 1e-13,
-                max_wall_time: Some(600.0),
+                max_wall_time: Some(120.0),
             }
         } else {
             RefSpec {
@@ -262,7 +262,7 @@ impl RefSpec {
                 rtol: 1e-13,
                 check_integrator: "dop853".into(),
                 check_rtol: 3e-14,
-                max_wall_time: Some(600.0),
+                max_wall_time: Some(120.0),
             }
         }
     }

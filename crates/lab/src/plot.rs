@@ -772,28 +772,33 @@ fn draw_line_plot<DB: DrawingBackend>(
     // A legend that would cover curves wherever it sits inside the plot,
     // for many series, goes into a column to the right of it instead.
     let mut legend_at = None;
-    let mut side = None;
+    let mut outside = None;
     if !data.series.is_empty() {
         let chart = build_chart(&area, &xa, &ya, areas, right)?;
         let spot = legend_position(&chart, &xa, &ya, data)?;
         legend_at = Some(spot.at);
-        let w = spot.size.0;
         if spot.covered > 0 && data.series.len() >= OUTSIDE_LEGEND_SERIES {
             legend_at = None;
-            let (aw, _) = area.dim_in_pixel();
-            side = Some(area.split_horizontally(aw as i32 - w - 16));
+            let (aw, ah) = area.dim_in_pixel();
+            let w = spot.size.0;
+            outside = Some(if (w as f64) <= 0.4 * aw as f64 {
+                // A column to the right of the plot.
+                let (plot, legend) = area.split_horizontally(aw as i32 - w - 16);
+                (plot, legend, 1)
+            } else {
+                // Two columns under the plot.
+                let rows = data.series.len().div_ceil(2) as i32;
+                let h = rows * legend_row_px() + 16;
+                let (plot, legend) = area.split_vertically(ah as i32 - h);
+                (plot, legend, 2)
+            });
         }
     }
-    let plot_area = side.as_ref().map(|(l, _)| l).unwrap_or(&area);
-    let mut chart = build_chart(
-        plot_area,
-        &xa,
-        &ya,
-        areas,
-        if side.is_some() { 16 } else { right },
-    )?;
-    if let Some((_, legend_area)) = &side {
-        draw_side_legend(legend_area, data)?;
+    let plot_area = outside.as_ref().map(|(p, _, _)| p).unwrap_or(&area);
+    let margin = if outside.is_some() { 24 } else { right };
+    let mut chart = build_chart(plot_area, &xa, &ya, areas, margin)?;
+    if let Some((_, legend_area, columns)) = &outside {
+        draw_outside_legend(legend_area, data, *columns)?;
     }
     draw_axes(&mut chart, &xa, &ya, &p.x_label, &p.y_label, true)?;
 
@@ -864,39 +869,49 @@ fn draw_line_plot<DB: DrawingBackend>(
     root.present().map_err(draw_err)
 }
 
-/// The legend as a column of entries (sample line, dot, text) at the top of
-/// `area`, for plots with too many series to keep it inside.
-fn draw_side_legend<DB: DrawingBackend>(
+fn legend_row_px() -> i32 {
+    (LEGEND_PX * 1.25) as i32
+}
+
+/// The legend as entries (sample line, dot, text) in `columns` columns
+/// filled top to bottom, in `area` outside the plot, for plots with too
+/// many series to keep it inside.
+fn draw_outside_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     data: &LineData,
+    columns: usize,
 ) -> Result<(), String> {
-    let style = text(LEGEND_PX);
+    let style = text(if columns > 1 { TICK_PX } else { LEGEND_PX });
     let len = LEGEND_SAMPLE_PX as i32 - 14;
-    let row = (LEGEND_PX * 1.25) as i32;
+    let row = legend_row_px();
     let top = 12 + row / 2;
+    let per_column = data.series.len().div_ceil(columns.max(1));
+    let (aw, _) = area.dim_in_pixel();
+    let col_w = aw as i32 / columns.max(1) as i32;
     for (k, s) in data.series.iter().enumerate() {
-        let y = top + k as i32 * row;
+        let y = top + (k % per_column) as i32 * row;
+        let x0 = 4 + (k / per_column) as i32 * col_w;
         let colour = series_colour(k);
         let line = colour.stroke_width(LINE_PX);
         if series_dashed(k) {
             area.draw(&DashedPathElement::new(
-                vec![(4, y), (4 + len, y)],
+                vec![(x0, y), (x0 + len, y)],
                 9,
                 5,
                 line,
             ))
             .map_err(draw_err)?;
         } else {
-            area.draw(&PathElement::new(vec![(4, y), (4 + len, y)], line))
+            area.draw(&PathElement::new(vec![(x0, y), (x0 + len, y)], line))
                 .map_err(draw_err)?;
         }
         if s.markers {
-            area.draw(&Circle::new((4 + len / 2, y), MARKER_PX, colour.filled()))
+            area.draw(&Circle::new((x0 + len / 2, y), MARKER_PX, colour.filled()))
                 .map_err(draw_err)?;
         }
         area.draw(&Text::new(
             s.label.clone(),
-            (len + 14, y),
+            (x0 + len + 10, y),
             style.pos(Pos::new(HPos::Left, VPos::Center)),
         ))
         .map_err(draw_err)?;

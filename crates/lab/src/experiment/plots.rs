@@ -23,10 +23,14 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
             "Divergence ‖(x, y)_a − (x, y)_b‖ of every pair against time on the common output grid, {point} (log scale; a curve ends where one of the two runs stopped)."
         ),
         "residual" => {
-            format!("Constraint residual max(|g|, |f|, |ḟ|) at the output times, {point}.")
+            format!(
+                "Constraint residual max(|g|, |f|, |ḟ|), the largest up to each output time, {point}."
+            )
         }
         "energy" => {
-            format!("Energy drift |E(t) − E(0)|, E = q̇·∂L/∂q̇ − L, at the output times, {point}.")
+            format!(
+                "Energy drift |E(t) − E(0)|, E = q̇·∂L/∂q̇ − L, the largest up to each output time, {point}."
+            )
         }
         "sweep-cost" => format!(
             "Wall time of every formulation over the sweep ({}); failed runs left out (their reasons are in runs.csv).",
@@ -223,13 +227,13 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 Some(Series {
                     label: describe(l),
                     x: t.column("t")?,
-                    y: t.column("residual")?,
+                    y: running_max(&t.column("residual")?),
                 })
             })
             .collect();
         files.extend(line_plot(
             &LinePlot {
-                title: titled("Constraint residual"),
+                title: titled("Constraint residual, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: "max(|g|, |f|, |ḟ|)".into(),
                 log_x: false,
@@ -247,13 +251,13 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 Some(Series {
                     label: describe(l),
                     x: t.column("t")?,
-                    y: e.iter().map(|v| (v - e0).abs()).collect(),
+                    y: running_max(&e.iter().map(|v| (v - e0).abs()).collect::<Vec<_>>()),
                 })
             })
             .collect();
         files.extend(line_plot(
             &LinePlot {
-                title: titled("Energy drift"),
+                title: titled("Energy drift, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: "|E(t) − E(0)| [J]".into(),
                 log_x: false,
@@ -284,6 +288,18 @@ fn axis_numbers(exp: &Experiment, k: usize, results: &[PointResult]) -> (Vec<f64
             false,
         )
     }
+}
+
+/// `max(v[0..=i])` for every `i` (NaN propagates): how a residual or a
+/// drift grows, without the oscillation of its instantaneous value.
+fn running_max(v: &[f64]) -> Vec<f64> {
+    let mut m = 0.0f64;
+    v.iter()
+        .map(|&x| {
+            m = nonholo_core::constraints::nan_max(m, x);
+            m
+        })
+        .collect()
 }
 
 /// A numeric axis of positive values spanning more than two decades is drawn

@@ -1418,10 +1418,29 @@ pub fn status_grid(g: &StatusGrid, stem: &Path) -> Result<Vec<PathBuf>, String> 
 }
 
 const GRID_ROW_PX: u32 = 52;
-const GRID_HEADER_PX: u32 = 260;
+
+/// Height of the column headers: the longest name (drawn vertically),
+/// estimated at 0.6 em per character.
+fn grid_header_px(g: &StatusGrid) -> u32 {
+    let chars = g
+        .columns
+        .iter()
+        .map(|c| c.chars().count())
+        .max()
+        .unwrap_or(0);
+    (chars as f64 * 0.6 * LEGEND_PX) as u32 + 24
+}
+
+/// The note under the key, one line per `; `-separated part.
+fn grid_note_lines(g: &StatusGrid) -> Vec<&str> {
+    g.note.split("; ").filter(|l| !l.is_empty()).collect()
+}
 
 fn grid_height(g: &StatusGrid) -> u32 {
-    90 + GRID_HEADER_PX + GRID_ROW_PX * g.rows.len().max(1) as u32 + 110
+    90 + grid_header_px(g)
+        + GRID_ROW_PX * g.rows.len().max(1) as u32
+        + 80
+        + 34 * grid_note_lines(g).len() as u32
 }
 
 fn draw_status_grid<DB: DrawingBackend>(
@@ -1439,7 +1458,7 @@ fn draw_status_grid<DB: DrawingBackend>(
     let row_w = max_label_width(&area, &g.rows)? + 24;
     let cols = g.columns.len().max(1) as i32;
     let col_w = ((aw as i32 - row_w as i32 - 16) / cols).max(20);
-    let (x0, y0) = (row_w as i32, GRID_HEADER_PX as i32);
+    let (x0, y0) = (row_w as i32, grid_header_px(g) as i32);
     let row_h = GRID_ROW_PX as i32;
     // Column names, vertical, bottom-aligned on the grid.
     for (c, name) in g.columns.iter().enumerate() {
@@ -1507,10 +1526,10 @@ fn draw_status_grid<DB: DrawingBackend>(
         let (w, _) = area.estimate_text_size(what, &small).map_err(draw_err)?;
         kx = tx + w as i32 + 28;
     }
-    if !g.note.is_empty() {
+    for (i, line) in grid_note_lines(g).into_iter().enumerate() {
         area.draw(&Text::new(
-            g.note.clone(),
-            (x0, ky + SWATCH_PX as i32 + 30),
+            line.to_string(),
+            (x0, ky + SWATCH_PX as i32 + 30 + 34 * i as i32),
             small.pos(Pos::new(HPos::Left, VPos::Center)),
         ))
         .map_err(draw_err)?;

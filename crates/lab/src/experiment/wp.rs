@@ -905,11 +905,13 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
         &StatusGrid {
             title: format!("{}: stability map", exp.title),
             rows: points.iter().map(|p| case_name(exp, p)).collect(),
-            columns: exp.formulations.iter().map(line_name).collect(),
+            columns: exp.formulations.iter().map(|f| f.label.clone()).collect(),
             cells,
-            note: "numbers: correct digits −log10(max |Δq| / max |q|) against the line's reference at its \
-                   finest rung; t: where a run stopped or failed (reasons in work_precision.csv)"
-                .into(),
+            note:
+                "numbers: correct digits −log10(max |Δq| / max |q|) against the line's reference, \
+                   finest rung; t: where a run stopped or failed (reasons in work_precision.csv); \
+                   lines: see index.html or work_precision.csv for formulation, integrator, options"
+                    .into(),
         },
         &dir.join("plots").join("stability-map"),
     )

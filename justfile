@@ -11,6 +11,10 @@ reproduce *ARGS:
 experiment NAME *ARGS:
     cargo run --release --bin nonholo -- experiment experiments/{{NAME}}.toml {{ARGS}}
 
+# Error against cost: every work-precision experiment (or the files given).
+work-precision *FILES:
+    cargo run --release --bin nonholo -- work-precision {{FILES}}
+
 # Redraw the figures of experiments/NAME.toml from stored results.
 plot NAME:
     cargo run --release --bin nonholo -- plot experiments/{{NAME}}.toml

@@ -769,15 +769,15 @@ fn draw_line_plot<DB: DrawingBackend>(
             areas = label_areas(&area, &xa, &ya)?;
         }
     }
-    // A legend that would cover curves wherever it sits inside the plot,
-    // for many series, goes into a column to the right of it instead.
+    // A legend that would cover curves wherever it sits inside the plot goes
+    // beside it (a column to the right) or under it instead.
     let mut legend_at = None;
     let mut outside = None;
     if !data.series.is_empty() {
         let chart = build_chart(&area, &xa, &ya, areas, right)?;
         let spot = legend_position(&chart, &xa, &ya, data)?;
         legend_at = Some(spot.at);
-        if spot.covered > 0 && data.series.len() >= OUTSIDE_LEGEND_SERIES {
+        if spot.covered > 0 {
             legend_at = None;
             let (aw, ah) = area.dim_in_pixel();
             let w = spot.size.0;
@@ -786,11 +786,14 @@ fn draw_line_plot<DB: DrawingBackend>(
                 let (plot, legend) = area.split_horizontally(aw as i32 - w - 16);
                 (plot, legend, 1)
             } else {
-                // Two columns under the plot.
-                let rows = data.series.len().div_ceil(2) as i32;
+                // Under the plot: two columns (in the smaller tick font) if
+                // the longest entry fits in half the width, else one.
+                let half = (w as f64 * TICK_PX / LEGEND_PX) <= aw as f64 / 2.0 - 8.0;
+                let columns = if half { 2 } else { 1 };
+                let rows = data.series.len().div_ceil(columns) as i32;
                 let h = rows * legend_row_px() + 16;
                 let (plot, legend) = area.split_vertically(ah as i32 - h);
-                (plot, legend, 2)
+                (plot, legend, columns)
             });
         }
     }
@@ -926,10 +929,6 @@ struct LegendSpot {
     at: (i32, i32),
     size: (i32, i32),
 }
-
-/// Series count from which a legend that covers curves everywhere inside the
-/// plot is drawn to the right of it.
-const OUTSIDE_LEGEND_SERIES: usize = 6;
 
 /// Top-left corner (pixels within the plotting area) of the legend box: the
 /// first of the corners (upper right, upper left, lower right, lower left)

@@ -128,7 +128,7 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
     }
     if failed > 0 {
         return Err(CliError::RunsFailed(format!(
-            "{failed} of {runs} work-precision runs failed (reasons in work_precision.csv)"
+            "{failed} of {runs} work-precision runs failed (reasons in each experiment's work_precision.csv)"
         )));
     }
     Ok(())
@@ -173,10 +173,15 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
     );
     if o.failed_runs > 0 {
         return Err(CliError::RunsFailed(format!(
-            "{} of {} runs failed (reasons in {}/runs.csv)",
+            "{} of {} runs failed (reasons in {})",
             o.failed_runs,
             o.runs,
-            o.dir.display()
+            o.dir
+                .join(match exp.kind {
+                    Kind::WorkPrecision => "work_precision.csv",
+                    _ => "runs.csv",
+                })
+                .display()
         )));
     }
     Ok(())

@@ -20,7 +20,7 @@
 //! | `points/<i>.json` | one point: references and rows (reused when the configuration is unchanged) |
 //! | `work_precision.csv` | one row per (point, line, ladder value) |
 //! | `references.csv`, `references/<i>-<label>.csv` | what each reference is, its estimated error, its trajectory |
-//! | `summary.json` | fitted slopes per line: error against evaluations (the observed order), time, tolerance |
+//! | `summary.json` | fitted slopes per line: error against evaluations (the observed order), time, tolerance; the cost spread (no order where evaluations vary by less than 2×: a line held by stability) |
 //! | `plots/wp-<i>-*.png/svg`, `index.html`, `manifest.json` | figures, page, provenance |
 
 use std::collections::HashMap;
@@ -34,7 +34,7 @@ use sha2::{Digest, Sha256};
 
 use super::output::{escape, write, write_json, write_manifest};
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
-use super::spec::{Experiment, Ladder, RefSpec, describe};
+use super::spec::{Experiment, Ladder, RefSpec};
 use super::sweep::{Point, resolve};
 use super::{Outcome, RunOptions};
 use crate::plot::{Cell, CellStatus, LinePlot, Series, StatusGrid, line_plot, status_grid};
@@ -44,7 +44,7 @@ use crate::simulate::{RunSpec, execute};
 pub const WP_SCHEMA: &str = "nonholo.wp-point/1";
 
 /// One run of a ladder.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct WpRow {
     pub point: usize,
     pub label: String,
@@ -328,7 +328,8 @@ fn write_reference(path: &Path, r: &Reference, coords: &[(String, String)]) -> R
 fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result<WpPoint, String> {
     let coords = coordinates(exp)?;
     let runs = resolve(exp, point)?;
-    let at = describe(&exp.axes, &point.values);
+    let at = compact(&exp.axes, &point.values);
+    let at = if at.is_empty() { at } else { format!("{at}: ") };
     let mut cache: HashMap<String, Result<Reference, String>> = HashMap::new();
     let mut references = Vec::new();
     let mut rows = Vec::new();
@@ -663,14 +664,24 @@ fn fit_rows<'a>(p: &'a WpPoint, label: &str) -> Vec<&'a WpRow> {
 /// Fitted slopes of one line at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slopes {
-    /// `−d ln err_max / d ln rhs_evals`: the observed order.
+    /// `−d ln err_max / d ln rhs_evals`: the observed order (`None` when the
+    /// cost hardly moves over the ladder, see [`MIN_COST_SPREAD`]).
     pub order: Option<f64>,
-    /// `d ln err_max / d ln wall time`.
+    /// `d ln err_max / d ln wall time` (same condition).
     pub time: Option<f64>,
     /// `d ln err_max / d ln tolerance` (1 = tolerance proportionality).
     pub tolerance: Option<f64>,
+    /// Largest over smallest right-hand-side evaluations among the fitted
+    /// runs: near 1 when stability, not accuracy, sets the step size.
+    pub cost_spread: Option<f64>,
     pub fitted: usize,
 }
+
+/// An order is fitted only where the evaluations over the fitted runs span
+/// at least this factor. An explicit method held by stability takes the
+/// same steps at every tolerance while its error falls, and the fitted
+/// "order" of such a line is a meaningless large number.
+pub const MIN_COST_SPREAD: f64 = 2.0;
 
 pub fn slopes(p: &WpPoint, label: &str) -> Slopes {
     let rows = fit_rows(p, label);
@@ -678,10 +689,21 @@ pub fn slopes(p: &WpPoint, label: &str) -> Slopes {
     let col = |f: &dyn Fn(&WpRow) -> Option<f64>| -> Vec<f64> {
         rows.iter().map(|r| f(r).unwrap_or(f64::NAN)).collect()
     };
+    let evals = col(&|r| Some(r.rhs_evals as f64));
+    let spread = |x: &[f64]| {
+        let pos = x.iter().filter(|v| v.is_finite() && **v > 0.0);
+        let (lo, hi) = pos.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
+        (hi > 0.0).then(|| hi / lo)
+    };
+    let cost_spread = spread(&evals);
+    let moves = cost_spread.is_some_and(|s| s >= MIN_COST_SPREAD);
     Slopes {
-        order: log_slope(&col(&|r| Some(r.rhs_evals as f64)), &err).map(|s| -s),
-        time: log_slope(&col(&|r| r.wall_time_median_s), &err),
+        order: log_slope(&evals, &err).map(|s| -s).filter(|_| moves),
+        time: log_slope(&col(&|r| r.wall_time_median_s), &err).filter(|_| moves),
         tolerance: log_slope(&col(&|r| r.tolerance), &err),
+        cost_spread,
         fitted: rows.len(),
     }
 }
@@ -705,6 +727,7 @@ fn write_summary(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<(),
                     "slope_error_vs_time": s.time,
                     "slope_error_vs_tolerance": s.tolerance,
                     "points_fitted": s.fitted,
+                    "cost_spread": s.cost_spread,
                     "runs": rows.len(),
                     "failed": rows.iter().filter(|r| r.status == "failed").count(),
                     "best_scd_max": rows.iter().filter_map(|r| r.scd_max).reduce(f64::max),
@@ -767,8 +790,14 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
                     let s = slopes(p, &f.label);
                     let mut label = line_name(f);
-                    if with_order && let Some(o) = s.order {
-                        label.push_str(&format!(" (order {o:.1})"));
+                    if with_order {
+                        match (s.order, s.cost_spread) {
+                            (Some(o), _) => label.push_str(&format!(" (order {o:.1})")),
+                            (None, Some(c)) if s.fitted >= 3 && c < MIN_COST_SPREAD => {
+                                label.push_str(" (cost flat over the ladder)")
+                            }
+                            _ => {}
+                        }
                     }
                     Series {
                         label,
@@ -1003,7 +1032,7 @@ fn write_html(
     );
     let _ = writeln!(
         h,
-        "<h2>Observed orders</h2>\n<table><tr><th>point</th><th>line</th><th>method order</th><th>observed order</th><th>error vs tolerance slope</th><th>points fitted</th></tr>"
+        "<h2>Observed orders</h2>\n<table><tr><th>point</th><th>line</th><th>method order</th><th>observed order</th><th>error vs tolerance slope</th><th>cost spread (max/min evaluations)</th><th>points fitted</th></tr>"
     );
     for p in points {
         for f in &exp.formulations {
@@ -1011,7 +1040,7 @@ fn write_html(
             let fmt = |v: Option<f64>| v.map(|x| format!("{x:.2}")).unwrap_or("—".into());
             let _ = writeln!(
                 h,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 p.index,
                 escape(&line_name(f)),
                 Method::from_name(&f.settings.integrator)
@@ -1019,6 +1048,7 @@ fn write_html(
                     .unwrap_or_default(),
                 fmt(s.order),
                 fmt(s.tolerance),
+                fmt(s.cost_spread),
                 s.fitted
             );
         }
@@ -1072,4 +1102,68 @@ pub fn redraw(exp: &Experiment, dir: &Path) -> Result<Vec<PathBuf>, String> {
     let plots = draw(exp, dir, &points)?;
     write_html(exp, dir, &points, &plots)?;
     Ok(plots)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(rows: &[(f64, usize, f64)]) -> WpPoint {
+        WpPoint {
+            schema: WP_SCHEMA.into(),
+            index: 0,
+            values: vec![],
+            hash: String::new(),
+            references: vec![],
+            rows: rows
+                .iter()
+                .map(|&(tol, evals, err)| WpRow {
+                    label: "l".into(),
+                    status: "completed".into(),
+                    tolerance: Some(tol),
+                    rhs_evals: evals,
+                    err_max: Some(err),
+                    rel_err_max: Some(err),
+                    wall_time_median_s: Some(evals as f64 * 1e-6),
+                    ..WpRow::default()
+                })
+                .collect(),
+        }
+    }
+
+    /// err = C·evals^−5 gives order 5 and time slope −5; err = tol gives a
+    /// tolerance slope of 1.
+    #[test]
+    fn slopes_of_an_exact_power_law() {
+        let rows: Vec<_> = (0..6)
+            .map(|i| {
+                let evals = 100usize << i;
+                let err = 1e10 * (evals as f64).powi(-5);
+                (err, evals, err)
+            })
+            .collect();
+        let s = slopes(&point(&rows), "l");
+        assert!((s.order.unwrap() - 5.0).abs() < 1e-9);
+        assert!((s.time.unwrap() + 5.0).abs() < 1e-9);
+        assert!((s.tolerance.unwrap() - 1.0).abs() < 1e-9);
+        assert_eq!(s.cost_spread, Some(32.0));
+        assert_eq!(s.fitted, 6);
+    }
+
+    /// A line held by stability (same evaluations at every tolerance, error
+    /// falling) has no order, but keeps its tolerance slope and spread.
+    #[test]
+    fn no_order_where_the_cost_does_not_move() {
+        let rows: Vec<_> = (0..6)
+            .map(|i| {
+                let tol = 10f64.powi(-4 - i);
+                (tol, 9000 + 10 * i as usize, tol)
+            })
+            .collect();
+        let s = slopes(&point(&rows), "l");
+        assert_eq!(s.order, None);
+        assert_eq!(s.time, None);
+        assert!((s.tolerance.unwrap() - 1.0).abs() < 1e-9);
+        assert!(s.cost_spread.unwrap() < MIN_COST_SPREAD);
+    }
 }

@@ -118,16 +118,28 @@ pub fn structure<S: Scene>(scene: &S, e: &EmbeddingInfo, t: f64, d: &[f64]) -> S
 /// Outcome of a consistent completion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Completion {
-    /// `|D|∞` before and after.
+    /// Relative derivative-array residual before and after (each row of `D`
+    /// divided by the size of the terms that cancel in it, largest row).
     pub residual: (f64, f64),
-    /// Gauss–Newton iterations.
+    /// Levenberg–Marquardt iterations.
     pub iterations: usize,
     /// `|Δq⃛|∞`: how far the third derivatives moved.
     pub third_change: f64,
-    /// Whether `q⃛` is fixed uniquely by `(q, q̇, q̈)` (the Jacobian in the
-    /// unknowns has no null direction that moves `q⃛`).
+    /// Whether `q⃛` is fixed uniquely by `(q, q̇, q̈)`: the hidden constraints'
+    /// Jacobian in `q⃛` has full rank `m` (see [`Completion::third_singular_values`]).
     pub third_unique: bool,
+    /// Singular values of the hidden constraints' Jacobian in `q⃛`, largest
+    /// first, relative to the largest singular value of their Jacobian in
+    /// all of `z` (see [`third_determination`]); `m` values (zeros where
+    /// there are fewer hidden constraints than `m`). Empty if `q⃛` was held
+    /// fixed.
+    pub third_singular_values: Vec<f64>,
 }
+
+/// Singular values below this fraction of the largest are dropped from a
+/// Levenberg–Marquardt step (directions that no data determine, e.g. where
+/// the hidden constraints do not involve `q⃛`): a few hundred round-offs.
+const STEP_TRUNCATION: f64 = 1e-13;
 
 /// Scale of each row of the derivative array: `1 + Σ_j |∂D_l/∂d_j · d_j|`,
 /// the size of the terms that cancel in it.
@@ -156,10 +168,21 @@ fn balanced(jac: &DMatrix<f64>, d: &[f64]) -> DMatrix<f64> {
 /// `move_third` is false) until every row of `D` is below `rtol` relative to
 /// the terms that cancel in it.
 ///
-/// Levenberg–Marquardt on the row-scaled residual, with minimum-norm steps in
-/// the (underdetermined) unknowns. The hidden constraints can be nonlinear in
-/// `q⃛` (quadratic for the sleigh), so a far starting guess may fail; the
-/// error then says so.
+/// Levenberg–Marquardt on the row-scaled residual, in unknowns scaled by
+/// `max(1, |d_j|)`, with minimum-norm steps in the (underdetermined)
+/// unknowns. The step is formed from the singular value decomposition of the
+/// scaled Jacobian (filter factors `σ/(σ² + μσ₁²)`), never from the normal
+/// matrix `J Jᵀ`, whose condition number is the square of `J`'s: for the
+/// sleigh with `J = 2501 m²` the scaled Jacobian has condition ~4e8, so
+/// `J Jᵀ` (~1e17) carried no digits and the iteration stalled at a relative
+/// residual of ~5e-10 while moving `q⃛` by 1e-2 away from consistent data.
+/// The hidden constraints can be nonlinear in `q⃛` (quadratic for the sleigh),
+/// so a far starting guess may fail; the error then says so.
+///
+/// With `move_third`, the result also says whether `q⃛` is determined by
+/// `(q, q̇, q̈)` ([`third_determination`]); where it is not (the sleigh at
+/// zero turning rate), the completion's `q⃛` is one point of a family and
+/// only given third derivatives fix the motion.
 pub fn complete<S: Scene>(
     scene: &S,
     e: &EmbeddingInfo,
@@ -176,6 +199,7 @@ pub fn complete<S: Scene>(
     let mut value = vec![0.0; rows];
     let mut jac = DMatrix::zeros(rows, 7 * m);
     let mut scales = vec![1.0; rows];
+    let mut cols = vec![1.0; unknowns];
     let third_before: Vec<f64> = d[3 * m..4 * m].to_vec();
     derivative_array(scene, e, t, d, &mut value, &mut jac);
     row_scales(&jac, d, &mut scales);
@@ -198,35 +222,45 @@ pub fn complete<S: Scene>(
     while res > rtol {
         if iterations == MAX_ITER {
             return Err(format!(
-                "the hidden constraints could not be satisfied from this starting guess: relative \
-                 derivative-array residual {res:.3e} after {MAX_ITER} iterations (tolerance {rtol:.1e})"
+                "the hidden constraints could not be satisfied{}: relative derivative-array \
+                 residual {res:.3e} after {MAX_ITER} iterations (tolerance {rtol:.1e})",
+                unreachable_text(&jac, &value, &scales, first, move_third)
             ));
         }
         iterations += 1;
-        // Row-scaled Jacobian in the unknowns and residual.
-        let js = DMatrix::from_fn(rows, unknowns, |l, k| jac[(l, first + k)] / scales[l]);
+        // Row-scaled, column-scaled Jacobian in the unknowns and its SVD.
+        for (k, c) in cols.iter_mut().enumerate() {
+            *c = d[first + k].abs().max(1.0);
+        }
+        let js = DMatrix::from_fn(rows, unknowns, |l, k| {
+            jac[(l, first + k)] * cols[k] / scales[l]
+        });
         let rs = DVector::from_fn(rows, |l, _| value[l] / scales[l]);
         let current = objective(&value, &scales);
-        let jjt0 = &js * js.transpose();
-        // Damping relative to the largest diagonal entry of J Jᵀ; it shrinks
-        // tenfold after each success and may vanish (pure Gauss–Newton),
-        // since a floor comparable to a small σ² slows convergence to linear.
-        let diag = (0..rows).fold(0.0f64, |a, l| a.max(jjt0[(l, l)]));
+        let svd = js.svd(true, true);
+        let (u, vt) = (
+            svd.u.as_ref().expect("u requested"),
+            svd.v_t.as_ref().expect("v_t requested"),
+        );
+        let sv = &svd.singular_values;
+        let top = sv.max();
+        let utr = u.tr_mul(&rs);
+        // Damping relative to σ₁²; it shrinks tenfold after each success and
+        // may vanish (pure Gauss–Newton), since a floor comparable to a small
+        // σ² slows convergence to linear.
         let mut accepted = false;
         for _ in 0..30 {
-            // Minimum-norm damped step: Δ = Jᵀ (J Jᵀ + μ I)⁻¹ r.
-            let mut jjt = jjt0.clone();
-            for l in 0..rows {
-                jjt[(l, l)] += mu * diag;
-            }
-            let Some(y) = jjt.lu().solve(&rs) else {
-                mu = (mu * 10.0).max(1e-12);
-                continue;
-            };
-            let step = js.transpose() * y;
+            // Minimum-norm damped step in the scaled unknowns:
+            // Δ = Σ v_i σ_i/(σ_i² + μσ₁²) (u_iᵀ r).
             trial.copy_from_slice(d);
-            for k in 0..unknowns {
-                trial[first + k] -= step[k];
+            for (i, &s) in sv.iter().enumerate() {
+                if s <= STEP_TRUNCATION * top {
+                    continue;
+                }
+                let f = s / (s * s + mu * top * top) * utr[i];
+                for k in 0..unknowns {
+                    trial[first + k] -= f * vt[(i, k)] * cols[k];
+                }
             }
             derivative_array(scene, e, t, &trial, &mut trial_value, &mut trial_jac);
             if objective(&trial_value, &scales) < current {
@@ -247,27 +281,17 @@ pub fn complete<S: Scene>(
     }
     if res > rtol * 1e3 {
         return Err(format!(
-            "the hidden constraints could not be satisfied from this starting guess: relative \
-             derivative-array residual {res:.3e} (tolerance {rtol:.1e})"
+            "the hidden constraints could not be satisfied{}: relative derivative-array residual \
+             {res:.3e} (tolerance {rtol:.1e})",
+            unreachable_text(&jac, &value, &scales, first, move_third)
         ));
     }
-    // Uniqueness of q⃛: null space of ∂D/∂(q⃛, u) must not move q⃛.
-    let third_unique = if move_third {
-        // Pad to square so that the SVD returns the whole null space.
-        let b = balanced(&jac, d);
-        let mut ju = DMatrix::zeros(unknowns, unknowns);
-        ju.view_mut((0, 0), (LEVELS * m, unknowns))
-            .copy_from(&b.view((0, first), (LEVELS * m, unknowns)));
-        let svd = ju.svd(false, true);
-        let vt = svd.v_t.expect("v_t requested");
-        let top = svd.singular_values.max();
-        svd.singular_values
-            .iter()
-            .enumerate()
-            .filter(|(_, sv)| **sv <= RANK_TOL * top)
-            .all(|(i, _)| (0..m).all(|k| vt[(i, k)].abs() <= 1e-6))
+    let (third_unique, third_singular_values) = if move_third {
+        let sv = third_determination(&jac, d, m);
+        let unique = sv.last().is_some_and(|&s| s > RANK_TOL);
+        (unique, sv)
     } else {
-        true
+        (true, Vec::new())
     };
     let third_change = d[3 * m..4 * m]
         .iter()
@@ -278,5 +302,116 @@ pub fn complete<S: Scene>(
         iterations,
         third_change,
         third_unique,
+        third_singular_values,
     })
+}
+
+/// Why a completion failed: " from this starting guess" when the linearised
+/// problem can still remove the residual, or, when most of the row-scaled
+/// residual lies outside the range of `∂D/∂(unknowns)` (the combinations of
+/// `[E; Ė; Ë]` that the unknowns cannot change at all), that the fixed data
+/// themselves violate a hidden constraint, with the fraction.
+fn unreachable_text(
+    jac: &DMatrix<f64>,
+    value: &[f64],
+    scales: &[f64],
+    first: usize,
+    move_third: bool,
+) -> String {
+    let (rows, unknowns) = (jac.nrows(), jac.ncols() - first);
+    let js = DMatrix::from_fn(rows, unknowns, |l, k| jac[(l, first + k)] / scales[l]);
+    let rs = DVector::from_fn(rows, |l, _| value[l] / scales[l]);
+    let svd = js.svd(true, false);
+    let u = svd.u.as_ref().expect("u requested");
+    let top = svd.singular_values.max();
+    let mut reachable = DVector::zeros(rows);
+    for (i, &s) in svd.singular_values.iter().enumerate() {
+        if s > STEP_TRUNCATION * top {
+            let c = u.column(i).dot(&rs);
+            reachable.axpy(c, &u.column(i), 1.0);
+        }
+    }
+    let total = rs.norm();
+    let fraction = if total > 0.0 {
+        (&rs - reachable).norm() / total
+    } else {
+        0.0
+    };
+    if fraction < 0.5 {
+        return " from this starting guess".into();
+    }
+    if !move_third {
+        return format!(
+            " with q⃛ held fixed: {:.0}% of the row-scaled residual lies in the combinations of \
+             [E; Ė; Ë] that q⁗, q⁽⁵⁾, q⁽⁶⁾ cannot change (the hidden constraints)",
+            100.0 * fraction
+        );
+    }
+    format!(
+        ": the given (q, q̇, q̈) violate a hidden constraint that does not involve q⃛ here \
+         ({:.0}% of the row-scaled residual lies outside the range of \
+         ∂[E; Ė; Ë]/∂(q⃛, q⁗, q⁽⁵⁾, q⁽⁶⁾); for the sleigh at turning rate ω = 0 the first hidden \
+         constraint fixes the tangential acceleration u̇ = g sin α cos φ)",
+        100.0 * fraction
+    )
+}
+
+/// How well the hidden constraints determine `q⃛` at `d` (7m numbers, `jac`
+/// its derivative-array Jacobian): the singular values of `Hᵀ ∂D/∂q⃛`,
+/// `H` an orthonormal basis of the left null space of `∂D/∂u` (the
+/// combinations of `[E; Ė; Ë]` free of `q⁗, q⁽⁵⁾, q⁽⁶⁾`: the hidden
+/// constraints), relative to the largest singular value of `Hᵀ ∂D/∂z`; all on
+/// the balanced Jacobian (rows by term size, columns by `max(1, |d_j|)`). `m` values, largest first; the
+/// ones beyond the number of hidden constraints are 0. `q⃛` is fixed by
+/// `(q, q̇, q̈)` where the smallest exceeds [`RANK_TOL`].
+///
+/// For the sleigh (`q_I = (x, y)`, speed `u`, heading `φ`, turning rate
+/// `ω = φ̇`, `g_s = g sin α`, paper's potential) the two hidden constraints
+/// are, in the tangential/normal parts of (19) and its derivative,
+///
+/// ```text
+/// h₁ = g_s cos φ − u̇ − J ω φ̈ / u
+/// h₂ = ü + 2 g_s ω sin φ + u ω² + J φ̈² / u
+/// ```
+///
+/// with `φ̈ = (n̂·q⃛ − 2u̇ω)/u`, `ü = t̂·q⃛ + uω²`. Their Jacobian in
+/// `(φ̈, ü)` is `[[−Jω/u, 0], [2Jφ̈/u, 1]]`, determinant `−Jω/u`: at `ω = 0`
+/// it has rank 1, `h₁` no longer involves `q⃛` (it fixes `u̇ = g_s cos φ`
+/// instead) and `φ̈` — C's `λ(0)` — is free.
+pub fn third_determination(jac: &DMatrix<f64>, d: &[f64], m: usize) -> Vec<f64> {
+    let b = balanced(jac, d);
+    let rows = b.nrows();
+    let bu = b.view((0, 4 * m), (rows, 3 * m)).clone_owned();
+    let mut bu_sq = DMatrix::zeros(rows.max(3 * m), 3 * m);
+    bu_sq.view_mut((0, 0), (rows, 3 * m)).copy_from(&bu);
+    let svd = bu_sq.svd(true, false);
+    let u = svd.u.expect("u requested");
+    let sv = &svd.singular_values;
+    let top = sv.max();
+    // Left singular vectors of the rows' space with σ below the threshold.
+    let null: Vec<usize> = (0..rows)
+        .filter(|&i| i >= sv.len() || sv[i] <= RANK_TOL * top)
+        .collect();
+    let mut out = vec![0.0; m];
+    if null.is_empty() {
+        return out;
+    }
+    let h = DMatrix::from_fn(rows, null.len(), |l, k| u[(l, null[k])]);
+    let hz = h.tr_mul(&b.view((0, 0), (rows, 4 * m)).clone_owned());
+    let hq = hz.view((0, 3 * m), (null.len(), m)).clone_owned();
+    let scale = hz.svd(false, false).singular_values.max();
+    if scale == 0.0 {
+        return out;
+    }
+    let mut s: Vec<f64> = hq
+        .svd(false, false)
+        .singular_values
+        .iter()
+        .copied()
+        .collect();
+    s.sort_by(|x, y| y.total_cmp(x));
+    for (o, v) in out.iter_mut().zip(s) {
+        *o = v / scale;
+    }
+    out
 }

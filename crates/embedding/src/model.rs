@@ -30,7 +30,7 @@ use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene, SceneInfo};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::{Dual2, Dual2_64, Dual64};
 
-use crate::analysis::{Completion, Structure, complete, structure};
+use crate::analysis::{Completion, RANK_TOL, Structure, complete, structure};
 use crate::elo::{MAX_DOF, elo_array, reconstruct};
 use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
 
@@ -813,10 +813,16 @@ impl<S: Scene> Model for Embedding<S> {
         // constraint manifold to round-off: data consistent to another
         // formulation's round-off (C's Taylor coefficients) are not consistent
         // enough for an index-3 system, where an inconsistency δ forces
-        // corrections of order δ/h² in the first steps.
+        // corrections of order δ/h² in the first steps. The completion starts
+        // from the check's derivatives beyond q⃛, so that its minimum-norm
+        // steps move q⃛ only by what the given data lack: where q⃛ is not
+        // determined by (q, q̇, q̈) (the sleigh at ω = 0), steps that also
+        // had to find q⁗ … q⁽⁶⁾ from scratch would move q⃛ along the free
+        // direction, to another motion.
+        let mut checked = None;
         if third_given {
             let mut check = d.clone();
-            complete(
+            let c = complete(
                 &self.scene,
                 &self.e,
                 t0,
@@ -830,16 +836,57 @@ impl<S: Scene> Model for Embedding<S> {
                      omit them to have them computed"
                 ))
             })?;
+            // The check stops at HIDDEN_CHECK_RTOL; where the given data
+            // allow it, solve for the derivatives beyond q⃛ to round-off, so
+            // that the completion below has only the data's own
+            // inconsistency left to remove.
+            let mut refined = check.clone();
+            if complete(&self.scene, &self.e, t0, &mut refined, false, HIDDEN_RTOL).is_ok() {
+                check = refined;
+            }
+            d.copy_from_slice(&check);
+            checked = Some(c);
         }
         let completion = complete(&self.scene, &self.e, t0, &mut d, true, HIDDEN_RTOL)
             .map_err(Error::InconsistentInit)?;
-        if third_given
-            && completion.third_change
-                > 1e-6 * d[3 * m..4 * m].iter().fold(1.0f64, |a, v| a.max(v.abs()))
+        let sv_text = |c: &Completion| {
+            c.third_singular_values
+                .iter()
+                .map(|v| format!("{v:.3e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if !third_given && !completion.third_unique {
+            return Err(Error::InconsistentInit(format!(
+                "q⃛_I(0) is not determined by (q, q̇, q̈) at this state: the hidden constraints' \
+                 Jacobian in q⃛ has singular values [{}] relative to their gradient in \
+                 (q, q̇, q̈, q⃛) (rank < {m}, threshold {RANK_TOL:.0e}), so the completion's q⃛ is \
+                 one point of a family of motions; for the sleigh this is zero turning rate \
+                 ω = 0, where the first hidden constraint g sin α cos φ − u̇ − J ω φ̈/u = 0 no \
+                 longer involves q⃛ (it fixes u̇) and φ̈ — the vakonomic λ(0) — is free. Give \
+                 the third derivatives ({}) or `lambda`",
+                sv_text(&completion),
+                self.e
+                    .independent
+                    .iter()
+                    .map(|&i| derivative_name(coords[i].name, 3))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+        let third_scale = d[3 * m..4 * m].iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        if let Some(check) = checked
+            && completion.third_change > 1e-6 * third_scale
         {
             return Err(Error::InconsistentInit(format!(
-                "the given third derivatives are {:.3e} away from A's hidden constraints",
-                completion.third_change
+                "the given third derivatives satisfy A's hidden constraints to {:.3e} relative, \
+                 but making them consistent to {HIDDEN_RTOL:.0e} moved them by {:.3e} \
+                 (max(1, |q⃛|) = {third_scale:.3e}): q⃛ is ill-determined here (singular values \
+                 of the hidden constraints' Jacobian in q⃛, relative to their gradient in \
+                 (q, q̇, q̈, q⃛): [{}])",
+                check.residual.1,
+                completion.third_change,
+                sv_text(&completion)
             )));
         }
         let structure = structure(&self.scene, &self.e, t0, &d);

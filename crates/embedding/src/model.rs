@@ -945,6 +945,12 @@ impl<S: Scene> Model for Embedding<S> {
             ("completion_iterations", r.completion.iterations as f64),
             ("third_derivative_change", r.completion.third_change),
         ];
+        // How well (q, q̇, q̈) determine q⃛: the smallest relative singular
+        // value of the hidden constraints' Jacobian in q⃛ (0 where q⃛ is free,
+        // as for the sleigh at ω = 0; see `analysis::third_determination`).
+        if let Some(&s) = r.completion.third_singular_values.last() {
+            v.push(("third_determination", s));
+        }
         for shift in &r.branch_shift {
             v.push(("branch_shift", *shift));
         }

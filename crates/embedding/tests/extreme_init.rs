@@ -290,6 +290,13 @@ fn zero_turning_rate_starts_from_given_third_derivatives() {
         assert!(report.completion.third_change < 1e-9, "{report:?}");
         assert!(report.completion.residual.1 <= 1e-14, "{report:?}");
         assert_eq!(report.structure.hidden_constraints, 2, "{report:?}");
+        // The result record carries the same number.
+        let listed = a
+            .init_report()
+            .into_iter()
+            .find(|(k, _)| *k == "third_determination")
+            .map(|(_, v)| v);
+        assert!(listed.is_some_and(|v| v < 1e-14), "{listed:?}");
 
         let c_run = run_c(&s, &y0, t_end);
         for method in [Method::Dop853, Method::Radau5] {

@@ -16,13 +16,15 @@
 //!   are now kept (the completion starts from the check), and missing ones
 //!   are refused with the singular values.
 
+mod common;
+
+use common::*;
 use nalgebra::DMatrix;
-use nonholo_core::integrate::{IntegrateError, Method, Options};
-use nonholo_core::{Error, Initial, Model, Params, Run, RunConfig, Scene, simulate};
+use nonholo_core::integrate::{IntegrateError, Method};
+use nonholo_core::{Error, Initial, Model, Params, Run, Scene, simulate};
 use nonholo_embedding::analysis::{RANK_TOL, complete, derivative_array, third_determination};
 use nonholo_embedding::{Embedding, OPTIONS};
 use nonholo_scenes::Sleigh;
-use nonholo_vakonomic::Vakonomic;
 
 fn sleigh(a: f64, j: f64) -> Sleigh {
     let given = vec![
@@ -36,16 +38,6 @@ fn sleigh(a: f64, j: f64) -> Sleigh {
 
 fn embedding(s: &Sleigh) -> Embedding<Sleigh> {
     Embedding::new(s.clone(), Params::defaults(OPTIONS)).unwrap()
-}
-
-fn vakonomic(s: &Sleigh) -> Vakonomic<Sleigh> {
-    Vakonomic::new(s.clone(), Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap()
-}
-
-/// C's state `(x, y, φ, ẋ, ẏ, φ̇, λ)` at the origin, φ0 = 0.2, u0 = 2.
-fn c_state(omega: f64, lambda: f64) -> [f64; 7] {
-    let (phi, u) = (0.2f64, 2.0);
-    [0.0, 0.0, phi, u * phi.cos(), u * phi.sin(), omega, lambda]
 }
 
 /// C's Taylor coefficients `(q̈, q⃛)` of `(x, y)` at `y`, t = 0.
@@ -87,45 +79,10 @@ fn matched(s: &Sleigh, y: &[f64; 7], third: bool) -> Initial {
     }
 }
 
-fn config(method: Method, rtol: f64, t_end: f64, every: f64) -> RunConfig {
-    let n = (t_end / every).round() as usize;
-    RunConfig {
-        method,
-        options: Options {
-            rtol,
-            atol: rtol,
-            output: (0..=n).map(|i| (i as f64 * every).min(t_end)).collect(),
-            ..Options::default()
-        },
-        t_end,
-        project_init: false,
-    }
-}
-
 fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64) -> Run {
-    let init = Initial {
-        t0: 0.0,
-        q: y[..3].to_vec(),
-        qd: y[3..6].to_vec(),
-        extra: vec![("lambda".into(), y[6])],
-    };
-    let run = simulate(
-        Box::new(vakonomic(s)),
-        init,
-        config(Method::Dop853, 1e-13, t_end, 1e-2),
-    )
-    .unwrap();
+    let run = run_c_tol(s, y, t_end, 1e-2, 1e-13);
     assert!(run.completed(), "{:?}", run.failure);
     run
-}
-
-/// `max |(x, y)_a − (x, y)_b|` over the samples both have.
-fn position_difference(a: &Run, b: &Run) -> f64 {
-    a.samples
-        .iter()
-        .zip(&b.samples)
-        .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
-        .fold(0.0, f64::max)
 }
 
 /// Singular values of the row-scaled Jacobian of `[E; Ė; Ë]` in
@@ -159,7 +116,7 @@ fn scaled_singular_values(s: &Sleigh, d: &[f64]) -> Vec<f64> {
 fn large_j_starts_and_agrees_with_vakonomic() {
     let s = sleigh(50.0, 2501.0);
     let e = Sleigh::INFO.embedding.unwrap();
-    let y0 = c_state(0.7, 0.0);
+    let y0 = c_state(0.2, 2.0, 0.7, 0.0);
     let d0 = array_from_c(&s, &y0);
 
     let mut fixed = d0.clone();
@@ -225,7 +182,7 @@ fn zero_turning_rate_leaves_third_derivatives_free() {
     let s = sleigh(0.4, 1.0);
     let e = Sleigh::INFO.embedding.unwrap();
     let (phi, g_s) = (0.2f64, 9.81 * 0.3f64.sin());
-    let y0 = c_state(0.0, 0.0);
+    let y0 = c_state(0.2, 2.0, 0.0, 0.0);
     let d = array_from_c(&s, &y0);
     let tangential = d[4] * phi.cos() + d[5] * phi.sin();
     let normal = -d[4] * phi.sin() + d[5] * phi.cos();
@@ -237,7 +194,7 @@ fn zero_turning_rate_leaves_third_derivatives_free() {
 
     let mut smallest = Vec::new();
     for omega in [0.0, 1e-3, 1e-2, 1e-1] {
-        let mut d = array_from_c(&s, &c_state(omega, 0.0));
+        let mut d = array_from_c(&s, &c_state(0.2, 2.0, omega, 0.0));
         let done = complete(&s, &e, 0.0, &mut d, false, 1e-14).unwrap();
         assert!(done.residual.1 <= 1e-14, "{done:?}");
         let mut v = vec![0.0; 6];
@@ -276,7 +233,7 @@ fn zero_turning_rate_leaves_third_derivatives_free() {
 fn zero_turning_rate_starts_from_given_third_derivatives() {
     let s = sleigh(0.4, 1.0);
     for (lambda, t_end) in [(0.0, 1.19), (0.5, 0.5)] {
-        let y0 = c_state(0.0, lambda);
+        let y0 = c_state(0.2, 2.0, 0.0, lambda);
         let init = matched(&s, &y0, true);
         let mut a = embedding(&s);
         a.initial_state(&init).unwrap();
@@ -313,7 +270,7 @@ fn zero_turning_rate_starts_from_given_third_derivatives() {
         }
     }
     // Run on, both forms stop by design before C's reversal.
-    let y0 = c_state(0.0, 0.0);
+    let y0 = c_state(0.2, 2.0, 0.0, 0.0);
     for (method, what) in [
         (Method::Dop853, "resolution limit"),
         (Method::Radau5, "singular set"),
@@ -341,7 +298,7 @@ fn zero_turning_rate_starts_from_given_third_derivatives() {
 #[test]
 fn zero_turning_rate_errors_name_the_singular_quantity() {
     let s = sleigh(0.4, 1.0);
-    let y0 = c_state(0.0, 0.0);
+    let y0 = c_state(0.2, 2.0, 0.0, 0.0);
     let msg = match embedding(&s).initial_state(&matched(&s, &y0, false)) {
         Err(Error::InconsistentInit(msg)) => msg,
         other => panic!("{other:?}"),

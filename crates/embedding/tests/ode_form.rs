@@ -8,12 +8,15 @@
 //! C (`nonholo_vakonomic`) only supplies initial data and reference values;
 //! A's explicit form never consults it.
 
+mod common;
+
+use common::*;
 use std::time::Instant;
 
 use nonholo_core::integrate::{
     ImplicitSystem, IntegrateError, Method, OdeSystem, Options, SystemError, solve,
 };
-use nonholo_core::{Initial, Model, Params, Run, RunConfig, Scene, simulate};
+use nonholo_core::{Initial, Model, Params, Run, Scene, simulate};
 use nonholo_embedding::ode::ODE_RESOLUTION;
 use nonholo_embedding::{Embedding, OPTIONS};
 use nonholo_scenes::Sleigh;
@@ -41,15 +44,6 @@ fn embedding<S: Scene>(scene: S, opts: &[(&str, &str)]) -> Embedding<S> {
     .unwrap()
 }
 
-fn vakonomic(s: &Sleigh) -> Vakonomic<Sleigh> {
-    Vakonomic::new(s.clone(), Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap()
-}
-
-/// C's state `(x, y, φ, ẋ, ẏ, φ̇, λ)` at the origin for forward speed `u`.
-fn c_state(phi: f64, u: f64, omega: f64, lambda: f64) -> [f64; 7] {
-    [0.0, 0.0, phi, u * phi.cos(), u * phi.sin(), omega, lambda]
-}
-
 /// C's Taylor coefficients `(q̈, q⃛, q⁗)` of `(x, y)` at `(t, y)`.
 fn taylor(c: &mut Vakonomic<Sleigh>, t: f64, y: &[f64]) -> [[f64; 2]; 3] {
     let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
@@ -74,50 +68,15 @@ fn matched(c: &mut Vakonomic<Sleigh>, t: f64, y: &[f64]) -> Initial {
     }
 }
 
-fn config(method: Method, rtol: f64, t_end: f64, every: f64) -> RunConfig {
-    let n = (t_end / every).round() as usize;
-    RunConfig {
-        method,
-        options: Options {
-            rtol,
-            atol: rtol,
-            output: (0..=n).map(|i| (i as f64 * every).min(t_end)).collect(),
-            ..Options::default()
-        },
-        t_end,
-        project_init: false,
-    }
-}
-
 /// C from `y` (with its λ0) by DOP853 at 1e-12.
 fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64) -> Run {
     run_c_tol(s, y, t_end, every, 1e-12)
 }
 
-/// C from `y` (with its λ0) by DOP853 at `rtol`.
-fn run_c_tol(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64, rtol: f64) -> Run {
-    let init = Initial {
-        t0: 0.0,
-        q: y[..3].to_vec(),
-        qd: y[3..6].to_vec(),
-        extra: vec![("lambda".into(), y[6])],
-    };
-    simulate(
-        Box::new(vakonomic(s)),
-        init,
-        config(Method::Dop853, rtol, t_end, every),
-    )
-    .unwrap()
-}
-
 /// `max |(x, y)_a − (x, y)_b|` over common samples.
 fn position_difference(a: &Run, b: &Run) -> f64 {
     assert_eq!(a.solution.t.len(), b.solution.t.len());
-    a.samples
-        .iter()
-        .zip(&b.samples)
-        .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
-        .fold(0.0, f64::max)
+    common::position_difference(a, b)
 }
 
 /// First zero of C's forward speed `u = ẋ cos φ + ẏ sin φ` on its samples.

@@ -1,0 +1,58 @@
+//! Helpers shared by the embedding's integration tests: C (the vakonomic
+//! motion A is matched with) as a reference, run configurations, distances.
+#![allow(dead_code)]
+
+use nonholo_core::integrate::{Method, Options};
+use nonholo_core::{Initial, Params, Run, RunConfig, simulate};
+use nonholo_scenes::Sleigh;
+use nonholo_vakonomic::Vakonomic;
+
+pub fn vakonomic(s: &Sleigh) -> Vakonomic<Sleigh> {
+    Vakonomic::new(s.clone(), Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap()
+}
+
+/// C's state `(x, y, φ, ẋ, ẏ, φ̇, λ)` at the origin for forward speed `u`.
+pub fn c_state(phi: f64, u: f64, omega: f64, lambda: f64) -> [f64; 7] {
+    [0.0, 0.0, phi, u * phi.cos(), u * phi.sin(), omega, lambda]
+}
+
+/// `rtol = atol`, output every `every` up to `t_end`.
+pub fn config(method: Method, rtol: f64, t_end: f64, every: f64) -> RunConfig {
+    let n = (t_end / every).round() as usize;
+    RunConfig {
+        method,
+        options: Options {
+            rtol,
+            atol: rtol,
+            output: (0..=n).map(|i| (i as f64 * every).min(t_end)).collect(),
+            ..Options::default()
+        },
+        t_end,
+        project_init: false,
+    }
+}
+
+/// C from `y` (with its λ0) by DOP853 at `rtol`.
+pub fn run_c_tol(s: &Sleigh, y: &[f64; 7], t_end: f64, every: f64, rtol: f64) -> Run {
+    let init = Initial {
+        t0: 0.0,
+        q: y[..3].to_vec(),
+        qd: y[3..6].to_vec(),
+        extra: vec![("lambda".into(), y[6])],
+    };
+    simulate(
+        Box::new(vakonomic(s)),
+        init,
+        config(Method::Dop853, rtol, t_end, every),
+    )
+    .unwrap()
+}
+
+/// `max |(x, y)_a − (x, y)_b|` over the samples both have.
+pub fn position_difference(a: &Run, b: &Run) -> f64 {
+    a.samples
+        .iter()
+        .zip(&b.samples)
+        .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
+        .fold(0.0, f64::max)
+}

@@ -31,7 +31,7 @@ pub use init::Initial;
 pub use model::{FormulationInfo, Model, Observation};
 pub use monitor::Diagnostics;
 pub use param::{Bound, Kind, ParamSpec, Params, Value};
-pub use run::{Run, RunConfig, simulate};
+pub use run::{Run, RunConfig, RunStatus, simulate};
 pub use scene::{Named, Scalar, Scene, SceneInfo};
 
 pub use nonholo_integrate as integrate;

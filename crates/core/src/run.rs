@@ -85,6 +85,38 @@ impl Run {
     pub fn completed(&self) -> bool {
         self.failure.is_none()
     }
+
+    /// How the run ended: the one place that tells a stop by design (a
+    /// singular set the formulation cannot pass) from a failure.
+    pub fn status(&self) -> RunStatus {
+        match &self.failure {
+            None => RunStatus::Completed,
+            Some(IntegrateError::Stopped { .. }) => RunStatus::Stopped,
+            Some(_) => RunStatus::Failed,
+        }
+    }
+}
+
+/// How a run ended (see [`Run::status`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunStatus {
+    /// Reached `t_end`.
+    Completed,
+    /// Stopped where its formulation stops by design, with time and reason.
+    Stopped,
+    /// Any other failure (budget, Newton, non-finite values, …).
+    Failed,
+}
+
+impl RunStatus {
+    /// The name used in result files: `completed`, `stopped`, `failed`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunStatus::Completed => "completed",
+            RunStatus::Stopped => "stopped",
+            RunStatus::Failed => "failed",
+        }
+    }
 }
 
 /// Runs `model` from `initial` to `config.t_end`.

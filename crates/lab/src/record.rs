@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use nonholo_core::{Params, Run, Value};
+use nonholo_core::{Params, Run, RunStatus, Value};
 use serde::Serialize;
 use serde_json::{Map, Value as Json};
 
@@ -314,10 +314,11 @@ impl RunRecord {
                 wall_time_s: st.wall_time_s,
                 stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
             },
-            status: if run.failure.is_some() {
-                "failed"
-            } else {
-                "completed"
+            // Schema run/1 (docs/schema.md) knows `completed` and `failed`
+            // only: a stop by design is a `failed` run whose error says so.
+            status: match run.status() {
+                RunStatus::Completed => "completed",
+                RunStatus::Stopped | RunStatus::Failed => "failed",
             },
             error: run.failure.as_ref().map(|e| ErrorRecord {
                 t: e.time(),

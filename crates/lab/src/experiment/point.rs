@@ -255,12 +255,7 @@ fn from_run(r: &PointRun, run: &Run) -> FormResult {
         integrator: r.spec.method.name().into(),
         rtol: r.spec.integrator.rtol,
         atol: r.spec.integrator.atol,
-        status: match &run.failure {
-            None => "completed",
-            Some(nonholo_core::integrate::IntegrateError::Stopped { .. }) => "stopped",
-            Some(_) => "failed",
-        }
-        .into(),
+        status: run.status().as_str().into(),
         error_t: run.failure.as_ref().and_then(|e| e.time()),
         error: run.failure.as_ref().map(|e| e.to_string()),
         t_last: finite(run.solution.t_last),

@@ -27,7 +27,8 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use nonholo_core::integrate::{IntegrateError, Method};
+use nonholo_core::RunStatus;
+use nonholo_core::integrate::Method;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use sha2::{Digest, Sha256};
@@ -217,8 +218,7 @@ fn measure(
             Ok(Ok((run, _))) => {
                 walls.push(run.solution.stats.wall_time_s);
                 // A failed run is not repeated: its cost measures nothing.
-                let failed =
-                    matches!(&run.failure, Some(e) if !matches!(e, IntegrateError::Stopped { .. }));
+                let failed = run.status() == RunStatus::Failed;
                 if first.is_none() {
                     first = Some(run);
                 }
@@ -258,12 +258,7 @@ fn measure(
     let finite = |v: f64| v.is_finite().then_some(v);
     row.constraint_residual_max = finite(run.diagnostics.constraint_residual_max);
     row.energy_drift_max = finite(run.diagnostics.energy_drift_max);
-    row.status = match &run.failure {
-        None => "completed",
-        Some(IntegrateError::Stopped { .. }) => "stopped",
-        Some(_) => "failed",
-    }
-    .into();
+    row.status = run.status().as_str().into();
     row.error = run.failure.as_ref().map(|e| e.to_string());
     row.error_t = run.failure.as_ref().and_then(|e| e.time());
     if row.status == "failed" {

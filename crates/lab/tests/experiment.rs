@@ -116,6 +116,12 @@ fn results_are_complete_and_legible() {
             svg.contains("<text") && svg.contains("[s]") || svg.contains("[m]"),
             "{stem}: no axis text"
         );
+        // Titles name the plotted point plainly (not the TOML line numbers of
+        // the error messages).
+        assert!(
+            !svg.contains("swept at line"),
+            "{stem}: title carries line numbers"
+        );
         assert!(
             std::fs::metadata(dir.join("plots").join(format!("{stem}.png")))
                 .unwrap()

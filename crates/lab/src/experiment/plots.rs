@@ -128,11 +128,12 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         .get(point)
         .map(|r| r.values.clone())
         .unwrap_or_default();
-    let at = super::spec::describe(&exp.axes, &values);
-    let at = at
-        .trim_end_matches(": ")
-        .replace("param.", "")
-        .replace("init.", "");
+    let at = super::spec::compact(&exp.axes, &values);
+    let at = if at.is_empty() {
+        at
+    } else {
+        format!("at {at}")
+    };
     let titled = |what: &str| {
         if at.is_empty() {
             what.to_string()

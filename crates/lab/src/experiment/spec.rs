@@ -1136,3 +1136,21 @@ pub fn describe(axes: &[Axis], values: &[String]) -> String {
         .collect();
     format!("at {}: ", parts.join(", "))
 }
+
+/// A point's coordinates for titles and legends: `alpha = 0.3, a = 0.4`
+/// (axis names without their `param.`/`init.`/`option.` prefix, numbers in
+/// their shortest form; empty without a sweep).
+pub fn compact(axes: &[Axis], values: &[String]) -> String {
+    axes.iter()
+        .zip(values)
+        .map(|(a, v)| {
+            let name = a.name.rsplit('.').next().unwrap_or(&a.name);
+            let v = v
+                .parse::<f64>()
+                .map(|x| format!("{x}"))
+                .unwrap_or(v.clone());
+            format!("{name} = {v}")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}

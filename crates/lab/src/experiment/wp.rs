@@ -35,7 +35,7 @@ use sha2::{Digest, Sha256};
 
 use super::output::{escape, write, write_json, write_manifest};
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
-use super::spec::{Experiment, Ladder, RefSpec};
+use super::spec::{Experiment, Ladder, RefSpec, compact};
 use super::sweep::{Point, resolve};
 use super::{Outcome, RunOptions};
 use crate::plot::{Cell, CellStatus, LinePlot, Series, StatusGrid, line_plot, status_grid};
@@ -939,22 +939,6 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
         },
         &dir.join("plots").join("stability-map"),
     )
-}
-
-/// `k = 1e6, potential = com` for plot titles.
-fn compact(axes: &[super::spec::Axis], values: &[String]) -> String {
-    axes.iter()
-        .zip(values)
-        .map(|(a, v)| {
-            let name = a.name.rsplit('.').next().unwrap_or(&a.name);
-            let v = v
-                .parse::<f64>()
-                .map(|x| format!("{x}"))
-                .unwrap_or(v.clone());
-            format!("{name} = {v}")
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// `label: formulation · integrator` (with the Newton iteration if chosen).

@@ -28,7 +28,6 @@ use std::ffi::OsString;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
@@ -1316,30 +1315,6 @@ fn with_suffix(stem: &Path, ext: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// A fresh temporary path in the directory of `target`, ending in `ext` so
-/// that encoders picking the format from the extension still work.
-fn temp_path(target: &Path, ext: &str) -> PathBuf {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let name = target
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    target.with_file_name(format!(".{name}.{}-{n}.tmp{ext}", std::process::id()))
-}
-
-/// Flushes `tmp` to disk and renames it over `target`; removes `tmp` on
-/// failure.
-fn commit(tmp: &Path, target: &Path) -> Result<(), String> {
-    let result = fs::File::open(tmp)
-        .and_then(|f| f.sync_all())
-        .and_then(|_| fs::rename(tmp, target))
-        .map_err(|e| format!("cannot write {}: {e}", target.display()));
-    if result.is_err() {
-        let _ = fs::remove_file(tmp);
-    }
-    result
-}
 
 // ---------------------------------------------------------------------------
 // Status grids
@@ -1579,21 +1554,14 @@ fn write_outputs_sized(
         w.write_image_data(&pixels)
             .map_err(|e| format!("cannot encode {}: {e}", png_path.display()))?;
     }
-    let tmp = temp_path(&png_path, ".png");
-    if let Err(e) = fs::write(&tmp, &bytes) {
-        let _ = fs::remove_file(&tmp);
-        return Err(format!("cannot write {}: {e}", png_path.display()));
-    }
-    commit(&tmp, &png_path)?;
-
+    let write = |path: &Path, bytes: &[u8]| {
+        crate::record::write_atomic(path, bytes)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    };
+    write(&png_path, &bytes)?;
     let mut doc = String::new();
     svg(SVGBackend::with_string(&mut doc, size).into_drawing_area())?;
-    let tmp = temp_path(&svg_path, ".svg");
-    if let Err(e) = fs::write(&tmp, doc.as_bytes()) {
-        let _ = fs::remove_file(&tmp);
-        return Err(format!("cannot write {}: {e}", svg_path.display()));
-    }
-    commit(&tmp, &svg_path)?;
+    write(&svg_path, doc.as_bytes())?;
     Ok(vec![png_path, svg_path])
 }
 

@@ -156,6 +156,18 @@ impl Progress {
 }
 
 /// Deletes temporary files a killed run may have left in `dir`.
+/// Creates `dir` and its `subs`, removing temporaries (`.NAME.PID.tmp`) that a
+/// killed run left in them.
+pub(crate) fn prepare_dir(dir: &Path, subs: &[&str]) -> Result<(), String> {
+    for sub in subs {
+        let d = dir.join(sub);
+        std::fs::create_dir_all(&d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
+        clean_temporaries(&d);
+    }
+    clean_temporaries(dir);
+    Ok(())
+}
+
 fn clean_temporaries(dir: &Path) {
     if let Ok(entries) = std::fs::read_dir(dir) {
         for e in entries.flatten() {
@@ -198,12 +210,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
     }
     let started = std::time::SystemTime::now();
     let dir = &opts.out_dir;
-    for sub in ["points", "trajectories", "plots"] {
-        let d = dir.join(sub);
-        std::fs::create_dir_all(&d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
-        clean_temporaries(&d);
-    }
-    clean_temporaries(dir);
+    prepare_dir(dir, &["points", "trajectories", "plots"])?;
     let points = exp.points();
     let threads = opts.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()

@@ -420,10 +420,7 @@ fn physics_key(spec: &RunSpec, r: &RefSpec) -> String {
 pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
     let started = std::time::SystemTime::now();
     let dir = &opts.out_dir;
-    for sub in ["points", "references", "plots"] {
-        let d = dir.join(sub);
-        std::fs::create_dir_all(&d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
-    }
+    super::prepare_dir(dir, &["points", "references", "plots"])?;
     let mut points = Vec::new();
     let mut reused = 0;
     for p in exp.points() {

@@ -70,7 +70,8 @@ pub struct WorkPrecisionArgs {
 /// `nonholo work-precision [FILE...]`: runs work-precision experiments (the
 /// given files, or every one in `experiments/`); exit 3 if runs failed.
 pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
-    let files = if args.files.is_empty() {
+    // Each file is loaded (and its points checked) once.
+    let experiments: Vec<(PathBuf, Experiment)> = if args.files.is_empty() {
         let mut files: Vec<PathBuf> = std::fs::read_dir(&args.experiments)
             .map_err(|e| CliError::Input(format!("{}: {e}", args.experiments.display())))?
             .flatten()
@@ -80,8 +81,9 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
         files.sort();
         let mut wp = Vec::new();
         for f in files {
-            if load(&f)?.kind == Kind::WorkPrecision {
-                wp.push(f);
+            let exp = load(&f)?;
+            if exp.kind == Kind::WorkPrecision {
+                wp.push((f, exp));
             }
         }
         if wp.is_empty() {
@@ -92,12 +94,14 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
         }
         wp
     } else {
-        args.files.clone()
+        args.files
+            .iter()
+            .map(|f| Ok((f.clone(), load(f)?)))
+            .collect::<Result<_, CliError>>()?
     };
     let mut failed = 0;
     let mut runs = 0;
-    for f in &files {
-        let exp = load(f)?;
+    for (f, exp) in &experiments {
         if exp.kind != Kind::WorkPrecision {
             return Err(CliError::Input(format!(
                 "{}: experiment.kind is not \"work-precision\" (run it with `nonholo experiment`)",
@@ -105,9 +109,9 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
             )));
         }
         let o = run(
-            &exp,
+            exp,
             &RunOptions {
-                out_dir: default_dir(&exp),
+                out_dir: default_dir(exp),
                 force: args.force,
                 threads: Some(1),
                 quiet: args.quiet,

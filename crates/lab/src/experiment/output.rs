@@ -267,12 +267,18 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
     write_json(&dir.join("config.json"), &config)
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
+/// The median (the mean of the two middle values for an even count).
+pub fn median(mut v: Vec<f64>) -> Option<f64> {
     if v.is_empty() {
         return None;
     }
     v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
+    let n = v.len();
+    Some(if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    })
 }
 
 /// `summary.json`: counts and, for every pair, the spread of the end divergence.
@@ -529,4 +535,17 @@ pub fn write_html(
     }
     let _ = writeln!(h, "</table>\n</body></html>");
     write(&dir.join("index.html"), h.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::median;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(vec![]), None);
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), Some(2.0));
+        // Even count: the mean of the middle two, not the upper one.
+        assert_eq!(median(vec![4.0, 1.0, 3.0, 2.0]), Some(2.5));
+    }
 }

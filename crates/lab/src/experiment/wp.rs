@@ -33,10 +33,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use sha2::{Digest, Sha256};
 
-use super::output::{escape, write, write_json, write_manifest};
+use super::output::{escape, median, write, write_json, write_manifest};
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
 use super::spec::{Experiment, Ladder, RefSpec, compact};
-use super::sweep::{Point, resolve};
+use super::sweep::{Point, PointRun, resolve};
 use super::{Outcome, RunOptions};
 use crate::plot::{Cell, CellStatus, LinePlot, Series, StatusGrid, line_plot, status_grid};
 use crate::simulate::{RunSpec, execute};
@@ -106,18 +106,19 @@ pub struct WpPoint {
     pub rows: Vec<WpRow>,
 }
 
-fn hash(exp: &Experiment, point: &Point) -> Result<String, String> {
-    let runs = resolve(exp, point)?;
+/// Hash of a point's resolved runs, ladders and repeats: a stored point is
+/// reused only if the experiment still asks for the same computation.
+fn hash(exp: &Experiment, runs: &[PointRun]) -> String {
     let ladders: Vec<_> = exp.formulations.iter().map(|f| &f.work_precision).collect();
     let mut h = Sha256::new();
     h.update(WP_SCHEMA.as_bytes());
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(format!("{runs:?}|{ladders:?}|{}", exp.repeats).as_bytes());
-    Ok(h.finalize()
+    h.finalize()
         .iter()
         .take(8)
         .map(|b| format!("{b:02x}"))
-        .collect())
+        .collect()
 }
 
 fn stored(dir: &Path, exp: &Experiment, point: &Point) -> Option<WpPoint> {
@@ -128,7 +129,8 @@ fn stored(dir: &Path, exp: &Experiment, point: &Point) -> Option<WpPoint> {
             .as_ref()
             .is_none_or(|file| dir.join("references").join(file).exists())
     });
-    (r.schema == WP_SCHEMA && r.hash == hash(exp, point).ok()? && complete).then_some(r)
+    (r.schema == WP_SCHEMA && r.hash == hash(exp, &resolve(exp, point).ok()?) && complete)
+        .then_some(r)
 }
 
 fn point_path(dir: &Path, index: usize) -> PathBuf {
@@ -237,14 +239,9 @@ fn measure(
         }
     }
     let Some(run) = first else { return row };
-    walls.sort_by(f64::total_cmp);
     row.repeats = walls.len();
-    row.wall_time_median_s = Some(if walls.len() % 2 == 1 {
-        walls[walls.len() / 2]
-    } else {
-        0.5 * (walls[walls.len() / 2 - 1] + walls[walls.len() / 2])
-    });
-    row.wall_time_min_s = walls.first().copied();
+    row.wall_time_min_s = walls.iter().copied().reduce(f64::min);
+    row.wall_time_median_s = median(walls);
     if run.config.method.is_implicit() {
         row.radau_newton = Some(run.config.options.radau_newton.name().into());
     }
@@ -394,7 +391,7 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
         schema: WP_SCHEMA.into(),
         index: point.index,
         values: point.values.clone(),
-        hash: hash(exp, point)?,
+        hash: hash(exp, &runs),
         references,
         rows,
     })
@@ -423,23 +420,19 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
     super::prepare_dir(dir, &["points", "references", "plots"])?;
     let mut points = Vec::new();
     let mut reused = 0;
-    for p in exp.points() {
+    let all = exp.points();
+    for p in &all {
         if !opts.force
-            && let Some(r) = stored(dir, exp, &p)
+            && let Some(r) = stored(dir, exp, p)
         {
             reused += 1;
             points.push(r);
             continue;
         }
         if !opts.quiet {
-            eprintln!(
-                "{}: point {} of {}",
-                exp.name,
-                p.index + 1,
-                exp.points().len()
-            );
+            eprintln!("{}: point {} of {}", exp.name, p.index + 1, all.len());
         }
-        let r = run_point(exp, &p, dir, opts.quiet)?;
+        let r = run_point(exp, p, dir, opts.quiet)?;
         let mut bytes = serde_json::to_vec_pretty(&r).map_err(|e| e.to_string())?;
         bytes.push(b'\n');
         write(&point_path(dir, p.index), &bytes)?;

@@ -178,20 +178,12 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                     .take(2)
                     .filter_map(|c| Some((ta.column(c)?, tb.column(c)?)))
                     .collect();
-                let n = t_a.iter().zip(&t_b).take_while(|(x, y)| x == y).count();
+                let n = super::point::common_len(&t_a, &t_b);
                 let y: Vec<f64> = (0..n)
                     .map(|j| {
                         cols.iter()
                             .enumerate()
-                            .map(|(k, (a, b))| {
-                                let d = a[j] - b[j];
-                                if angle[k] {
-                                    let tau = std::f64::consts::TAU;
-                                    d - (d / tau).round() * tau
-                                } else {
-                                    d
-                                }
-                            })
+                            .map(|(k, (a, b))| super::point::coord_diff(a[j] - b[j], angle[k]))
                             .map(|d| d * d)
                             .sum::<f64>()
                             .sqrt()

@@ -436,17 +436,25 @@ fn pair_measures(exp: &Experiment, runs: &[PointRun], samples: &[Samples]) -> Ve
     pairs
 }
 
+/// A coordinate difference, wrapped into `[−π, π]` for an angle.
+pub fn coord_diff(d: f64, angle: bool) -> f64 {
+    if angle {
+        let tau = std::f64::consts::TAU;
+        d - (d / tau).round() * tau
+    } else {
+        d
+    }
+}
+
+/// Length of the common grid of two runs: the leading samples at identical
+/// times (a stopped run's extra sample at its stop time is not on the grid).
+pub fn common_len(a: &[f64], b: &[f64]) -> usize {
+    a.iter().zip(b).take_while(|(x, y)| x == y).count()
+}
+
 /// Distance between two samples: `(‖Δ(x, y)‖, ‖Δq‖)`, angles modulo 2π.
 pub fn distance(a: &Observation, b: &Observation, units: &[(String, String)]) -> (f64, f64) {
-    let diff = |k: usize| {
-        let d = a.q[k] - b.q[k];
-        if units[k].1 == "rad" {
-            let tau = std::f64::consts::TAU;
-            d - (d / tau).round() * tau
-        } else {
-            d
-        }
-    };
+    let diff = |k: usize| coord_diff(a.q[k] - b.q[k], units[k].1 == "rad");
     let xy = if a.q.len() >= 2 {
         diff(0).hypot(diff(1))
     } else {
@@ -478,8 +486,7 @@ fn compare(
     };
     // The common grid: samples at identical times (a stopped run's extra
     // sample at its stop time is not on the grid).
-    let n = sa.t.iter().zip(&sb.t).take_while(|(x, y)| x == y).count();
-    for i in 0..n {
+    for i in 0..common_len(&sa.t, &sb.t) {
         let (xy, q) = distance(&sa.obs[i], &sb.obs[i], &sa.coordinates);
         if !(xy.is_finite() && q.is_finite()) {
             break;

@@ -55,15 +55,7 @@ pub struct ReferenceInfo {
 /// `max_k |q_a,k − q_b,k|` with angles compared modulo 2π.
 pub fn q_error(a: &Observation, b: &Observation, coordinates: &[(String, String)]) -> f64 {
     (0..a.q.len())
-        .map(|k| {
-            let d = a.q[k] - b.q[k];
-            if coordinates[k].1 == "rad" {
-                let tau = std::f64::consts::TAU;
-                (d - (d / tau).round() * tau).abs()
-            } else {
-                d.abs()
-            }
-        })
+        .map(|k| super::point::coord_diff(a.q[k] - b.q[k], coordinates[k].1 == "rad").abs())
         .fold(0.0, f64::max)
 }
 
@@ -157,12 +149,7 @@ pub fn compute(
         .and_then(|c| usable(&c).map(|_| c))
     {
         Ok(check) => {
-            let common = t
-                .iter()
-                .zip(&check.solution.t)
-                .take_while(|(a, b)| a == b)
-                .count()
-                .min(check.samples.len());
+            let common = super::point::common_len(&t, &check.solution.t).min(check.samples.len());
             let errs: Vec<f64> = (0..common)
                 .map(|i| q_error(&primary.samples[i], &check.samples[i], coordinates))
                 .collect();

@@ -265,11 +265,7 @@ fn measure(
         return row;
     };
     let t = &run.solution.t[..run.samples.len()];
-    let common = t
-        .iter()
-        .zip(&reference.t)
-        .take_while(|(a, b)| a == b)
-        .count();
+    let common = super::point::common_len(t, &reference.t);
     if common == 0 {
         return row;
     }

@@ -1315,7 +1315,6 @@ fn with_suffix(stem: &Path, ext: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
-
 // ---------------------------------------------------------------------------
 // Status grids
 

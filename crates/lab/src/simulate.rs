@@ -246,9 +246,11 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
     })
 }
 
-struct ResolveInit {
-    given: Vec<(String, String)>,
-    extra: Vec<nonholo_core::init::ExtraName>,
+/// Resolves `--init`-style values against a scene (coordinates, velocities,
+/// convenience values, the formulation's extra initial data).
+pub(crate) struct ResolveInit {
+    pub given: Vec<(String, String)>,
+    pub extra: Vec<nonholo_core::init::ExtraName>,
 }
 
 impl nonholo_scenes::SceneVisitor for ResolveInit {

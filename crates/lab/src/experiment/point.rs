@@ -2,16 +2,16 @@
 //! measures that compare them.
 
 use nonholo_core::consistency::check_or_project;
-use nonholo_core::init::{self, ExtraName};
+use nonholo_core::init;
 use nonholo_core::monitor::state_measures;
-use nonholo_core::{Initial, Observation, Run, Scene};
+use nonholo_core::{Observation, Run, Scene};
 use nonholo_scenes::SceneVisitor;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use super::spec::{CLOSED_FORM, Experiment};
 use super::sweep::{Point, PointRun, resolve};
-use crate::simulate::execute;
+use crate::simulate::{ResolveInit, execute};
 
 /// Schema of a point's result file.
 pub const POINT_SCHEMA: &str = "nonholo.point/1";
@@ -147,7 +147,7 @@ pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
             }
             scene
                 .clone()
-                .visit(Resolve {
+                .visit(ResolveInit {
                     given: r.spec.init.clone(),
                     extra: Vec::new(),
                 })
@@ -158,25 +158,13 @@ pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
             crate::formulations::build_model(scene.clone(), &r.spec.formulation, &r.spec.options)
                 .map_err(|e| format!("{}: {e}", r.label))?;
         scene
-            .visit(Resolve {
+            .visit(ResolveInit {
                 given: r.spec.init.clone(),
                 extra: model.extra_init_names(),
             })
             .map_err(|e| format!("{}: {e}", r.label))?;
     }
     Ok(())
-}
-
-struct Resolve {
-    given: Vec<(String, String)>,
-    extra: Vec<ExtraName>,
-}
-
-impl SceneVisitor for Resolve {
-    type Output = Result<Initial, nonholo_core::Error>;
-    fn visit<S: Scene>(self, scene: S) -> Self::Output {
-        init::resolve(&scene, &self.given, &self.extra)
-    }
 }
 
 /// Samples the scene's closed form on the grid from the resolved initial

@@ -64,16 +64,6 @@ impl Dense {
         self.coef.extend_from_slice(coef);
     }
 
-    /// Drops every step that starts at or after `t` (used when a run is cut
-    /// short at an event inside the last step: that step is kept, and
-    /// evaluation beyond `t` is the caller's business).
-    pub fn truncate_after(&mut self, t: f64) {
-        let keep = self.t.partition_point(|&tn| tn < t);
-        self.t.truncate(keep);
-        self.h.truncate(keep);
-        self.coef.truncate(keep * self.ncoef * self.dim);
-    }
-
     /// Evaluates the continuous extension at `t` into `out` (length `dim`).
     /// Returns `false` if `t` lies outside the covered span (beyond a
     /// relative slack of a few ulps), leaving `out` untouched.
@@ -92,7 +82,7 @@ impl Dense {
     }
 
     /// Evaluates the polynomial of step `n` at `t` (extrapolating if `t` is outside the step).
-    pub fn eval_step(&self, n: usize, t: f64, out: &mut [f64]) {
+    fn eval_step(&self, n: usize, t: f64, out: &mut [f64]) {
         let s = (t - self.t[n]) / self.h[n];
         eval_nested(
             &self.coef[n * self.ncoef * self.dim..(n + 1) * self.ncoef * self.dim],

@@ -1,13 +1,14 @@
 //! Pieces of the step loop shared by the explicit driver (`explicit::run`)
 //! and the Radau IIA driver (`radau`): the record of samples, step
-//! polynomials and counters, input validation, the fixed-step count and the
-//! root finder that locates guard crossings on a step polynomial.
+//! polynomials and counters, input validation, the budgets checked before
+//! every trial step, the fixed-step count and the location of guard
+//! crossings on a step polynomial.
 
 use std::time::Instant;
 
 use crate::dense::eval_nested;
 use crate::explicit::control::all_finite;
-use crate::{Dense, Failure, IntegrateError, Method, Options, Solution, Stats};
+use crate::{Dense, Failure, IntegrateError, Method, Options, Solution, Stats, StiffnessEstimate};
 
 /// Samples, step polynomials and counters collected during a run.
 pub(crate) struct Record {
@@ -58,6 +59,37 @@ impl Record {
             self.t.push(tau);
             self.next += 1;
         }
+    }
+
+    /// The budget error before the next trial step from `(t, h)`, if any:
+    /// `max_steps` trial steps (accepted + rejected) done →
+    /// [`IntegrateError::TooManySteps`]; `max_wall_time_s` elapsed, checked
+    /// every 8 trial steps → [`IntegrateError::TimeBudgetExceeded`].
+    pub(crate) fn budget_exceeded(
+        &self,
+        opts: &Options,
+        t: f64,
+        h: f64,
+        stiffness: Option<StiffnessEstimate>,
+    ) -> Option<IntegrateError> {
+        let trials = self.stats.steps + self.stats.rejected_steps;
+        if trials >= opts.max_steps {
+            return Some(IntegrateError::TooManySteps {
+                t,
+                max_steps: opts.max_steps,
+                h,
+                stiffness,
+            });
+        }
+        let limit = opts.max_wall_time_s?;
+        (trials % 8 == 0 && self.start.elapsed().as_secs_f64() > limit).then_some(
+            IntegrateError::TimeBudgetExceeded {
+                t,
+                seconds: limit,
+                h,
+                stiffness,
+            },
+        )
     }
 
     pub(crate) fn finish(mut self, t_last: f64, y_last: &[f64], rhs_evals: usize) -> Solution {
@@ -226,6 +258,52 @@ impl StepFloor {
 pub(crate) fn fixed_step_count(span: f64, h: f64) -> usize {
     // The factor absorbs the rounding of span/h when h divides the span.
     ((span / h) * (1.0 - 1e-12)).ceil().max(1.0) as usize
+}
+
+/// Watches the guard across an accepted step `[t_old, t]` of size `h =
+/// t − t_old` whose polynomial (nested form of [`Dense`], `ncoef` vectors of
+/// length `y.len()`) is `coef`, `(t, y)` being the state after
+/// `after_step`. `g_prev` holds the guard at the step start (`None`: no
+/// guard, nothing is evaluated).
+///
+/// If the guard changed from `> 0` to `<= 0`, the crossing is located on
+/// the polynomial (Illinois iteration to `~1e-14` relative in `t`): its
+/// time is returned and the state there written into `y_root` (`y` itself
+/// when it is the step end). Otherwise `g_prev` takes the new value (kept
+/// if the guard returned `None`). `buf` is a workspace.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn guard_crossing(
+    mut guard: impl FnMut(f64, &[f64]) -> Option<f64>,
+    g_prev: &mut Option<f64>,
+    coef: &[f64],
+    ncoef: usize,
+    t_old: f64,
+    t: f64,
+    h: f64,
+    y: &[f64],
+    y_root: &mut [f64],
+    buf: &mut [f64],
+) -> Option<f64> {
+    let gp = (*g_prev)?;
+    let gn = guard(t, y)?;
+    if !(gp > 0.0 && gn <= 0.0) {
+        *g_prev = Some(gn);
+        return None;
+    }
+    let dim = y.len();
+    let g = |s: f64| {
+        eval_nested(coef, dim, ncoef, s, buf);
+        guard(t_old + s * h, buf).unwrap_or(f64::NAN)
+    };
+    let tol_t = (1e-14 * t_old.abs().max(t.abs())).max(4.0 * f64::EPSILON * h);
+    let s = locate_root(g, gp, gn, tol_t / h);
+    Some(if s >= 1.0 {
+        y_root.copy_from_slice(y);
+        t
+    } else {
+        eval_nested(coef, dim, ncoef, s, y_root);
+        t_old + s * h
+    })
 }
 
 /// Illinois iteration for a zero of `g(s)` on `[0, 1]` with `g(0) = ga > 0 >= g(1) = gb`.

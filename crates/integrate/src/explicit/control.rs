@@ -167,6 +167,25 @@ pub(crate) fn stiffness_ratio(h: f64, k: &[f64], k2: &[f64], y: &[f64], y2: &[f6
     (den > 0.0).then(|| h.abs() * (num / den).sqrt())
 }
 
+/// The first guess of Hairer's `HINIT`, `h0 = 0.01 ‖y0‖/‖f0‖` in the weighted
+/// norms of `tol` (`1e-6` if either norm is tiny), at most `hmax`; returns
+/// `(h0, ‖f0‖²)`. Also the whole initial-step choice of Radau5 for implicit
+/// systems, which cannot estimate a second derivative.
+pub(crate) fn hinit_guess(y: &[f64], f0: &[f64], hmax: f64, tol: Tol<'_>) -> (f64, f64) {
+    let (mut dnf, mut dny) = (0.0, 0.0);
+    for (i, (&yi, &fi)) in y.iter().zip(f0).enumerate() {
+        let sk = tol.scale(i, yi, 0.0);
+        dnf += (fi / sk) * (fi / sk);
+        dny += (yi / sk) * (yi / sk);
+    }
+    let h0 = if dnf <= 1e-10 || dny <= 1e-10 {
+        1e-6
+    } else {
+        (dny / dnf).sqrt() * 0.01
+    };
+    (h0.min(hmax), dnf)
+}
+
 /// Hairer's `HINIT`: initial step such that `h^iord · max(‖f0‖, ‖f'‖) = 0.01`.
 ///
 /// Takes one explicit Euler step of size `h0 = 0.01 ‖y0‖/‖f0‖` to estimate
@@ -185,18 +204,7 @@ pub(crate) fn hinit<S: OdeSystem + ?Sized>(
     y1: &mut [f64],
     f1: &mut [f64],
 ) -> f64 {
-    let (mut dnf, mut dny) = (0.0, 0.0);
-    for (i, (&yi, &fi)) in y.iter().zip(f0).enumerate() {
-        let sk = tol.scale(i, yi, 0.0);
-        dnf += (fi / sk) * (fi / sk);
-        dny += (yi / sk) * (yi / sk);
-    }
-    let h0 = if dnf <= 1e-10 || dny <= 1e-10 {
-        1e-6
-    } else {
-        (dny / dnf).sqrt() * 0.01
-    };
-    let h0 = h0.min(hmax);
+    let (h0, dnf) = hinit_guess(y, f0, hmax, tol);
     for ((o, &yi), &fi) in y1.iter_mut().zip(y).zip(f0) {
         *o = yi + h0 * fi;
     }

@@ -58,8 +58,7 @@ mod tableau;
 use std::mem::swap;
 use std::time::Instant;
 
-use crate::dense::eval_nested;
-use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, locate_root, validate};
+use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, guard_crossing, validate};
 use crate::{
     Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, StiffnessEstimate,
     SystemError,
@@ -256,7 +255,9 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
         stats: Stats::default(),
         start,
     };
-    if let Err(msg) = validate(M::CONTROL.is_none(), dim, t0, y0, t_end, opts) {
+    // The scheme has no step-size control exactly when the method needs a fixed step.
+    debug_assert_eq!(M::CONTROL.is_none(), method.needs_fixed_step());
+    if let Err(msg) = validate(method.needs_fixed_step(), dim, t0, y0, t_end, opts) {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
     rec.grid.extend_from_slice(&opts.output);
@@ -348,28 +349,9 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
     let mut last = false;
 
     loop {
-        let trials = rec.stats.steps + rec.stats.rejected_steps;
-        if trials >= opts.max_steps {
-            let e = IntegrateError::TooManySteps {
-                t,
-                max_steps: opts.max_steps,
-                h,
-                stiffness,
-            };
+        if let Some(e) = rec.budget_exceeded(opts, t, h, stiffness) {
             let ev = rhs.evals;
             return Err(rec.fail(e, t, &y, ev));
-        }
-        if let Some(limit) = opts.max_wall_time_s {
-            if trials % 8 == 0 && start.elapsed().as_secs_f64() > limit {
-                let e = IntegrateError::TimeBudgetExceeded {
-                    t,
-                    seconds: limit,
-                    h,
-                    stiffness,
-                };
-                let ev = rhs.evals;
-                return Err(rec.fail(e, t, &y, ev));
-            }
         }
         let t_new = match fixed {
             Some((hf, n)) => {
@@ -492,34 +474,27 @@ fn run<M: Scheme, S: OdeSystem + ?Sized>(
             }
         }
 
-        if let Some(gp) = g_prev {
-            if let Some(gn) = rhs.sys.guard(t, &y) {
-                if gp > 0.0 && gn <= 0.0 {
-                    // `w.y_new` (the previous state, already in `coef`) is free.
-                    let coef = &w.coef;
-                    let sys = &mut *rhs.sys;
-                    let g = |s: f64| {
-                        eval_nested(coef, dim, M::NCOEF, s, &mut buf);
-                        sys.guard(t_old + s * h, &buf).unwrap_or(f64::NAN)
-                    };
-                    let tol_t = (1e-14 * t_old.abs().max(t.abs())).max(4.0 * f64::EPSILON * h);
-                    let s = locate_root(g, gp, gn, tol_t / h);
-                    let y_root = &mut w.y_new;
-                    let t_root = if s >= 1.0 {
-                        y_root.copy_from_slice(&y);
-                        t
-                    } else {
-                        eval_nested(&w.coef, dim, M::NCOEF, s, y_root);
-                        t_old + s * h
-                    };
-                    let reason = rhs.sys.guard_reason(t_root, y_root);
-                    rec.emit(t_root, y_root, poly, &mut buf);
-                    let e = IntegrateError::Stopped { t: t_root, reason };
-                    let ev = rhs.evals;
-                    return Err(rec.fail(e, t_root, y_root, ev));
-                }
-                g_prev = Some(gn);
-            }
+        // `w.y_new` (the previous state, already in `coef`) is free.
+        let sys = &mut *rhs.sys;
+        let crossing = guard_crossing(
+            |tg, yg| sys.guard(tg, yg),
+            &mut g_prev,
+            &w.coef,
+            M::NCOEF,
+            t_old,
+            t,
+            h,
+            &y,
+            &mut w.y_new,
+            &mut buf,
+        );
+        if let Some(t_root) = crossing {
+            let y_root = &w.y_new;
+            let reason = rhs.sys.guard_reason(t_root, y_root);
+            rec.emit(t_root, y_root, poly, &mut buf);
+            let e = IntegrateError::Stopped { t: t_root, reason };
+            let ev = rhs.evals;
+            return Err(rec.fail(e, t_root, y_root, ev));
         }
 
         rec.emit(t, &y, poly, &mut buf);

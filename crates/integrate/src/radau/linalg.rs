@@ -98,6 +98,9 @@ pub(super) struct ComplexLu {
     /// Imaginary part.
     pub im: Vec<f64>,
     piv: Vec<usize>,
+    /// `1/U_kk` (real and imaginary parts), set by [`ComplexLu::factor`].
+    dinv_re: Vec<f64>,
+    dinv_im: Vec<f64>,
 }
 
 /// `(a + ib)(c + id)`.
@@ -127,6 +130,8 @@ impl ComplexLu {
             re: vec![0.0; n * n],
             im: vec![0.0; n * n],
             piv: vec![0; n],
+            dinv_re: vec![0.0; n],
+            dinv_im: vec![0.0; n],
         }
     }
 
@@ -155,6 +160,7 @@ impl ComplexLu {
                 }
             }
             let (ir, ii) = cinv(re[k * n + k], im[k * n + k]);
+            (self.dinv_re[k], self.dinv_im[k]) = (ir, ii);
             for i in k + 1..n {
                 let (lr, li) = cmul(re[i * n + k], im[i * n + k], ir, ii);
                 re[i * n + k] = lr;
@@ -196,8 +202,7 @@ impl ComplexLu {
                 sr -= pr;
                 si -= pi;
             }
-            let (ir, ii) = cinv(re[i * n + i], im[i * n + i]);
-            let (xr, xi) = cmul(sr, si, ir, ii);
+            let (xr, xi) = cmul(sr, si, self.dinv_re[i], self.dinv_im[i]);
             br[i] = xr;
             bi[i] = xi;
         }

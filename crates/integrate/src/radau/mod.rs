@@ -287,8 +287,7 @@ mod tableau;
 
 use std::time::Instant;
 
-use crate::dense::eval_nested;
-use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, locate_root, validate};
+use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, guard_crossing, validate};
 use crate::explicit::control::{Tol, all_finite};
 use crate::{
     Dense, Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton,
@@ -337,8 +336,6 @@ struct NewtonParams {
     /// Fixed step: no step-size reduction is possible, so the prediction
     /// "will not converge in time" (`DYTH >= 1`) does not stop the iteration.
     fixed: bool,
-    /// Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
-    full: bool,
 }
 
 /// Outcome of the Newton iteration of a trial step.
@@ -364,7 +361,8 @@ struct FullNewton {
     /// `∂G/∂Z`, `3n × 3n`, row block `k` = stage equation `k`, column
     /// block `j` = `Z_j`; factored in place.
     lu: RealLu,
-    /// `J_k`, `J'_k` at the current stage point.
+    /// `J_k`, `J'_k` at the current stage point (`J'_k` empty for explicit
+    /// ODEs, where `J' = I`).
     jy: Vec<f64>,
     jyp: Vec<f64>,
     /// `−G(Z)`, then the correction `ΔZ` (stage-major, length `3n`).
@@ -402,6 +400,8 @@ struct Work {
     /// Stage state and derivative.
     ys: Vec<f64>,
     yps: Vec<f64>,
+    /// The three stage derivatives `Y'_k` of a simplified Newton iteration.
+    yp_stage: [Vec<f64>; 3],
     /// Error scale of the current step (index-2/3 components divided by `h`, `h²`).
     scal: Vec<f64>,
     /// Error estimate and its right-hand side.
@@ -438,6 +438,7 @@ impl Work {
             dw: [v(), v(), v()],
             ys: v(),
             yps: v(),
+            yp_stage: [v(), v(), v()],
             scal: v(),
             err: v(),
             err_rhs: v(),
@@ -448,7 +449,11 @@ impl Work {
             full: full.then(|| FullNewton {
                 lu: RealLu::new(3 * n),
                 jy: vec![0.0; n * n],
-                jyp: vec![0.0; n * n],
+                jyp: if identity_jp {
+                    Vec::new()
+                } else {
+                    vec![0.0; n * n]
+                },
                 rhs: vec![0.0; 3 * n],
             }),
         }
@@ -456,8 +461,10 @@ impl Work {
 
     /// Forms `γ/h J' + J` and `(α + iβ)/h J' + J` and factors them; in full
     /// Newton mode only the first, which the error estimate needs.
-    fn factor(&mut self, h: f64, identity_jp: bool) -> Result<(), usize> {
+    fn factor(&mut self, h: f64) -> Result<(), usize> {
         let n = self.n;
+        // `J' = I` (an explicit ODE) exactly when no `J'` is stored.
+        let identity_jp = self.jyp.is_empty();
         let (g, a, b) = (self.tab.gamma / h, self.tab.alpha / h, self.tab.beta / h);
         let complex = self.full.is_none();
         self.e1.a.copy_from_slice(&self.jy);
@@ -611,16 +618,22 @@ impl Work {
             if m.newt >= np.nit {
                 return Newton::Failed;
             }
-            // Residuals G_k = F(t + c_k h, y + Z_k, h⁻¹ (T Λ W)_k).
+            // Stage derivatives Y'_k = h⁻¹ (T Λ W)_k, with Λ W formed once per
+            // component for the three stages.
+            for i in 0..n {
+                let (w1, w2, w3) = (self.w[0][i], self.w[1][i], self.w[2][i]);
+                let v = [gamma * w1, alpha * w2 - beta * w3, beta * w2 + alpha * w3];
+                for k in 0..3 {
+                    self.yp_stage[k][i] = (tm[k][0] * v[0] + tm[k][1] * v[1] + tm[k][2] * v[2]) / h;
+                }
+            }
+            // Residuals G_k = F(t + c_k h, y + Z_k, Y'_k).
             for k in 0..3 {
                 let tk = if k == 2 { t_new } else { t + c[k] * h };
                 for i in 0..n {
-                    let (w1, w2, w3) = (self.w[0][i], self.w[1][i], self.w[2][i]);
-                    let v = [gamma * w1, alpha * w2 - beta * w3, beta * w2 + alpha * w3];
-                    self.yps[i] = (tm[k][0] * v[0] + tm[k][1] * v[1] + tm[k][2] * v[2]) / h;
                     self.ys[i] = y[i] + self.z[k][i];
                 }
-                if let Err(e) = p.residual(tk, &self.ys, &self.yps, &mut self.dw[k]) {
+                if let Err(e) = p.residual(tk, &self.ys, &self.yp_stage[k], &mut self.dw[k]) {
                     return Newton::Stage(e);
                 }
             }
@@ -953,8 +966,8 @@ fn run<P: Problem>(
     };
     let mut index = vec![1u8; n];
     p.variable_index(&mut index);
-    if let Err(msg) =
-        validate(false, n, t0, y0, t_end, opts).and_then(|()| validate_radau(opts, yp0, &index))
+    if let Err(msg) = validate(Method::Radau5.needs_fixed_step(), n, t0, y0, t_end, opts)
+        .and_then(|()| validate_radau(opts, yp0, &index))
     {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
@@ -1019,7 +1032,6 @@ fn run<P: Problem>(
             .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
         thet: opts.jacobian_reuse,
         fixed: opts.fixed_step.is_some(),
-        full: opts.radau_newton == RadauNewton::Full,
     };
     let (quot1, quot2) = opts.keep_step;
     // Step-size controller of RADAU5: SAFE, FACL, FACR, CFAC.
@@ -1029,7 +1041,9 @@ fn run<P: Problem>(
     let span = t_end - t0;
     let hmax = opts.h_max.unwrap_or(span);
     let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
-    let mut w = Work::new(n, P::IDENTITY_JP, np.full);
+    let mut w = Work::new(n, P::IDENTITY_JP, opts.radau_newton == RadauNewton::Full);
+    // Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
+    let full = w.full.is_some();
     let mut h = match (fixed, opts.h_init) {
         (Some((h, _)), _) => h,
         (None, Some(h)) => h.min(hmax),
@@ -1052,38 +1066,34 @@ fn run<P: Problem>(
     // Step size of the current factorisation (NaN: none).
     let mut h_lu = f64::NAN;
     let mut nsing = 0;
-    let mut first = true;
     let mut reject = false;
     // The last rejection was caused by a non-finite stage, correction or
     // error estimate: a step-size collapse then is reported as `NonFinite`.
     let mut nonfinite_reject = false;
     let mut last = false;
+    // Size of the last accepted step (read only after one), and its error
+    // for Gustafsson's controller.
     let mut hold = h;
-    let (mut hacc, mut erracc) = (h, 1e-2);
+    let mut erracc = 1e-2;
+
+    // A rejected trial step: counted, retried from the same state with step
+    // size `$h` (`$nonfinite`: caused by a non-finite stage, correction or
+    // error estimate), with a fresh Jacobian unless the current one was taken
+    // at this state.
+    macro_rules! retry {
+        ($h:expr, $nonfinite:expr) => {{
+            rec.stats.rejected_steps += 1;
+            (h, reject, last) = ($h, true, false);
+            nonfinite_reject = $nonfinite;
+            need_jac = !caljac;
+            continue;
+        }};
+    }
 
     loop {
-        let trials = rec.stats.steps + rec.stats.rejected_steps;
-        if trials >= opts.max_steps {
-            let e = IntegrateError::TooManySteps {
-                t,
-                max_steps: opts.max_steps,
-                h,
-                stiffness: None,
-            };
+        if let Some(e) = rec.budget_exceeded(opts, t, h, None) {
             let ev = p.evals();
             return Err(rec.fail(e, t, &y, ev));
-        }
-        if let Some(limit) = opts.max_wall_time_s {
-            if trials % 8 == 0 && start.elapsed().as_secs_f64() > limit {
-                let e = IntegrateError::TimeBudgetExceeded {
-                    t,
-                    seconds: limit,
-                    h,
-                    stiffness: None,
-                };
-                let ev = p.evals();
-                return Err(rec.fail(e, t, &y, ev));
-            }
         }
         let t_new = match fixed {
             Some((hf, nsteps)) => {
@@ -1120,7 +1130,7 @@ fn run<P: Problem>(
         };
 
         // Full Newton with a fixed step needs neither: no error estimate.
-        let step_start_matrix = !(np.full && fixed.is_some());
+        let step_start_matrix = !(full && fixed.is_some());
         if need_jac && step_start_matrix {
             rec.stats.jacobian_evals += 1;
             let jac = p.jacobians(t, &y, &yp, &res, &mut w.jy, &mut w.jyp);
@@ -1142,7 +1152,7 @@ fn run<P: Problem>(
         let factored = !step_start_matrix || (h - h_lu).abs() <= 1e-12 * h.abs();
         if !factored {
             rec.stats.lu_decompositions += 1;
-            if w.factor(h, P::IDENTITY_JP).is_err() {
+            if w.factor(h).is_err() {
                 nsing += 1;
                 if nsing >= 5 || fixed.is_some() {
                     let source = SystemError::new(format!(
@@ -1152,19 +1162,17 @@ fn run<P: Problem>(
                     let ev = p.evals();
                     return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
                 }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = false;
                 h_lu = f64::NAN;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, false);
             }
             h_lu = h;
         }
 
         w.set_scale(&sk, &index, h);
+        // No step accepted yet: the first step (RADAU5's FIRST).
+        let first = rec.stats.steps == 0;
         w.start(h, (!first).then_some(hold));
-        let outcome = if np.full {
+        let outcome = if full {
             w.newton_full(p, t, &y, h, t_new, np, &mut rec.stats)
         } else {
             w.newton(p, t, &y, h, t_new, np, &mut rec.stats)
@@ -1176,22 +1184,14 @@ fn run<P: Problem>(
                     let ev = p.evals();
                     return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
                 }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = false;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, false);
             }
             Newton::NonFinite => {
                 if fixed.is_some() {
                     let ev = p.evals();
                     return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
                 }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = true;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, true);
             }
             Newton::Singular => {
                 nsing += 1;
@@ -1203,18 +1203,14 @@ fn run<P: Problem>(
                     let ev = p.evals();
                     return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
                 }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = false;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, false);
             }
             Newton::Failed => {
                 rec.stats.newton_failures += 1;
                 if fixed.is_some() {
                     // A fresh Jacobian cannot change a full Newton iteration.
-                    if caljac || np.full {
-                        let kind = if np.full { "full" } else { "simplified" };
+                    if caljac || full {
+                        let kind = if full { "full" } else { "simplified" };
                         let source = SystemError::new(format!(
                             "Radau5: the {kind} Newton iteration does not converge \
                              with the fixed step h = {h:e}"
@@ -1226,19 +1222,11 @@ fn run<P: Problem>(
                     need_jac = true;
                     continue;
                 }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = false;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, false);
             }
             Newton::Slow(fac) => {
                 rec.stats.newton_failures += 1;
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (fac * h, true, false);
-                nonfinite_reject = false;
-                need_jac = !caljac;
-                continue;
+                retry!(fac * h, false);
             }
         };
 
@@ -1247,38 +1235,27 @@ fn run<P: Problem>(
         if fixed.is_none() {
             let err = w.estimate(p, t, &y, &yp, &res, h, first || reject);
             if !err.is_finite() {
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (0.5 * h, true, false);
-                nonfinite_reject = true;
-                need_jac = !caljac;
-                continue;
+                retry!(0.5 * h, true);
             }
             // The safety factor decreases with the number of Newton iterations.
             let fac = safe.min(cfac / (newt + 2 * np.nit) as f64);
             let mut quot = (err.powf(0.25) / fac).clamp(facr, facl);
             h_new = h / quot;
             if err >= 1.0 {
-                rec.stats.rejected_steps += 1;
-                h = if first { 0.1 * h } else { h_new };
-                (reject, last) = (true, false);
-                nonfinite_reject = false;
-                need_jac = !caljac;
-                continue;
+                retry!(if first { 0.1 * h } else { h_new }, false);
             }
             // Gustafsson's predictive controller.
             if rec.stats.steps >= 1 {
                 let facgus =
-                    ((hacc / h) * (err * err / erracc).powf(0.25) / safe).clamp(facr, facl);
+                    ((hold / h) * (err * err / erracc).powf(0.25) / safe).clamp(facr, facl);
                 quot = quot.max(facgus);
                 h_new = h / quot;
             }
-            hacc = h;
             erracc = err.max(1e-2);
         }
 
         // The step is accepted.
         rec.stats.steps += 1;
-        first = false;
         nonfinite_reject = false;
         nsing = 0;
         w.polynomial(&y);
@@ -1319,32 +1296,25 @@ fn run<P: Problem>(
             *s = tol.scale(i, v, 0.0);
         }
 
-        if let Some(gp) = g_prev {
-            if let Some(gn) = p.guard(t, &y) {
-                if gp > 0.0 && gn <= 0.0 {
-                    let coef = &w.coef;
-                    let g = |s: f64| {
-                        eval_nested(coef, n, NCOEF, s, &mut buf);
-                        p.guard(t_old + s * h, &buf).unwrap_or(f64::NAN)
-                    };
-                    let tol_t = (1e-14 * t_old.abs().max(t.abs())).max(4.0 * f64::EPSILON * h);
-                    let s = locate_root(g, gp, gn, tol_t / h);
-                    let y_root = &mut w.ys;
-                    let t_root = if s >= 1.0 {
-                        y_root.copy_from_slice(&y);
-                        t
-                    } else {
-                        eval_nested(&w.coef, n, NCOEF, s, y_root);
-                        t_old + s * h
-                    };
-                    let reason = p.guard_reason(t_root, y_root);
-                    rec.emit(t_root, y_root, poly, &mut buf);
-                    let e = IntegrateError::Stopped { t: t_root, reason };
-                    let ev = p.evals();
-                    return Err(rec.fail(e, t_root, y_root, ev));
-                }
-                g_prev = Some(gn);
-            }
+        let crossing = guard_crossing(
+            |tg, yg| p.guard(tg, yg),
+            &mut g_prev,
+            &w.coef,
+            NCOEF,
+            t_old,
+            t,
+            h,
+            &y,
+            &mut w.ys,
+            &mut buf,
+        );
+        if let Some(t_root) = crossing {
+            let y_root = &w.ys;
+            let reason = p.guard_reason(t_root, y_root);
+            rec.emit(t_root, y_root, poly, &mut buf);
+            let e = IntegrateError::Stopped { t: t_root, reason };
+            let ev = p.evals();
+            return Err(rec.fail(e, t_root, y_root, ev));
         }
 
         rec.emit(t, &y, poly, &mut buf);
@@ -1354,7 +1324,7 @@ fn run<P: Problem>(
         }
         // Full Newton: a new step-start Jacobian for the error estimate after
         // every accepted step, and no step keeping (nothing to save).
-        let theta_ok = !np.full && w.theta <= np.thet;
+        let theta_ok = !full && w.theta <= np.thet;
         if fixed.is_none() {
             h_new = h_new.min(hmax);
             if reject {
@@ -1376,6 +1346,7 @@ fn run<P: Problem>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dense::eval_nested;
 
     /// RADAU5's `CONTR5`: the collocation polynomial in Newton form around
     /// the end of the step, `s = (t − t_{n+1})/h`, from the coefficients its

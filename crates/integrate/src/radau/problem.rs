@@ -6,9 +6,9 @@
 //! - [`Dae`] wraps an [`ImplicitSystem`] as it is.
 //!
 //! Both count their evaluations of `F` (for [`Ode`], of `f`, including
-//! those of the finite-difference Jacobian) in `evals`.
+//! those of the finite-difference Jacobian and of `HINIT`; [`Problem::evals`]).
 
-use crate::explicit::control::{Rhs, Tol, hinit};
+use crate::explicit::control::{Rhs, Tol, hinit, hinit_guess};
 use crate::{ImplicitSystem, OdeSystem, SystemError};
 
 /// The rounding unit of RADAU5 (`WORK(1)` default `1e-16`).
@@ -85,8 +85,8 @@ pub(super) trait Problem {
 
 /// An [`OdeSystem`] as `F(t, y, y') = y' − f(t, y)`.
 pub(super) struct Ode<'a, S: ?Sized> {
-    pub sys: &'a mut S,
-    pub evals: usize,
+    /// The system and its count of `f` evaluations.
+    rhs: Rhs<'a, S>,
     /// Whether [`OdeSystem::jacobian`] provides the Jacobian (`None`: not asked yet).
     analytic: Option<bool>,
     /// Workspaces of the finite-difference Jacobian: `f(t, y + δ e_j)`,
@@ -100,8 +100,7 @@ impl<'a, S: OdeSystem + ?Sized> Ode<'a, S> {
     pub fn new(sys: &'a mut S) -> Self {
         let n = sys.dim();
         Ode {
-            sys,
-            evals: 0,
+            rhs: Rhs { sys, evals: 0 },
             analytic: None,
             f: vec![0.0; n],
             y: vec![0.0; n],
@@ -114,11 +113,11 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
     const IDENTITY_JP: bool = true;
 
     fn dim(&self) -> usize {
-        self.sys.dim()
+        self.rhs.sys.dim()
     }
 
     fn evals(&self) -> usize {
-        self.evals
+        self.rhs.evals
     }
 
     fn residual(
@@ -128,8 +127,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
         yp: &[f64],
         res: &mut [f64],
     ) -> Result<(), SystemError> {
-        self.evals += 1;
-        self.sys.rhs(t, y, res)?;
+        self.rhs.eval(t, y, res)?;
         for (r, &d) in res.iter_mut().zip(yp) {
             *r = d - *r;
         }
@@ -151,7 +149,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
     ) -> Result<(), SystemError> {
         let n = y.len();
         if self.analytic != Some(false) {
-            let has = self.sys.jacobian(t, y, jy)?;
+            let has = self.rhs.sys.jacobian(t, y, jy)?;
             self.analytic = Some(has);
             if has {
                 jy.iter_mut().for_each(|v| *v = -*v);
@@ -166,8 +164,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
             let ysafe = y[j];
             let delt = (UROUND * ysafe.abs().max(1e-5)).sqrt();
             self.y[j] = ysafe + delt;
-            self.evals += 1;
-            let res = self.sys.rhs(t, &self.y, &mut self.f);
+            let res = self.rhs.eval(t, &self.y, &mut self.f);
             self.y[j] = ysafe;
             res?;
             for i in 0..n {
@@ -184,8 +181,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
         yp: &mut [f64],
         _res: &mut [f64],
     ) -> Result<(), SystemError> {
-        self.evals += 1;
-        self.sys.rhs(t, y, yp)
+        self.rhs.eval(t, y, yp)
     }
 
     /// Hairer's `HINIT` with the exponent 4 of RADAU5's error estimate
@@ -200,13 +196,7 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
         y1: &mut [f64],
         f1: &mut [f64],
     ) -> f64 {
-        let mut rhs = Rhs {
-            sys: &mut *self.sys,
-            evals: 0,
-        };
-        let h = hinit(&mut rhs, t, y, yp, 4, hmax, tol, y1, f1);
-        self.evals += rhs.evals;
-        h
+        hinit(&mut self.rhs, t, y, yp, 4, hmax, tol, y1, f1)
     }
 
     fn variable_index(&self, index: &mut [u8]) {
@@ -214,15 +204,15 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        self.sys.after_step(t, y)
+        self.rhs.sys.after_step(t, y)
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        self.sys.guard(t, y)
+        self.rhs.sys.guard(t, y)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        self.sys.guard_reason(t, y)
+        self.rhs.sys.guard_reason(t, y)
     }
 }
 
@@ -290,18 +280,7 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
         _y1: &mut [f64],
         _f1: &mut [f64],
     ) -> f64 {
-        let (mut dnf, mut dny) = (0.0, 0.0);
-        for (i, (&yi, &fi)) in y.iter().zip(yp).enumerate() {
-            let sk = tol.scale(i, yi, 0.0);
-            dnf += (fi / sk) * (fi / sk);
-            dny += (yi / sk) * (yi / sk);
-        }
-        let h = if dnf <= 1e-10 || dny <= 1e-10 {
-            1e-6
-        } else {
-            (dny / dnf).sqrt() * 0.01
-        };
-        h.min(hmax)
+        hinit_guess(y, yp, hmax, tol).0
     }
 
     fn variable_index(&self, index: &mut [u8]) {

@@ -337,7 +337,10 @@ fn a_component_with_a_large_atol_is_ignored_by_step_control() {
     // place and the same tolerances takes (both ignore component 2), far
     // fewer than with a scalar atol, and component 1 is as accurate.
     // Measured (steps with atol_2 = 1e10 / smooth copy / scalar atol):
-    // DOPRI5 41 / 41 / 1433, DOP853 10 / 10 / 637, Radau5 44 / 44 / 2741.
+    // DOPRI5 41 / 41 / 1433, DOP853 10 / 10 / 637, Radau5 44 / 44 / 2741,
+    // i.e. 35, 64 and 62 times fewer steps (bound 30); error of component 1
+    // at t = 5: 2.5e-9, 2.3e-10, 2.7e-9 (bound: the tolerance 1e-8, 3.7
+    // times the largest, as the global error of these runs is about tol).
     for method in [Method::Dopri5, Method::Dop853, Method::Radau5] {
         let opts = |atol_components| Options {
             rtol: 1e-8,
@@ -360,9 +363,11 @@ fn a_component_with_a_large_atol_is_ignored_by_step_control() {
         );
         assert_eq!(ignored.stats.steps, copy.stats.steps, "{method:?}");
         assert_eq!(ignored.stats.rejected_steps, copy.stats.rejected_steps);
-        assert!(scalar.stats.steps > 10 * ignored.stats.steps, "{method:?}");
+        assert!(scalar.stats.steps > 30 * ignored.stats.steps, "{method:?}");
         assert!((ignored.y_last[0] - copy.y_last[0]).abs() < 1e-14);
         let exact = 0.5 * (5.0f64.sin() - 5.0f64.cos()) + 1.5 * (-5.0f64).exp();
-        assert!((ignored.y_last[0] - exact).abs() < 1e-6, "{method:?}");
+        let err = (ignored.y_last[0] - exact).abs();
+        eprintln!("{method:?}: error of component 1 {err:.2e}");
+        assert!(err < 1e-8, "{method:?}: {err:e}");
     }
 }

@@ -10,21 +10,11 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{Kepler, Oscillator, dist, fixed, slope};
+use common::{Kepler, Oscillator, dist, fixed, local_dense_error, measured_order, slope};
 use nonholo_integrate::{Method, OdeSystem, Options, SystemError, solve};
 
-/// Fits the order of `err(n)` with `h = span/n` and checks the error window.
-fn measured_order(ns: &[usize], span: f64, mut err: impl FnMut(f64) -> f64) -> f64 {
-    let hs: Vec<f64> = ns.iter().map(|&n| span / n as f64).collect();
-    let es: Vec<f64> = hs.iter().map(|&h| err(h)).collect();
-    for (h, e) in hs.iter().zip(&es) {
-        assert!(
-            *e < 1e-3 && *e > 1e-12,
-            "h = {h}: error {e:e} is outside the window [1e-12, 1e-3]"
-        );
-    }
-    slope(&hs, &es)
-}
+/// Upper end of the error window of the order ladders (module documentation).
+const MAX_ERR: f64 = 1e-3;
 
 fn assert_order(what: &str, got: f64, want: f64) {
     eprintln!("{what}: order {got:.3} (expected {want})");
@@ -46,7 +36,7 @@ fn fixed_step_orders_on_the_harmonic_oscillator() {
         (Method::Dop853, &[10, 14, 20, 28, 40][..]),
     ];
     for (method, ns) in cases {
-        let p = measured_order(ns, 10.0, |h| {
+        let p = measured_order(ns, 10.0, MAX_ERR, |h| {
             let s = fixed(method, &mut Oscillator, &[1.0, 0.0], 10.0, h);
             dist(&s.y_last, &Oscillator::exact(10.0))
         });
@@ -73,7 +63,7 @@ fn fixed_step_orders_on_kepler() {
         ),
     ];
     for (method, ns) in cases {
-        let p = measured_order(ns, 2.0 * PI, |h| {
+        let p = measured_order(ns, 2.0 * PI, MAX_ERR, |h| {
             let s = fixed(method, &mut Kepler { e: 0.5 }, &k.y0(), 2.0 * PI, h);
             dist(&s.y_last, &k.y0())
         });
@@ -112,7 +102,7 @@ fn dop853_order_eight_on_a_nonlinear_problem() {
     // instead. (DOPRI5 is superconvergent here: its leading error is radial
     // and is damped by the attracting cycle.)
     let ns = [24, 28, 34, 40, 48, 56, 68];
-    let p = measured_order(&ns, 10.0, |h| {
+    let p = measured_order(&ns, 10.0, MAX_ERR, |h| {
         let s = fixed(Method::Dop853, &mut LimitCycle, &[0.5, 0.0], 10.0, h);
         dist(&s.y_last, &LimitCycle::exact(10.0))
     });
@@ -133,34 +123,6 @@ fn fixed_step_cost_is_as_documented() {
     }
 }
 
-/// Largest error of the continuous extension of one step `[0.3, 0.3 + h]`
-/// started from the exact state, over 39 interior points.
-fn local_dense_error(method: Method, h: f64) -> f64 {
-    let t0 = 0.3;
-    let opts = Options {
-        fixed_step: Some(h),
-        ..Options::default()
-    };
-    let s = solve(
-        method,
-        &mut Oscillator,
-        t0,
-        &Oscillator::exact(t0),
-        t0 + h,
-        &opts,
-    )
-    .unwrap();
-    let d = s.dense.unwrap();
-    let mut out = [0.0; 2];
-    (1..40)
-        .map(|i| {
-            let t = t0 + h * i as f64 / 40.0;
-            assert!(d.eval(t, &mut out));
-            dist(&out, &Oscillator::exact(t))
-        })
-        .fold(0.0, f64::max)
-}
-
 #[test]
 fn continuous_extensions_have_their_orders() {
     // A continuous extension of order p* has local error O(h^(p*+1)) inside
@@ -179,7 +141,10 @@ fn continuous_extensions_have_their_orders() {
         (Method::Dop853, 7.0, &[0.8, 0.56, 0.4, 0.28, 0.2, 0.14][..]),
     ];
     for (method, p_dense, hs) in cases {
-        let es: Vec<f64> = hs.iter().map(|&h| local_dense_error(method, h)).collect();
+        let es: Vec<f64> = hs
+            .iter()
+            .map(|&h| local_dense_error(method, h, &Options::default()))
+            .collect();
         assert!(
             es.iter().all(|&e| e < 1e-3 && e > 1e-13),
             "{method:?}: {es:?}"

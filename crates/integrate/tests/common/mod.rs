@@ -1,7 +1,7 @@
 //! Test problems with closed-form solutions, and small helpers.
 #![allow(dead_code)] // each test binary uses a subset
 
-use nonholo_integrate::{Method, OdeSystem, Options, Solution, SystemError, solve};
+use nonholo_integrate::{Method, OdeSystem, Options, Solution, Stats, SystemError, solve};
 
 /// Harmonic oscillator `y1' = y2, y2' = −y1`, `y(0) = (1, 0)`: `y = (cos t, −sin t)`.
 pub struct Oscillator;
@@ -103,6 +103,15 @@ pub fn fixed(method: Method, sys: &mut dyn OdeSystem, y0: &[f64], t_end: f64, h:
     solve(method, sys, 0.0, y0, t_end, &opts).expect("fixed-step run")
 }
 
+/// `rtol = atol = tol`, every other option at its default.
+pub fn tol_opts(tol: f64) -> Options {
+    Options {
+        rtol: tol,
+        atol: tol,
+        ..Options::default()
+    }
+}
+
 /// Adaptive run that must succeed.
 pub fn adaptive(
     method: Method,
@@ -111,10 +120,79 @@ pub fn adaptive(
     t_end: f64,
     tol: f64,
 ) -> Solution {
+    solve(method, sys, 0.0, y0, t_end, &tol_opts(tol)).expect("adaptive run")
+}
+
+/// Least-squares order of `err(h)` over the step sizes `h = span/n`, `n` in
+/// `ns`. Every error must lie in `[1e-12, max_err]`: in the asymptotic
+/// regime (below `max_err`) and well above the round-off floor of ~1e-15.
+/// Prints the ladder (`--nocapture`).
+pub fn measured_order(
+    ns: &[usize],
+    span: f64,
+    max_err: f64,
+    mut err: impl FnMut(f64) -> f64,
+) -> f64 {
+    let hs: Vec<f64> = ns.iter().map(|&n| span / n as f64).collect();
+    let es: Vec<f64> = hs.iter().map(|&h| err(h)).collect();
+    let es_txt: Vec<String> = es.iter().map(|e| format!("{e:.3e}")).collect();
+    eprintln!("h {hs:.3?}\nerr {es_txt:?}");
+    for (h, e) in hs.iter().zip(&es) {
+        assert!(
+            *e < max_err && *e > 1e-12,
+            "h = {h}: error {e:e} is outside the window [1e-12, {max_err:e}]"
+        );
+    }
+    slope(&hs, &es)
+}
+
+/// Largest error of the continuous extension of one fixed step
+/// `[0.3, 0.3 + h]` of `method` on the oscillator, started from the exact
+/// state, over 39 interior points (`opts` with `fixed_step = h`; its
+/// tolerances matter only to Radau5's Newton iteration). Also checks that
+/// the extension interpolates the step: `y_n` exactly at `t_n`, `y_{n+1}`
+/// within 1e-15 at `t_n + h`.
+pub fn local_dense_error(method: Method, h: f64, opts: &Options) -> f64 {
+    let t0 = 0.3;
     let opts = Options {
-        rtol: tol,
-        atol: tol,
-        ..Options::default()
+        fixed_step: Some(h),
+        ..opts.clone()
     };
-    solve(method, sys, 0.0, y0, t_end, &opts).expect("adaptive run")
+    let y0 = Oscillator::exact(t0);
+    let s = solve(method, &mut Oscillator, t0, &y0, t0 + h, &opts).unwrap();
+    let d = s.dense.unwrap();
+    let mut out = [0.0; 2];
+    assert!(d.eval(t0, &mut out) && out == y0, "{method:?}");
+    assert!(d.eval(t0 + h, &mut out) && dist(&out, &s.y_last) < 1e-15);
+    (1..40)
+        .map(|i| {
+            let t = t0 + h * i as f64 / 40.0;
+            assert!(d.eval(t, &mut out));
+            dist(&out, &Oscillator::exact(t))
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Checks Radau5's count of `f` evaluations for an ODE run without
+/// `Options::h_init` (the counters documented in `src/radau/mod.rs`): 3 per
+/// Newton iteration, 1 at every accepted state but the last (`t0`
+/// included; a projection by `after_step` adds none), 1 for `HINIT`,
+/// `fd_per_jacobian` (the dimension `n` for finite differences, else 0)
+/// per Jacobian, and 1 per second filtering of the error estimate — at most
+/// one per trial step at the start or after a rejection, so at most
+/// `1 + rejected_steps`. Returns the number of second filterings.
+pub fn radau_ode_second_filterings(st: &Stats, fd_per_jacobian: usize) -> usize {
+    let counted = 3 * st.newton_iterations + st.steps + 1 + fd_per_jacobian * st.jacobian_evals;
+    let rest = st.rhs_evals as i64 - counted as i64;
+    assert!(
+        (0..=1 + st.rejected_steps as i64).contains(&rest),
+        "rhs_evals {} = 3·{} Newton iterations + {} steps + 1 + {fd_per_jacobian}·{} \
+         Jacobians + {rest} second filterings (at most 1 + {} rejected steps)",
+        st.rhs_evals,
+        st.newton_iterations,
+        st.steps,
+        st.jacobian_evals,
+        st.rejected_steps
+    );
+    rest as usize
 }

@@ -132,25 +132,6 @@ impl RhsCase {
     }
 }
 
-/// An [`OdeSystem`] reached through [`Model::ode`]: formulation A's explicit
-/// form, which exists only in some versions of the embedding crate.
-struct ViaModel {
-    model: Box<dyn Model>,
-    dim: usize,
-}
-
-impl OdeSystem for ViaModel {
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
-        match self.model.ode() {
-            Some(sys) => sys.rhs(t, y, dy),
-            None => Err(SystemError::new("formulation A has no explicit form")),
-        }
-    }
-}
-
 /// The automatic-differentiation formulations at the generic state, each
 /// with its hand-written baseline: `(AD case, baseline case)`.
 pub fn rhs_pairs() -> Result<Vec<(RhsCase, RhsCase)>, Error> {
@@ -331,21 +312,14 @@ pub fn residual_case() -> Result<ResidualCase, Error> {
     Ok(ResidualCase { sys, t: 0.0, y, yp })
 }
 
-/// Formulation A's explicit right-hand side at the same state, if this
-/// version of the embedding crate provides one (`Model::ode`); `None` if not.
-pub fn embedding_explicit() -> Result<Option<RhsCase>, Error> {
-    let s = generic_sleigh()?;
-    let init = embedding_initial(&s)?;
-    let mut sys = Embedding::new(s, Params::defaults(nonholo_embedding::OPTIONS))?;
-    let y = sys.initial_state(&init)?;
-    let mut model: Box<dyn Model> = Box::new(sys);
-    let Some(dim) = model.ode().map(|o| o.dim()) else {
-        return Ok(None);
-    };
-    Ok(Some(RhsCase::new(
+/// Formulation A's explicit right-hand side (`q⁗` from the derivative
+/// array) at the same state as [`residual_case`].
+pub fn embedding_explicit() -> Result<RhsCase, Error> {
+    let ResidualCase { sys, y, .. } = residual_case()?;
+    Ok(RhsCase::new(
         "A explicit",
         "A's explicit form: derivative array solved for q⁗",
-        Box::new(ViaModel { model, dim }),
+        Box::new(sys),
         y,
-    )))
+    ))
 }

@@ -1,25 +1,8 @@
-//! A plain median timer for the report binary (criterion does the
+//! Plain timers for the report binary (criterion does the
 //! benchmark proper; this gives one number per evaluation for tables).
 
 use std::hint::black_box;
 use std::time::Instant;
-
-/// Median time of one call of `f`, in nanoseconds: the number of calls per
-/// batch is chosen so that a batch takes about `batch_ms` milliseconds, and
-/// the median over `batches` batches is returned (the calibration warms up).
-pub fn median_ns<F: FnMut()>(mut f: F, batches: usize, batch_ms: f64) -> f64 {
-    let calls = calibrate(&mut f, batch_ms);
-    let mut per_call: Vec<f64> = (0..batches.max(1))
-        .map(|_| {
-            let start = Instant::now();
-            for _ in 0..calls {
-                f();
-            }
-            start.elapsed().as_secs_f64() * 1e9 / calls as f64
-        })
-        .collect();
-    median(&mut per_call)
-}
 
 /// Median of `v` (sorted in place); NaN if empty.
 pub fn median(v: &mut [f64]) -> f64 {

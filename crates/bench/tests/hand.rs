@@ -32,19 +32,52 @@ fn close(got: f64, expect: f64, scale: f64, what: &str) {
 
 const CASES: usize = 100;
 
+/// A pseudo-random sleigh and state: offset `a ∈ [−0.9, 0.9]`, slope
+/// `α ∈ [0, 1.4]`, heading, speed, turning rate, position, and (with
+/// `slip`) a sideways slip `w ∈ [−0.5, 0.5]` violating the constraint.
+struct Case {
+    s: nonholo_scenes::Sleigh,
+    c: Constants,
+    phi: f64,
+    u: f64,
+    w: f64,
+    om: f64,
+    q: [f64; 3],
+}
+
+fn draw(r: &mut Lcg, potential: &str, slip: bool) -> Case {
+    let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
+    let c = Constants::of(&s);
+    let phi = r.uniform(-3.0, 3.0);
+    let u = r.uniform(-3.0, 3.0);
+    let w = if slip { r.uniform(-0.5, 0.5) } else { 0.0 };
+    let om = r.uniform(-2.0, 2.0);
+    let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
+    Case {
+        s,
+        c,
+        phi,
+        u,
+        w,
+        om,
+        q,
+    }
+}
+
 #[test]
 fn reduced_b_is_b_on_the_constraint() {
     let mut r = Lcg(1);
     for potential in ["paper", "com"] {
         for _ in 0..CASES {
-            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
-            let c = Constants::of(&s);
-            let (phi, u, om) = (
-                r.uniform(-3.0, 3.0),
-                r.uniform(-3.0, 3.0),
-                r.uniform(-2.0, 2.0),
-            );
-            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
+            let Case {
+                s,
+                c,
+                phi,
+                u,
+                om,
+                q,
+                ..
+            } = draw(&mut r, potential, false);
             let mut b = Chetaev::new(s, Params::defaults(nonholo_chetaev::OPTIONS)).unwrap();
             let mut dy = [0.0; 6];
             b.rhs(0.0, &cartesian(q, u, 0.0, om), &mut dy).unwrap();
@@ -95,15 +128,16 @@ fn reduced_c_is_c() {
     let mut r = Lcg(2);
     for potential in ["paper", "com"] {
         for _ in 0..CASES {
-            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
-            let c = Constants::of(&s);
-            let (phi, u, om) = (
-                r.uniform(-3.0, 3.0),
-                r.uniform(-3.0, 3.0),
-                r.uniform(-2.0, 2.0),
-            );
+            let Case {
+                s,
+                c,
+                phi,
+                u,
+                om,
+                q,
+                ..
+            } = draw(&mut r, potential, false);
             let lambda = r.uniform(-2.0, 2.0);
-            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
             let mut cc = Vakonomic::new(s, Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap();
             let mut y = cartesian(q, u, 0.0, om).to_vec();
             y.push(lambda);
@@ -136,16 +170,16 @@ fn body_frame_is_the_realisations() {
     let mut r = Lcg(3);
     for potential in ["paper", "com"] {
         for _ in 0..CASES {
-            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
-            let c = Constants::of(&s);
-            let (phi, u, w, om) = (
-                r.uniform(-3.0, 3.0),
-                r.uniform(-3.0, 3.0),
-                r.uniform(-0.5, 0.5),
-                r.uniform(-2.0, 2.0),
-            );
+            let Case {
+                s,
+                c,
+                phi: _,
+                u,
+                w,
+                om,
+                q,
+            } = draw(&mut r, potential, true);
             let gain = 10f64.powf(r.uniform(0.0, 6.0));
-            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
             let y = cartesian(q, u, w, om);
             // The friction / added-mass term sets the scale of round-off.
             let scale = 1.0 + gain * w.abs() * (1.0 + u.abs() + om.abs()) / c.m;
@@ -233,16 +267,16 @@ fn body_visc_is_visc_in_adapted_velocities() {
     let mut r = Lcg(4);
     for potential in ["paper", "com"] {
         for _ in 0..CASES {
-            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
-            let c = Constants::of(&s);
-            let (phi, u, w, om) = (
-                r.uniform(-3.0, 3.0),
-                r.uniform(-3.0, 3.0),
-                r.uniform(-0.5, 0.5),
-                r.uniform(-2.0, 2.0),
-            );
+            let Case {
+                s,
+                c,
+                phi,
+                u,
+                w,
+                om,
+                q,
+            } = draw(&mut r, potential, true);
             let k = 10f64.powf(r.uniform(0.0, 8.0));
-            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
             let y = cartesian(q, u, w, om);
             let mut yb = y;
             BodyVisc::from_cartesian(&mut yb);
@@ -298,16 +332,16 @@ fn body_visc_is_the_adapted_form() {
     let mut r = Lcg(5);
     for potential in ["paper", "com"] {
         for _ in 0..CASES {
-            let s = sleigh(r.uniform(-0.9, 0.9), r.uniform(0.0, 1.4), potential).unwrap();
-            let c = Constants::of(&s);
-            let (phi, u, w, om) = (
-                r.uniform(-3.0, 3.0),
-                r.uniform(-3.0, 3.0),
-                r.uniform(-0.5, 0.5),
-                r.uniform(-2.0, 2.0),
-            );
+            let Case {
+                s,
+                c,
+                phi: _,
+                u,
+                w,
+                om,
+                q,
+            } = draw(&mut r, potential, true);
             let k = 10f64.powf(r.uniform(0.0, 8.0));
-            let q = [r.uniform(-1.0, 1.0), r.uniform(-1.0, 1.0), phi];
             let ya = adapted_state(&c, q, u, w, om);
             let yb = [q[0], q[1], q[2], u, w, om];
             let mut v = Visc::new(

@@ -170,32 +170,26 @@ fn run() -> Result<(), String> {
         reduced_c.what,
         reduced_c.dim(),
     );
-    match embedding_explicit().map_err(|e| e.to_string())? {
-        Some(mut ae) => {
-            let mut dy = vec![0.0; ae.dim()];
-            check(&mut ae, &mut dy)?;
-            let (t, t_c, ratio) = paired_ns(
-                || {
-                    let _ = keep(ae.eval(keep(&mut dy)));
-                },
-                || {
-                    let _ = keep(reduced_c.eval(keep(&mut dy_c)));
-                },
-                batches,
-                ms,
-            );
-            println!(
-                "| {} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
-                ae.what,
-                ae.dim(),
-                reduced_c.what,
-                reduced_c.dim(),
-            );
-        }
-        None => println!(
-            "| A's explicit form | — | not provided by this version of the embedding crate | | | | |"
-        ),
-    }
+    let mut ae = embedding_explicit().map_err(|e| e.to_string())?;
+    let mut dy = vec![0.0; ae.dim()];
+    check(&mut ae, &mut dy)?;
+    let (t, t_c, ratio) = paired_ns(
+        || {
+            let _ = keep(ae.eval(keep(&mut dy)));
+        },
+        || {
+            let _ = keep(reduced_c.eval(keep(&mut dy_c)));
+        },
+        batches,
+        ms,
+    );
+    println!(
+        "| {} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
+        ae.what,
+        ae.dim(),
+        reduced_c.what,
+        reduced_c.dim(),
+    );
     println!();
     println!(
         "| Jacobian ∂f/∂y by AD | dim | AD (ns) | AD Jacobian / AD rhs | hand-written baseline | hand (ns) | ratio AD/hand |"

@@ -46,12 +46,23 @@ fn ode_solvers_dop853_takes_our_steps_on_b() {
     let peer = Solver::OdeSolversDop853.run(&p, 1e-6, &g, false).unwrap();
     assert_eq!(ours.work.steps, peer.work.steps);
     assert_eq!(ours.work.rejected, peer.work.rejected);
-    for (a, b) in ours.y_end.iter().zip(&peer.y_end) {
-        assert!((a - b).abs() < 1e-9 * (1.0 + a.abs()), "{a} vs {b}");
-    }
+    // Same method, same steps: the final states differ by summation order
+    // only, round-off accumulated over the steps (measured 3.0e-13 relative;
+    // bound 1e-11).
+    let d_end = ours
+        .y_end
+        .iter()
+        .zip(&peer.y_end)
+        .map(|(a, b)| (a - b).abs() / (1.0 + a.abs()))
+        .fold(0.0, f64::max);
+    eprintln!("final states differ by {d_end:.1e} (relative)");
+    assert!(d_end < 1e-11, "{:?} vs {:?}", ours.y_end, peer.y_end);
     let (e_ours, _, _) = errors(&ours, &r, 20.0).unwrap();
     let (e_peer, _, _) = errors(&peer, &r, 20.0).unwrap();
-    assert!((e_ours - e_peer).abs() < 1e-8, "{e_ours} vs {e_peer}");
+    eprintln!("errors at the end {e_ours:.3e} / {e_peer:.3e}");
+    // Both errors are the method's (measured 9.443e-5 both) and differ by
+    // no more than the final states do.
+    assert!((e_ours - e_peer).abs() < 1e-11, "{e_ours} vs {e_peer}");
 }
 
 /// diffsol's BDF on `visc(1e2)` through the closure adapter, on the same
@@ -71,6 +82,10 @@ fn diffsol_bdf_solves_mild_visc_in_every_state() {
     for p in [&cart, &body, &adapted] {
         let out = bdf.run(p, 1e-8, &g, false).unwrap();
         let (e_end, e_max, _) = errors(&out, &r, 5.0).unwrap();
+        eprintln!("{:?}: largest error {e_max:.2e}", p.formulation);
+        // Measured (docs/peers.md, k = 1e2, tol 1e-8): 4.5e-7 (body frame)
+        // to 1.1e-6 (Cartesian); BDF is not tolerance-proportional beyond
+        // a factor ~100, hence 1e-5.
         assert!(
             e_max < 1e-5 && e_end <= e_max,
             "{:?}: {e_end:e} {e_max:e}",
@@ -85,6 +100,9 @@ fn diffsol_bdf_solves_mild_visc_in_every_state() {
         for &t in &g {
             r.eval(t, &mut a).unwrap();
             rb.eval(t, &mut b).unwrap();
+            // Three Radau runs at 1e-12: docs/peers.md measures the
+            // references 2.8e-10 – 3.5e-10 apart at 1e-13; 1e-8 allows the
+            // looser tolerance here.
             for i in 0..6 {
                 assert!((a[i] - b[i]).abs() < 1e-8, "t = {t}: {a:?} vs {b:?}");
             }

@@ -204,20 +204,7 @@ pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
         );
         return Ok(());
     }
-    let mut results = Vec::new();
-    for p in exp.points() {
-        let path = dir.join("points").join(format!("{}.json", p.index));
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            CliError::Run(format!(
-                "{}: {e} (run `nonholo experiment` first)",
-                path.display()
-            ))
-        })?;
-        results.push(
-            serde_json::from_str(&text)
-                .map_err(|e| CliError::Run(format!("{}: {e}", path.display())))?,
-        );
-    }
+    let results = super::output::load_points(&exp, &dir).map_err(CliError::Run)?;
     let plots = super::plots::draw(&exp, &dir, &results).map_err(CliError::Run)?;
     super::output::write_html(&exp, &dir, &results, &plots).map_err(CliError::Run)?;
     eprintln!(

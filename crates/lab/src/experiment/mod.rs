@@ -38,8 +38,6 @@ use rayon::prelude::*;
 pub use point::{FormResult, PairResult, PointResult};
 pub use spec::{Experiment, SpecError};
 
-use crate::record::write_atomic;
-
 impl Experiment {
     /// Checks that `p` can be set up (called for every point at load).
     pub fn check_point(&self, p: &sweep::Point) -> Result<(), String> {
@@ -182,8 +180,7 @@ fn clean_temporaries(dir: &Path) {
 
 /// The stored result of `p`, if it is complete and for the same configuration.
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
-    let text =
-        std::fs::read_to_string(dir.join("points").join(format!("{}.json", p.index))).ok()?;
+    let text = std::fs::read_to_string(output::point_path(dir, p.index)).ok()?;
     let r: PointResult = serde_json::from_str(&text).ok()?;
     let runs = sweep::resolve(exp, p).ok()?;
     if r.schema != point::POINT_SCHEMA || r.hash != point::point_hash(exp, &runs) {
@@ -249,11 +246,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
                         output::write_trajectory(dir, p.index, s)?;
                     }
                 }
-                let mut bytes = serde_json::to_vec_pretty(&r).map_err(|e| e.to_string())?;
-                bytes.push(b'\n');
-                let path = dir.join("points").join(format!("{}.json", p.index));
-                write_atomic(&path, &bytes)
-                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                output::write_json(&output::point_path(dir, p.index), &r)?;
                 let failed = r
                     .formulations
                     .iter()

@@ -15,14 +15,35 @@ pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
     write_atomic(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
-pub(crate) fn write_json(path: &Path, value: &Json) -> Result<(), String> {
+pub(crate) fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;
     bytes.push(b'\n');
     write(path, &bytes)
 }
 
+/// `points/<index>.json`: one point's stored result (either kind).
+pub(crate) fn point_path(dir: &Path, index: usize) -> PathBuf {
+    dir.join("points").join(format!("{index}.json"))
+}
+
+/// The stored results of every point of `exp` in `dir` (for redrawing).
+pub(crate) fn load_points<T: serde::de::DeserializeOwned>(
+    exp: &Experiment,
+    dir: &Path,
+) -> Result<Vec<T>, String> {
+    exp.points()
+        .iter()
+        .map(|p| {
+            let path = point_path(dir, p.index);
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| format!("{}: {e} (run the experiment first)", path.display()))?;
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+        })
+        .collect()
+}
+
 /// Shortest round-trip text of a number; empty for none.
-fn num(v: Option<f64>) -> String {
+pub(crate) fn num(v: Option<f64>) -> String {
     v.map(|x| x.to_string()).unwrap_or_default()
 }
 

@@ -33,7 +33,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use sha2::{Digest, Sha256};
 
-use super::output::{escape, median, write, write_json, write_manifest};
+use super::output::{
+    escape, load_points, median, num, point_path, write, write_json, write_manifest,
+};
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
 use super::spec::{Experiment, Ladder, RefSpec, compact};
 use super::sweep::{Point, PointRun, resolve};
@@ -131,10 +133,6 @@ fn stored(dir: &Path, exp: &Experiment, point: &Point) -> Option<WpPoint> {
     });
     (r.schema == WP_SCHEMA && r.hash == hash(exp, &resolve(exp, point).ok()?) && complete)
         .then_some(r)
-}
-
-fn point_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join("points").join(format!("{index}.json"))
 }
 
 /// Coordinates `(name, unit)` of the experiment's scene.
@@ -429,9 +427,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
             eprintln!("{}: point {} of {}", exp.name, p.index + 1, all.len());
         }
         let r = run_point(exp, p, dir, opts.quiet)?;
-        let mut bytes = serde_json::to_vec_pretty(&r).map_err(|e| e.to_string())?;
-        bytes.push(b'\n');
-        write(&point_path(dir, p.index), &bytes)?;
+        write_json(&point_path(dir, p.index), &r)?;
         points.push(r);
     }
     write_tables(exp, dir, &points)?;
@@ -454,19 +450,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
 
 /// The stored points of `exp` in `dir` (for `nonholo plot`).
 pub fn load(exp: &Experiment, dir: &Path) -> Result<Vec<WpPoint>, String> {
-    exp.points()
-        .iter()
-        .map(|p| {
-            let path = point_path(dir, p.index);
-            let text = std::fs::read_to_string(&path)
-                .map_err(|e| format!("{}: {e} (run the experiment first)", path.display()))?;
-            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-        })
-        .collect()
-}
-
-fn num(v: Option<f64>) -> String {
-    v.map(|x| x.to_string()).unwrap_or_default()
+    load_points(exp, dir)
 }
 
 /// `work_precision.csv` and `references.csv`.

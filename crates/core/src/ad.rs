@@ -114,10 +114,6 @@ impl<T: Scalar> Jet<T> {
         }
     }
 
-    pub fn n(&self) -> usize {
-        self.n
-    }
-
     /// `M = ∂²ℓ/∂q̇²` into `mass` (n×n) and `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t`
     /// into `force` (length n).
     ///
@@ -318,10 +314,5 @@ impl<T: Scalar> Jet<T> {
                 jac[(i, j)] = d.out[i].eps;
             }
         }
-    }
-
-    /// Value of a vector field at `(t, q, q̇)`.
-    pub fn value<V: VectorField>(&mut self, v: &V, t: T, q: &[T], qd: &[T], value: &mut [T]) {
-        v.eval(t, q, qd, &mut value[..v.m()]);
     }
 }

@@ -42,15 +42,23 @@ impl<T: Scalar> ConstraintState<T> {
         }
     }
 
-    /// Number of velocity-level constraint rows `s + k`.
-    pub fn rows(&self) -> usize {
-        self.s + self.k
-    }
-
     /// Evaluates every piece the scene has (nothing for absent ones).
     pub fn evaluate<S: Scene>(&mut self, jet: &mut Jet<T>, scene: &S, t: T, q: &[T], qd: &[T]) {
-        let n = q.len();
+        self.evaluate_nonholonomic(jet, scene, t, q, qd);
+        self.evaluate_holonomic(jet, scene, t, q, qd);
+    }
+
+    /// `g`, `G` and `ġ₀` only (nothing if the scene has no `g`).
+    pub fn evaluate_nonholonomic<S: Scene>(
+        &mut self,
+        jet: &mut Jet<T>,
+        scene: &S,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) {
         if self.s > 0 {
+            let n = q.len();
             jet.velocity_jacobian(
                 &Nonholonomic(scene),
                 t,
@@ -61,7 +69,19 @@ impl<T: Scalar> ConstraintState<T> {
                 &mut self.g_rate0,
             );
         }
+    }
+
+    /// `f`, `F`, `ḟ` and `f̈₀` only (nothing if the scene has no `f`).
+    pub fn evaluate_holonomic<S: Scene>(
+        &mut self,
+        jet: &mut Jet<T>,
+        scene: &S,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) {
         if self.k > 0 {
+            let n = q.len();
             jet.position_jacobian(
                 &Holonomic(scene),
                 t,
@@ -72,6 +92,20 @@ impl<T: Scalar> ConstraintState<T> {
                 &mut self.f_rate,
                 &mut self.f_accel0,
             );
+        }
+    }
+
+    /// Rows `rows` of `[G; F]` into the constraint block of a saddle-point
+    /// matrix `[M Cᵀ; C 0]` (primal block of size `n`), from row and column
+    /// `at`, and into its transpose.
+    pub fn write_rows(&self, rows: std::ops::Range<usize>, a: &mut DMatrix<T>, at: usize) {
+        let n = self.jac.ncols();
+        for (p, r) in rows.enumerate() {
+            for j in 0..n {
+                let c = self.jac[(r, j)];
+                a[(at + p, j)] = c;
+                a[(j, at + p)] = c;
+            }
         }
     }
 

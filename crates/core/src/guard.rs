@@ -67,6 +67,13 @@ impl SingularGuard {
         let along: f64 = (0..p).map(|i| r[i] * self.current[i]).sum();
         along - self.tol
     }
+
+    /// Whether `r` (of `p` components) lies on the far side of the singular
+    /// set: its component along the reference direction has turned negative
+    /// by more than `tol` (`p = 0`: no singular set, never).
+    pub fn crossed(&self, r: &[f64; MAX_SINGULAR], p: usize) -> bool {
+        p > 0 && self.value(r, p) + self.tol < 0.0
+    }
 }
 
 /// `|r|`.

@@ -47,6 +47,24 @@ impl Initial {
     }
 }
 
+/// The names of initial multipliers of `s` nonholonomic constraints,
+/// `lambda` or `lambda1..s`, each with `description`.
+pub fn lambda_names(s: usize, description: &'static str) -> Vec<ExtraName> {
+    crate::model::multiplier_names(s, 0)
+        .into_iter()
+        .map(|n| ExtraName::new(n, "", description))
+        .collect()
+}
+
+/// The initial multipliers `λ(0)` of `s` nonholonomic constraints from
+/// `init` (named as by [`lambda_names`]), 0 where not given.
+pub fn lambda0(init: &Initial, s: usize) -> Vec<f64> {
+    crate::model::multiplier_names(s, 0)
+        .iter()
+        .map(|name| init.extra(name).unwrap_or(0.0))
+        .collect()
+}
+
 /// Every name `--init` accepts for `scene`, given the formulation's extra names.
 pub fn valid_names<S: Scene>(scene: &S, extra: &[String]) -> Vec<String> {
     let info = scene.info();

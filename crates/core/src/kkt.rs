@@ -18,10 +18,11 @@
 
 use nalgebra::DMatrix;
 use nonholo_integrate::SystemError;
+use num_dual::Dual64;
 
 use crate::ad::Jet;
 use crate::constraints::ConstraintState;
-use crate::linalg::{Lu, equilibrate};
+use crate::linalg::{Lu, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene};
 use crate::stab::Stabilisation;
 
@@ -30,8 +31,9 @@ use crate::stab::Stabilisation;
 /// * `Ideal`: `G q̈ = −ġ₀ − 2α g` (B, C: the constraint holds).
 /// * `Compliant(c)`: `G q̈ − c μ_g = −ġ₀`, the constraint with compliance
 ///   `c = 1/N` (the added-mass realisation carrying `λ = N g`, `μ_g = λ̇`).
-/// * `Absent`: no constraint row (`μ_g = 0`); `g` acts only through the
-///   field `ℓ` (the added-mass realisation written directly, `ℓ = L + (N/2) gᵀg`).
+/// * `Absent`: no constraint row (an identity block, `μ_g = 0`); `g` acts
+///   only through the field `ℓ` (the added-mass realisation written
+///   directly, `ℓ = L + (N/2) gᵀg`), so `g` and `G` are not evaluated.
 /// * `Viscous(k)`: no constraint row; the viscous force `−k Gᵀ g` joins the
 ///   right-hand side (the viscous realisation).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,7 +52,7 @@ pub struct Kkt<T: Scalar = f64> {
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
-    /// Equilibration of the last solve (see [`equilibrate`]).
+    /// Equilibration of the last solve (see [`crate::linalg::equilibrate`]).
     scale: Vec<f64>,
     /// Right-hand side, then solution `(q̈, μ_g, μ_f)`.
     pub sol: Vec<T>,
@@ -122,65 +124,106 @@ impl<T: Scalar> Kkt<T> {
             &mut self.matrix.view_mut((0, 0), (n, n)),
             &mut self.sol[..n],
         );
-        if s + k > 0 {
-            self.cs.evaluate(&mut self.jet, scene, t, q, qd);
-            for r in 0..s + k {
-                for j in 0..n {
-                    let c = self.cs.jac[(r, j)];
-                    self.matrix[(n + r, j)] = c;
-                    self.matrix[(j, n + r)] = c;
-                }
+        let (alpha, beta) = stab.gains();
+        if s > 0 {
+            // `g` and `G` are needed unless `g` enters through `ℓ` alone.
+            if rows != GRows::Absent {
+                self.cs
+                    .evaluate_nonholonomic(&mut self.jet, scene, t, q, qd);
             }
-            let (alpha, beta) = stab.gains();
             match rows {
                 GRows::Ideal => {
+                    self.cs.write_rows(0..s, &mut self.matrix, n);
                     for i in 0..s {
                         self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
                     }
                 }
                 GRows::Compliant(c) => {
+                    self.cs.write_rows(0..s, &mut self.matrix, n);
                     for i in 0..s {
                         self.matrix[(n + i, n + i)] = T::from(-c);
                         self.sol[n + i] = -self.cs.g_rate0[i];
                     }
                 }
                 GRows::Absent | GRows::Viscous(_) => {
-                    let k = match rows {
-                        GRows::Viscous(k) => k,
-                        _ => 0.0,
-                    };
-                    for i in 0..s {
-                        for j in 0..n {
-                            if k != 0.0 {
-                                self.sol[j] -= self.cs.jac[(i, j)] * self.cs.g[i] * k;
+                    if let GRows::Viscous(gain) = rows {
+                        // The friction force `−k Gᵀ g` joins `Q`.
+                        for i in 0..s {
+                            for j in 0..n {
+                                self.sol[j] -= self.cs.jac[(i, j)] * self.cs.g[i] * gain;
                             }
-                            self.matrix[(n + i, j)] = T::from(0.0);
-                            self.matrix[(j, n + i)] = T::from(0.0);
                         }
+                    }
+                    // No constraint row: `μ_g = 0` from an identity block.
+                    for i in 0..s {
                         self.matrix[(n + i, n + i)] = T::from(1.0);
                         self.sol[n + i] = T::from(0.0);
                     }
                 }
             }
+        }
+        if k > 0 {
+            self.cs.evaluate_holonomic(&mut self.jet, scene, t, q, qd);
+            self.cs.write_rows(s..s + k, &mut self.matrix, n + s);
             for i in 0..k {
                 self.sol[n + s + i] = -self.cs.f_accel0[i]
                     - self.cs.f_rate[i] * (2.0 * alpha)
                     - self.cs.f[i] * (beta * beta);
             }
         }
-        equilibrate(&mut self.matrix, n, &mut self.scale);
-        for (x, d) in self.sol.iter_mut().zip(&self.scale) {
-            *x *= *d;
-        }
-        self.lu.factor(&mut self.matrix).map_err(|e| {
+        solve_saddle(
+            &mut self.matrix,
+            n,
+            &mut self.lu,
+            &mut self.scale,
+            &mut self.sol,
+        )
+        .map_err(|e| {
             SystemError::new(format!(
                 "KKT system of {what} singular ({e}): constraints dependent, \
                  or the kinetic energy degenerate on the admissible velocities"
             ))
         })?;
-        self.lu.solve(&self.matrix, &mut self.sol);
-        for (x, d) in self.sol.iter_mut().zip(&self.scale) {
-            *x *= *d;
+        Ok(())
+    }
+}
+
+impl Kkt<Dual64> {
+    /// `∂f/∂y` into `jac` (row-major, `dim × dim`, `dim = y.len()`) for a
+    /// right-hand side `f(y) = (q̇, q̈, μ_g[..lambda_rows])` of
+    /// `y = (q, q̇, λ)` with `λ` of length `lambda_rows` (0: `y = (q, q̇)`):
+    /// `∂q̇/∂q̇ = I`, then per column `j` one dual pass of `solve` — which
+    /// solves this system at its dual `y` — seeded with `ẏ = e_j` in `y_dual`.
+    pub fn jacobian<F>(
+        &mut self,
+        y: &[f64],
+        y_dual: &mut [Dual64],
+        lambda_rows: usize,
+        jac: &mut [f64],
+        mut solve: F,
+    ) -> Result<(), SystemError>
+    where
+        F: FnMut(&mut Self, &[Dual64]) -> Result<(), SystemError>,
+    {
+        let n = self.n;
+        let dim = y.len();
+        debug_assert_eq!(dim, 2 * n + lambda_rows);
+        jac.fill(0.0);
+        for i in 0..n {
+            jac[i * dim + n + i] = 1.0;
+        }
+        for j in 0..dim {
+            for (d, &v) in y_dual.iter_mut().zip(y) {
+                *d = Dual64::from_re(v);
+            }
+            y_dual[j].eps = 1.0;
+            solve(self, &y_dual[..dim])?;
+            for i in 0..n {
+                jac[(n + i) * dim + j] = self.sol[i].eps;
+            }
+            for i in 0..lambda_rows {
+                jac[(2 * n + i) * dim + j] = self.sol[n + i].eps;
+            }
         }
         Ok(())
     }

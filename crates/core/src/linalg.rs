@@ -140,6 +140,28 @@ pub fn equilibrate<T: Scalar>(a: &mut DMatrix<T>, n: usize, d: &mut [f64]) {
     }
 }
 
+/// Solves the saddle-point system `a x = b` (primal block of size `n`)
+/// equilibrated as by [`equilibrate`]: `b` in `rhs`, `x` out. Leaves `a`
+/// holding the LU factors of the scaled matrix and `d` the scaling.
+pub fn solve_saddle<T: Scalar>(
+    a: &mut DMatrix<T>,
+    n: usize,
+    lu: &mut Lu,
+    d: &mut [f64],
+    rhs: &mut [T],
+) -> Result<(), Singular> {
+    equilibrate(a, n, d);
+    for (x, s) in rhs.iter_mut().zip(d.iter()) {
+        *x *= *s;
+    }
+    lu.factor(a)?;
+    lu.solve(a, rhs);
+    for (x, s) in rhs.iter_mut().zip(d.iter()) {
+        *x *= *s;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -81,8 +81,12 @@ pub trait Model: Send {
     /// Resolved formulation options.
     fn options(&self) -> &Params;
     /// Names of the reported multipliers (`lambda`, or `lambda1`, ...; `nu...`
-    /// for holonomic constraints), empty if the formulation has none.
-    fn multiplier_names(&self) -> Vec<String>;
+    /// for holonomic constraints), empty if the formulation has none. By
+    /// default one per constraint of the scene, `λ` then `ν`.
+    fn multiplier_names(&self) -> Vec<String> {
+        let info = self.scene_info();
+        multiplier_names(info.s(), info.k())
+    }
     /// Names `--init` accepts beyond coordinates, velocities and the scene's
     /// convenience values.
     fn extra_init_names(&self) -> Vec<ExtraName> {

@@ -23,7 +23,7 @@ use nalgebra::DMatrix;
 
 use crate::ad::Jet;
 use crate::constraints::ConstraintState;
-use crate::linalg::{Lu, equilibrate};
+use crate::linalg::{Lu, solve_saddle};
 use crate::scene::{Lagrangian, Scene};
 
 /// Newton iterations allowed per projection.
@@ -121,16 +121,7 @@ impl Projector {
             &[],
             &mut kkt.view_mut((0, 0), (n, n)),
         );
-        for (a, r) in rows.clone().enumerate() {
-            for j in 0..n {
-                let c = self.cs.jac[(r, j)];
-                kkt[(n + a, j)] = c;
-                kkt[(j, n + a)] = c;
-            }
-        }
-        equilibrate(kkt, n, &mut self.scale[..size]);
-        lu.factor(kkt)
-            .map_err(|e| format!("projection KKT system singular: {e}"))?;
+        self.cs.write_rows(rows, kkt, n);
         let rhs = &mut self.rhs[..size];
         rhs[..n].fill(0.0);
         match level {
@@ -148,14 +139,8 @@ impl Projector {
                 }
             }
         }
-        for (x, d) in rhs.iter_mut().zip(&self.scale) {
-            *x *= d;
-        }
-        lu.solve(kkt, rhs);
-        for (x, d) in rhs.iter_mut().zip(&self.scale) {
-            *x *= d;
-        }
-        Ok(())
+        solve_saddle(kkt, n, lu, &mut self.scale[..size], rhs)
+            .map_err(|e| format!("projection KKT system singular: {e}"))
     }
 
     /// Newton iterations on `q̇` towards `g = g_target, ḟ = 0` (see

@@ -89,7 +89,8 @@ impl Stabilisation {
 #[derive(Debug, Clone)]
 pub struct StepHooks {
     pub stab: Stabilisation,
-    projector: Projector,
+    /// Only with [`Stabilisation::Projection`].
+    projector: Option<Projector>,
     monitor: Monitor,
     guard: SingularGuard,
     r: [f64; MAX_SINGULAR],
@@ -98,9 +99,10 @@ pub struct StepHooks {
 impl StepHooks {
     /// From options that include the stabilisation options and [`SINGULAR_TOL`].
     pub fn new<S: Scene>(scene: &S, options: &Params) -> Self {
+        let stab = Stabilisation::from_options(options);
         StepHooks {
-            stab: Stabilisation::from_options(options),
-            projector: Projector::new(scene),
+            stab,
+            projector: (stab == Stabilisation::Projection).then(|| Projector::new(scene)),
             monitor: Monitor::new(scene),
             guard: SingularGuard::new(options.real("singular_tol")),
             r: [0.0; MAX_SINGULAR],
@@ -112,7 +114,7 @@ impl StepHooks {
     pub fn unstabilised<S: Scene>(scene: &S, singular_tol: f64) -> Self {
         StepHooks {
             stab: Stabilisation::None,
-            projector: Projector::new(scene),
+            projector: None,
             monitor: Monitor::new(scene),
             guard: SingularGuard::new(singular_tol),
             r: [0.0; MAX_SINGULAR],
@@ -137,9 +139,8 @@ impl StepHooks {
         qd: &mut [f64],
     ) -> Result<bool, SystemError> {
         let mut changed = false;
-        if self.stab == Stabilisation::Projection {
-            let p = self
-                .projector
+        if let Some(projector) = self.projector.as_mut() {
+            let p = projector
                 .project(scene, t, q, qd, PROJECT_TOL)
                 .map_err(SystemError::new)?;
             changed = p.iterations > 0;
@@ -163,7 +164,7 @@ impl StepHooks {
         qd: &[f64],
     ) -> Result<(), SystemError> {
         let p = scene.constraint_singularity(t, q, qd, &mut self.r);
-        if p > 0 && self.guard.value(&self.r, p) + self.guard.tol < 0.0 {
+        if self.guard.crossed(&self.r, p) {
             return Err(SystemError::new(format!(
                 "a stage crossed the singular set of the constraints of `{}`: {}",
                 scene.info().name,
@@ -197,7 +198,49 @@ impl StepHooks {
         )
     }
 
+    /// [`StepHooks::check_stage`] at a state `y` that begins with `(q, q̇)`.
+    pub fn check_stage_y<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        y: &[f64],
+    ) -> Result<(), SystemError> {
+        let (q, qd) = split(scene, y);
+        self.check_stage(scene, t, q, qd)
+    }
+
+    /// [`StepHooks::after_step`] on a state `y` that begins with `(q, q̇)`
+    /// (what follows is left alone).
+    pub fn after_step_y<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        y: &mut [f64],
+    ) -> Result<bool, SystemError> {
+        let n = scene.info().n();
+        let (q, rest) = y.split_at_mut(n);
+        self.after_step(scene, t, q, &mut rest[..n])
+    }
+
+    /// [`StepHooks::guard`] at a state `y` that begins with `(q, q̇)`.
+    pub fn guard_y<S: Scene>(&mut self, scene: &S, t: f64, y: &[f64]) -> Option<f64> {
+        let (q, qd) = split(scene, y);
+        self.guard(scene, t, q, qd)
+    }
+
+    /// [`StepHooks::guard_reason`] at a state `y` that begins with `(q, q̇)`.
+    pub fn guard_reason_y<S: Scene>(&mut self, scene: &S, t: f64, y: &[f64]) -> String {
+        let (q, qd) = split(scene, y);
+        self.guard_reason(scene, t, q, qd)
+    }
+
     pub fn diagnostics(&self) -> &Diagnostics {
         self.monitor.diagnostics()
     }
+}
+
+/// `(q, q̇)` at the front of a state `y`.
+fn split<'a, S: Scene>(scene: &S, y: &'a [f64]) -> (&'a [f64], &'a [f64]) {
+    let n = scene.info().n();
+    (&y[..n], &y[n..2 * n])
 }

@@ -19,12 +19,10 @@
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::integrate::{OdeSystem, SystemError};
 use nonholo_core::kkt::Kkt;
-use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::model::{FormulationInfo, Model, Observation};
 use nonholo_core::param::{ParamSpec, Params};
 use nonholo_core::scene::{Lagrangian, Scene, SceneInfo};
-use nonholo_core::stab::{
-    BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
-};
+use nonholo_core::stab::{BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, StepHooks};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::Dual64;
 
@@ -51,7 +49,6 @@ fn applicable(_scene: &SceneInfo) -> Result<(), String> {
 pub struct Chetaev<S: Scene> {
     scene: S,
     options: Params,
-    stab: Stabilisation,
     n: usize,
     kkt: Kkt<f64>,
     /// The same solve carrying one directional derivative, for Jacobians.
@@ -68,26 +65,16 @@ impl<S: Scene> Chetaev<S> {
             scene: info.name.into(),
             reason,
         })?;
-        let stab = Stabilisation::from_options(&options);
         let (n, s, k) = (info.n(), info.s(), info.k());
         Ok(Chetaev {
             hooks: StepHooks::new(&scene, &options),
             options,
-            stab,
             n,
             kkt: Kkt::new(n, s, k),
             kkt_dual: Kkt::new(n, s, k),
             y_dual: vec![Dual64::from_re(0.0); 2 * n],
             scene,
         })
-    }
-
-    pub fn scene(&self) -> &S {
-        &self.scene
-    }
-
-    pub fn stabilisation(&self) -> Stabilisation {
-        self.stab
     }
 
     /// Solves the KKT system at `(t, q, q̇)`: `q̈` into `qdd`; `λ` then `ν`
@@ -105,7 +92,7 @@ impl<S: Scene> Chetaev<S> {
             &Lagrangian(&self.scene),
             &[],
             &self.scene,
-            self.stab,
+            self.hooks.stab,
             t,
             q,
             qd,
@@ -126,8 +113,8 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
+        self.hooks.check_stage_y(&self.scene, t, y)?;
         let (q, qd) = y.split_at(n);
-        self.hooks.check_stage(&self.scene, t, q, qd)?;
         let (dq, dqd) = dy.split_at_mut(n);
         dq.copy_from_slice(qd);
         self.accelerations(t, q, qd, dqd, &mut [])
@@ -136,48 +123,34 @@ impl<S: Scene> OdeSystem for Chetaev<S> {
     /// `∂f/∂y` of `f(q, q̇) = (q̇, q̈)`: the KKT solve repeated with one dual
     /// direction per column of `y` (2n solves in `Dual64`).
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
-        let n = self.n;
-        let dim = 2 * n;
-        jac.fill(0.0);
-        for i in 0..n {
-            jac[i * dim + n + i] = 1.0;
-        }
-        for j in 0..dim {
-            for (d, &v) in self.y_dual.iter_mut().zip(y) {
-                *d = Dual64::from_re(v);
-            }
-            self.y_dual[j].eps = 1.0;
-            let (q, qd) = self.y_dual.split_at(n);
-            self.kkt_dual.solve(
-                &Lagrangian(&self.scene),
-                &[],
-                &self.scene,
-                self.stab,
-                Dual64::from_re(t),
-                q,
-                qd,
-                "formulation B",
-            )?;
-            for i in 0..n {
-                jac[(n + i) * dim + j] = self.kkt_dual.sol[i].eps;
-            }
-        }
+        let (n, scene, stab) = (self.n, &self.scene, self.hooks.stab);
+        self.kkt_dual
+            .jacobian(y, &mut self.y_dual, 0, jac, |kkt, y| {
+                let (q, qd) = y.split_at(n);
+                kkt.solve(
+                    &Lagrangian(scene),
+                    &[],
+                    scene,
+                    stab,
+                    Dual64::from_re(t),
+                    q,
+                    qd,
+                    "formulation B",
+                )
+            })?;
         Ok(true)
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (q, qd) = y.split_at_mut(self.n);
-        self.hooks.after_step(&self.scene, t, q, qd)
+        self.hooks.after_step_y(&self.scene, t, y)
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let (q, qd) = y.split_at(self.n);
-        self.hooks.guard(&self.scene, t, q, qd)
+        self.hooks.guard_y(&self.scene, t, y)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        let (q, qd) = y.split_at(self.n);
-        self.hooks.guard_reason(&self.scene, t, q, qd)
+        self.hooks.guard_reason_y(&self.scene, t, y)
     }
 }
 
@@ -200,10 +173,6 @@ impl<S: Scene> Model for Chetaev<S> {
 
     fn options(&self) -> &Params {
         &self.options
-    }
-
-    fn multiplier_names(&self) -> Vec<String> {
-        multiplier_names(self.kkt.cs.s, self.kkt.cs.k)
     }
 
     fn make_consistent(
@@ -231,7 +200,7 @@ impl<S: Scene> Model for Chetaev<S> {
             &Lagrangian(&self.scene),
             &[],
             &self.scene,
-            self.stab,
+            self.hooks.stab,
             t,
             q,
             qd,

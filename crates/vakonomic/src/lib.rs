@@ -23,12 +23,12 @@
 //! The multipliers reported are the `λ` of `L + λᵀg` as written.
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
-use nonholo_core::init::ExtraName;
+use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::integrate::{OdeSystem, SystemError};
 use nonholo_core::kkt::Kkt;
-use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::model::{FormulationInfo, Model, Observation};
 use nonholo_core::param::{ParamSpec, Params};
-use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Scene, SceneInfo};
+use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{
     BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation, StepHooks,
 };
@@ -69,7 +69,6 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
 pub struct Vakonomic<S: Scene> {
     scene: S,
     options: Params,
-    stab: Stabilisation,
     n: usize,
     s: usize,
     kkt: Kkt<f64>,
@@ -93,7 +92,6 @@ impl<S: Scene> Vakonomic<S> {
         })?;
         let (n, s, k) = (info.n(), info.s(), info.k());
         Ok(Vakonomic {
-            stab: Stabilisation::from_options(&options),
             hooks: StepHooks::new(&scene, &options),
             options,
             n,
@@ -107,25 +105,9 @@ impl<S: Scene> Vakonomic<S> {
         })
     }
 
-    pub fn scene(&self) -> &S {
-        &self.scene
-    }
-
     /// The KKT solve at `y = (q, q̇, λ)`, results in `self.kkt`.
     fn solve_at(&mut self, t: f64, y: &[f64]) -> Result<(), SystemError> {
-        let n = self.n;
-        let (q, rest) = y.split_at(n);
-        let (qd, lambda) = rest.split_at(n);
-        self.kkt.solve(
-            &Augmented(&self.scene),
-            lambda,
-            &self.scene,
-            self.stab,
-            t,
-            q,
-            qd,
-            "formulation C",
-        )
+        solve(&mut self.kkt, &self.scene, self.hooks.stab, t, y)
     }
 
     /// Solves the KKT system at `(t, q, q̇, λ)`: `q̈` into `qdd`, `λ̇` into
@@ -148,24 +130,6 @@ impl<S: Scene> Vakonomic<S> {
         Ok(())
     }
 
-    /// The right-hand side over dual numbers: `dy = f(t, y)` with one
-    /// directional derivative carried through the KKT solve.
-    fn rhs_dual(&mut self, t: Dual64) -> Result<(), SystemError> {
-        let n = self.n;
-        let (q, rest) = self.y_dual.split_at(n);
-        let (qd, lambda) = rest.split_at(n);
-        self.kkt_dual.solve(
-            &Augmented(&self.scene),
-            lambda,
-            &self.scene,
-            self.stab,
-            t,
-            q,
-            qd,
-            "formulation C",
-        )
-    }
-
     /// Taylor coefficients of the motion through `(t, y)`: `ẏ = f(t, y)`,
     /// `ÿ` and `y⃛`, by Taylor-mode differentiation of the right-hand side:
     /// one dual pass along the first-order jet `(y + ẏτ, t + τ)` gives `ÿ`,
@@ -184,7 +148,13 @@ impl<S: Scene> Vakonomic<S> {
         for i in 0..2 * n + s {
             self.y_dual[i] = Dual64::new(y[i], yd[i]);
         }
-        self.rhs_dual(Dual64::new(t, 1.0))?;
+        solve(
+            &mut self.kkt_dual,
+            &self.scene,
+            self.hooks.stab,
+            Dual64::new(t, 1.0),
+            &self.y_dual,
+        )?;
         ydd[..n].copy_from_slice(&yd[n..2 * n]);
         for i in 0..n {
             ydd[n + i] = self.kkt_dual.qdd()[i].eps;
@@ -195,17 +165,12 @@ impl<S: Scene> Vakonomic<S> {
         for i in 0..2 * n + s {
             self.y_jet2[i] = Dual2_64::new(y[i], yd[i], ydd[i]);
         }
-        let (q, rest) = self.y_jet2.split_at(n);
-        let (qd, lambda) = rest.split_at(n);
-        self.kkt_jet2.solve(
-            &Augmented(&self.scene),
-            lambda,
+        solve(
+            &mut self.kkt_jet2,
             &self.scene,
-            self.stab,
+            self.hooks.stab,
             Dual2_64::new(t, 1.0, 0.0),
-            q,
-            qd,
-            "formulation C",
+            &self.y_jet2,
         )?;
         yddd[..n].copy_from_slice(&ydd[n..2 * n]);
         for i in 0..n {
@@ -225,8 +190,7 @@ impl<S: Scene> OdeSystem for Vakonomic<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
-        self.hooks
-            .check_stage(&self.scene, t, &y[..n], &y[n..2 * n])?;
+        self.hooks.check_stage_y(&self.scene, t, y)?;
         dy[..n].copy_from_slice(&y[n..2 * n]);
         let (qdd, lambda_dot) = dy[n..].split_at_mut(n);
         self.accelerations(t, y, qdd, lambda_dot, &mut [])
@@ -235,43 +199,24 @@ impl<S: Scene> OdeSystem for Vakonomic<S> {
     /// `∂f/∂y` for `y = (q, q̇, λ)`: the KKT solve repeated with one dual
     /// direction per column (2n + s solves in `Dual64`).
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
-        let (n, s) = (self.n, self.s);
-        let dim = 2 * n + s;
-        jac.fill(0.0);
-        for i in 0..n {
-            jac[i * dim + n + i] = 1.0;
-        }
-        for j in 0..dim {
-            for (d, &v) in self.y_dual.iter_mut().zip(y) {
-                *d = Dual64::from_re(v);
-            }
-            self.y_dual[j].eps = 1.0;
-            self.rhs_dual(Dual64::from_re(t))?;
-            for i in 0..n {
-                jac[(n + i) * dim + j] = self.kkt_dual.qdd()[i].eps;
-            }
-            for i in 0..s {
-                jac[(2 * n + i) * dim + j] = self.kkt_dual.mu()[i].eps;
-            }
-        }
+        let (scene, stab) = (&self.scene, self.hooks.stab);
+        self.kkt_dual
+            .jacobian(y, &mut self.y_dual, self.s, jac, |kkt, y| {
+                solve(kkt, scene, stab, Dual64::from_re(t), y)
+            })?;
         Ok(true)
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (q, rest) = y.split_at_mut(self.n);
-        let qd = &mut rest[..self.n];
-        self.hooks.after_step(&self.scene, t, q, qd)
+        self.hooks.after_step_y(&self.scene, t, y)
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let n = self.n;
-        self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n])
+        self.hooks.guard_y(&self.scene, t, y)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        let n = self.n;
-        self.hooks
-            .guard_reason(&self.scene, t, &y[..n], &y[n..2 * n])
+        self.hooks.guard_reason_y(&self.scene, t, y)
     }
 }
 
@@ -296,10 +241,6 @@ impl<S: Scene> Model for Vakonomic<S> {
         &self.options
     }
 
-    fn multiplier_names(&self) -> Vec<String> {
-        multiplier_names(self.s, self.scene.info().k())
-    }
-
     /// `lambda` (or `lambda1`, …): the initial multipliers `λ(0)`.
     fn extra_init_names(&self) -> Vec<ExtraName> {
         lambda_names(self.s)
@@ -316,9 +257,7 @@ impl<S: Scene> Model for Vakonomic<S> {
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
         self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
         let mut y: Vec<f64> = init.q.iter().chain(&init.qd).copied().collect();
-        for name in lambda_names(self.s) {
-            y.push(init.extra(&name.name).unwrap_or(0.0));
-        }
+        y.extend(lambda0(init, self.s));
         Ok(y)
     }
 
@@ -342,10 +281,30 @@ impl<S: Scene> Model for Vakonomic<S> {
     }
 }
 
+/// C's KKT solve at `y = (q, q̇, λ)` over any scalar, results in `kkt`.
+fn solve<S: Scene, T: Scalar>(
+    kkt: &mut Kkt<T>,
+    scene: &S,
+    stab: Stabilisation,
+    t: T,
+    y: &[T],
+) -> Result<(), SystemError> {
+    let n = scene.info().n();
+    let (q, rest) = y.split_at(n);
+    let (qd, lambda) = rest.split_at(n);
+    kkt.solve(
+        &Augmented(scene),
+        lambda,
+        scene,
+        stab,
+        t,
+        q,
+        qd,
+        "formulation C",
+    )
+}
+
 /// The names of the initial multipliers: `lambda`, or `lambda1..s`.
 pub fn lambda_names(s: usize) -> Vec<ExtraName> {
-    multiplier_names(s, 0)
-        .into_iter()
-        .map(|n| ExtraName::new(n, "", "initial multiplier λ(0) of L + λᵀg"))
-        .collect()
+    nonholo_core::init::lambda_names(s, "initial multiplier λ(0) of L + λᵀg")
 }

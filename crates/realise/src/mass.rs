@@ -30,13 +30,13 @@
 //! `λ` (compliance: the state; direct: `N g`), comparable with C's.
 
 use nonholo_core::consistency::{InitProjection, PROJECT_TOL, check_or_project};
-use nonholo_core::init::ExtraName;
+use nonholo_core::init::{ExtraName, lambda_names, lambda0};
 use nonholo_core::integrate::{OdeSystem, RadauNewton, SystemError};
 use nonholo_core::kkt::{GRows, Kkt};
-use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::model::{FormulationInfo, Model, Observation};
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::project::Projector;
-use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Penalised, Scene, SceneInfo};
+use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Penalised, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{SINGULAR_TOL, Stabilisation, StepHooks};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::Dual64;
@@ -130,74 +130,48 @@ impl<S: Scene> Mass<S> {
         })
     }
 
-    pub fn scene(&self) -> &S {
-        &self.scene
-    }
-
-    pub fn form(&self) -> Form {
-        self.form
-    }
-
     /// The KKT solve at `y` (`(q, q̇, λ)` or `(q, q̇)`), results in `self.kkt`.
     fn solve_at(&mut self, t: f64, y: &[f64]) -> Result<(), SystemError> {
-        let n = self.n;
-        let (q, rest) = y.split_at(n);
-        let (qd, lambda) = rest.split_at(n);
-        match self.form {
-            Form::Compliance => self.kkt.solve_rows(
-                &Augmented(&self.scene),
-                lambda,
-                &self.scene,
-                Stabilisation::None,
-                GRows::Compliant(1.0 / self.gain),
-                t,
-                q,
-                qd,
-                "formulation mass",
-            ),
-            Form::Direct => self.kkt.solve_rows(
-                &Penalised(&self.scene),
-                &[self.gain],
-                &self.scene,
-                Stabilisation::None,
-                GRows::Absent,
-                t,
-                q,
-                qd,
-                "formulation mass",
-            ),
-        }
+        solve(&mut self.kkt, &self.scene, self.form, self.gain, t, y)
     }
+}
 
-    /// The same solve over dual numbers at `self.y_dual`.
-    fn solve_dual(&mut self, t: Dual64) -> Result<(), SystemError> {
-        let n = self.n;
-        let (q, rest) = self.y_dual.split_at(n);
-        let (qd, lambda) = rest.split_at(n);
-        match self.form {
-            Form::Compliance => self.kkt_dual.solve_rows(
-                &Augmented(&self.scene),
-                lambda,
-                &self.scene,
-                Stabilisation::None,
-                GRows::Compliant(1.0 / self.gain),
-                t,
-                q,
-                qd,
-                "formulation mass",
-            ),
-            Form::Direct => self.kkt_dual.solve_rows(
-                &Penalised(&self.scene),
-                &[Dual64::from_re(self.gain)],
-                &self.scene,
-                Stabilisation::None,
-                GRows::Absent,
-                t,
-                q,
-                qd,
-                "formulation mass",
-            ),
-        }
+/// The solve of `form` at `y` (`(q, q̇, λ)` or `(q, q̇)`) over any scalar,
+/// results in `kkt`.
+fn solve<S: Scene, T: Scalar>(
+    kkt: &mut Kkt<T>,
+    scene: &S,
+    form: Form,
+    gain: f64,
+    t: T,
+    y: &[T],
+) -> Result<(), SystemError> {
+    let n = scene.info().n();
+    let (q, rest) = y.split_at(n);
+    let (qd, lambda) = rest.split_at(n);
+    match form {
+        Form::Compliance => kkt.solve_rows(
+            &Augmented(scene),
+            lambda,
+            scene,
+            Stabilisation::None,
+            GRows::Compliant(1.0 / gain),
+            t,
+            q,
+            qd,
+            "formulation mass",
+        ),
+        Form::Direct => kkt.solve_rows(
+            &Penalised(scene),
+            &[T::from(gain)],
+            scene,
+            Stabilisation::None,
+            GRows::Absent,
+            t,
+            q,
+            qd,
+            "formulation mass",
+        ),
     }
 }
 
@@ -208,8 +182,7 @@ impl<S: Scene> OdeSystem for Mass<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let (n, s) = (self.n, self.s);
-        self.hooks
-            .check_stage(&self.scene, t, &y[..n], &y[n..2 * n])?;
+        self.hooks.check_stage_y(&self.scene, t, y)?;
         self.solve_at(t, y)?;
         dy[..n].copy_from_slice(&y[n..2 * n]);
         dy[n..2 * n].copy_from_slice(self.kkt.qdd());
@@ -221,45 +194,28 @@ impl<S: Scene> OdeSystem for Mass<S> {
 
     /// `∂f/∂y`: the solve repeated with one dual direction per column of `y`.
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
-        let (n, s) = (self.n, self.s);
-        let dim = y.len();
-        jac.fill(0.0);
-        for i in 0..n {
-            jac[i * dim + n + i] = 1.0;
-        }
-        for j in 0..dim {
-            for (d, &v) in self.y_dual.iter_mut().zip(y) {
-                *d = Dual64::from_re(v);
-            }
-            self.y_dual[j].eps = 1.0;
-            self.solve_dual(Dual64::from_re(t))?;
-            for i in 0..n {
-                jac[(n + i) * dim + j] = self.kkt_dual.qdd()[i].eps;
-            }
-            if self.form == Form::Compliance {
-                for i in 0..s {
-                    jac[(2 * n + i) * dim + j] = self.kkt_dual.mu()[i].eps;
-                }
-            }
-        }
+        let (scene, form, gain) = (&self.scene, self.form, self.gain);
+        let lambda_rows = match form {
+            Form::Compliance => self.s,
+            Form::Direct => 0,
+        };
+        self.kkt_dual
+            .jacobian(y, &mut self.y_dual, lambda_rows, jac, |kkt, y| {
+                solve(kkt, scene, form, gain, Dual64::from_re(t), y)
+            })?;
         Ok(true)
     }
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (q, rest) = y.split_at_mut(self.n);
-        let qd = &mut rest[..self.n];
-        self.hooks.after_step(&self.scene, t, q, qd)
+        self.hooks.after_step_y(&self.scene, t, y)
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let n = self.n;
-        self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n])
+        self.hooks.guard_y(&self.scene, t, y)
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        let n = self.n;
-        self.hooks
-            .guard_reason(&self.scene, t, &y[..n], &y[n..2 * n])
+        self.hooks.guard_reason_y(&self.scene, t, y)
     }
 }
 
@@ -296,22 +252,12 @@ impl<S: Scene> Model for Mass<S> {
         &self.options
     }
 
-    fn multiplier_names(&self) -> Vec<String> {
-        multiplier_names(self.s, self.scene.info().k())
-    }
-
     /// `lambda` (or `lambda1`, …): `λ0`, the limit multiplier; `g(0) = λ0/N`.
     fn extra_init_names(&self) -> Vec<ExtraName> {
-        multiplier_names(self.s, 0)
-            .into_iter()
-            .map(|n| {
-                ExtraName::new(
-                    n,
-                    "",
-                    "initial multiplier λ0 = N g(0) (the motion tends to C's with this λ0)",
-                )
-            })
-            .collect()
+        lambda_names(
+            self.s,
+            "initial multiplier λ0 = N g(0) (the motion tends to C's with this λ0)",
+        )
     }
 
     /// The given data must satisfy the constraints (as for C); the shift to
@@ -325,11 +271,7 @@ impl<S: Scene> Model for Mass<S> {
     }
 
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
-        let s = self.s;
-        let lambda0: Vec<f64> = multiplier_names(s, 0)
-            .iter()
-            .map(|name| init.extra(name).unwrap_or(0.0))
-            .collect();
+        let lambda0 = lambda0(init, self.s);
         let target: Vec<f64> = lambda0.iter().map(|l| l / self.gain).collect();
         let mut qd = init.qd.clone();
         let shift = Projector::new(&self.scene)

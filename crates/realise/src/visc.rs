@@ -29,9 +29,9 @@
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::integrate::{OdeSystem, RadauNewton, SystemError};
 use nonholo_core::kkt::{GRows, Kkt};
-use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::model::{FormulationInfo, Model, Observation};
 use nonholo_core::param::{Bound, ParamSpec, Params, Value};
-use nonholo_core::scene::{Lagrangian, MAX_CONSTRAINTS, Scene, SceneInfo};
+use nonholo_core::scene::{Lagrangian, MAX_CONSTRAINTS, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{SINGULAR_TOL, Stabilisation, StepHooks};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::Dual64;
@@ -82,6 +82,15 @@ pub enum Form {
     Adapted,
 }
 
+/// Workspaces of the Cartesian form: the KKT solve over `f64`, and over
+/// `Dual64` for the Jacobian.
+struct CartesianWs {
+    kkt: Kkt<f64>,
+    kkt_dual: Kkt<Dual64>,
+    y_dual: Vec<Dual64>,
+    g: [f64; MAX_CONSTRAINTS],
+}
+
 /// Workspaces of the adapted form: the right-hand side over `f64`, and over
 /// `Dual64` for the Jacobian.
 struct AdaptedWs {
@@ -89,6 +98,40 @@ struct AdaptedWs {
     rates_dual: Rates<Dual64>,
     y_dual: Vec<Dual64>,
     dy_dual: Vec<Dual64>,
+    /// `q̇` at `(hook_at, hook_y)` for the hooks and observations: after an
+    /// accepted step `after_step`, `guard` (and `guard_reason`, `observe`)
+    /// ask at the same state, and each `q̇ = T v` costs a frame evaluation.
+    hook_at: Option<f64>,
+    hook_y: Vec<f64>,
+    hook_qd: Vec<f64>,
+}
+
+impl AdaptedWs {
+    /// `q̇` of `y = (q, v)` at `t` into `hook_qd` (reused while `(t, y)` is
+    /// that of the previous call).
+    fn hook_velocities<S: Scene>(
+        &mut self,
+        scene: &S,
+        t: f64,
+        y: &[f64],
+    ) -> Result<(), SystemError> {
+        if self.hook_at == Some(t) && self.hook_y == y {
+            return Ok(());
+        }
+        self.hook_at = None;
+        let (q, v) = y.split_at(self.hook_qd.len());
+        self.rates.velocities(scene, t, q, v)?;
+        self.hook_qd.copy_from_slice(&self.rates.qd);
+        self.hook_y.copy_from_slice(y);
+        self.hook_at = Some(t);
+        Ok(())
+    }
+}
+
+/// The workspaces of the form in use.
+enum Workspace {
+    Cartesian(Box<CartesianWs>),
+    Adapted(Box<AdaptedWs>),
 }
 
 /// The viscous realisation bound to a scene.
@@ -96,15 +139,10 @@ pub struct Visc<S: Scene> {
     scene: S,
     options: Params,
     k: f64,
-    form: Form,
     n: usize,
     s: usize,
-    kkt: Kkt<f64>,
-    kkt_dual: Kkt<Dual64>,
-    y_dual: Vec<Dual64>,
-    g: [f64; MAX_CONSTRAINTS],
     hooks: StepHooks,
-    adapted: Option<Box<AdaptedWs>>,
+    ws: Workspace,
 }
 
 impl<S: Scene> Visc<S> {
@@ -144,74 +182,79 @@ impl<S: Scene> Visc<S> {
             }),
             "option",
         )?;
-        let adapted = match form {
-            Form::Cartesian => None,
-            Form::Adapted => Some(Box::new(AdaptedWs {
+        let ws = match form {
+            Form::Cartesian => Workspace::Cartesian(Box::new(CartesianWs {
+                kkt: Kkt::new(n, s, k),
+                kkt_dual: Kkt::new(n, s, k),
+                y_dual: vec![Dual64::from_re(0.0); 2 * n],
+                g: [0.0; MAX_CONSTRAINTS],
+            })),
+            Form::Adapted => Workspace::Adapted(Box::new(AdaptedWs {
                 rates: Rates::new(n, s, gain),
                 rates_dual: Rates::new(n, s, gain),
                 y_dual: vec![Dual64::from_re(0.0); 2 * n],
                 dy_dual: vec![Dual64::from_re(0.0); 2 * n],
+                hook_at: None,
+                hook_y: vec![0.0; 2 * n],
+                hook_qd: vec![0.0; n],
             })),
         };
         Ok(Visc {
             k: gain,
-            form,
             hooks: StepHooks::unstabilised(&scene, options.real("singular_tol")),
             options,
             n,
             s,
-            kkt: Kkt::new(n, s, k),
-            kkt_dual: Kkt::new(n, s, k),
-            y_dual: vec![Dual64::from_re(0.0); 2 * n],
-            g: [0.0; MAX_CONSTRAINTS],
-            adapted,
+            ws,
             scene,
         })
     }
 
     /// The state the equations are integrated in.
     pub fn form(&self) -> Form {
-        self.form
+        match self.ws {
+            Workspace::Cartesian(_) => Form::Cartesian,
+            Workspace::Adapted(_) => Form::Adapted,
+        }
     }
 
     /// `(q, q̇)` of state `y` at `t` into `out` (length `2n`): a copy in the
     /// Cartesian form, `q̇ = T(q, t) v` in the adapted one.
     pub fn to_cartesian(&mut self, t: f64, y: &[f64], out: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
-        match self.adapted.as_mut() {
-            None => out.copy_from_slice(y),
-            Some(a) => {
-                let (q, v) = y.split_at(n);
-                a.rates.velocities(&self.scene, t, q, v)?;
-                out[..n].copy_from_slice(q);
-                out[n..].copy_from_slice(&a.rates.qd);
+        match &mut self.ws {
+            Workspace::Cartesian(_) => out.copy_from_slice(y),
+            Workspace::Adapted(a) => {
+                a.hook_velocities(&self.scene, t, y)?;
+                out[..n].copy_from_slice(&y[..n]);
+                out[n..].copy_from_slice(&a.hook_qd);
             }
         }
         Ok(())
     }
+}
 
-    pub fn scene(&self) -> &S {
-        &self.scene
-    }
-
-    /// The gain `k`.
-    pub fn gain(&self) -> f64 {
-        self.k
-    }
-
-    fn solve_at(&mut self, t: f64, q: &[f64], qd: &[f64]) -> Result<(), SystemError> {
-        self.kkt.solve_rows(
-            &Lagrangian(&self.scene),
-            &[],
-            &self.scene,
-            Stabilisation::None,
-            GRows::Viscous(self.k),
-            t,
-            q,
-            qd,
-            "formulation visc",
-        )
-    }
+/// The Cartesian form's KKT solve at `(t, y = (q, q̇))` over any scalar,
+/// results in `kkt`.
+fn solve<S: Scene, T: Scalar>(
+    kkt: &mut Kkt<T>,
+    scene: &S,
+    gain: f64,
+    t: T,
+    y: &[T],
+) -> Result<(), SystemError> {
+    let (q, qd) = y.split_at(scene.info().n());
+    kkt.solve_rows(
+        &Lagrangian(scene),
+        &[],
+        scene,
+        Stabilisation::None,
+        GRows::Viscous(gain),
+        t,
+        q,
+        qd,
+        "formulation visc",
+    )
 }
 
 impl<S: Scene> OdeSystem for Visc<S> {
@@ -221,64 +264,48 @@ impl<S: Scene> OdeSystem for Visc<S> {
 
     fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         let n = self.n;
-        if let Some(a) = self.adapted.as_mut() {
-            let (q, v) = y.split_at(n);
-            a.rates.velocities(&self.scene, t, q, v)?;
-            self.hooks.check_stage(&self.scene, t, q, &a.rates.qd)?;
-            dy[..n].copy_from_slice(&a.rates.qd);
-            return a.rates.accelerations(&self.scene, t, q, v, &mut dy[n..]);
+        match &mut self.ws {
+            Workspace::Adapted(a) => {
+                let (q, v) = y.split_at(n);
+                a.rates.velocities(&self.scene, t, q, v)?;
+                self.hooks.check_stage(&self.scene, t, q, &a.rates.qd)?;
+                dy[..n].copy_from_slice(&a.rates.qd);
+                a.rates.accelerations(&self.scene, t, q, v, &mut dy[n..])
+            }
+            Workspace::Cartesian(c) => {
+                self.hooks.check_stage_y(&self.scene, t, y)?;
+                solve(&mut c.kkt, &self.scene, self.k, t, y)?;
+                dy[..n].copy_from_slice(&y[n..]);
+                dy[n..].copy_from_slice(c.kkt.qdd());
+                Ok(())
+            }
         }
-        let (q, qd) = y.split_at(n);
-        self.hooks.check_stage(&self.scene, t, q, qd)?;
-        self.solve_at(t, q, qd)?;
-        dy[..n].copy_from_slice(qd);
-        dy[n..].copy_from_slice(self.kkt.qdd());
-        Ok(())
     }
 
     /// `∂f/∂y`: the right-hand side repeated with one dual direction per
     /// column of `y` (Cartesian: the KKT solve; adapted: the whole
     /// right-hand side, its inner time-jet pass over `Dual<Dual64>`).
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
-        let n = self.n;
-        let dim = 2 * n;
-        if let Some(a) = self.adapted.as_mut() {
-            for j in 0..dim {
-                for (d, &v) in a.y_dual.iter_mut().zip(y) {
-                    *d = Dual64::from_re(v);
-                }
-                a.y_dual[j].eps = 1.0;
-                a.rates_dual
-                    .eval(&self.scene, Dual64::from_re(t), &a.y_dual, &mut a.dy_dual)?;
-                for i in 0..dim {
-                    jac[i * dim + j] = a.dy_dual[i].eps;
+        let dim = 2 * self.n;
+        let (scene, gain) = (&self.scene, self.k);
+        match &mut self.ws {
+            Workspace::Adapted(a) => {
+                for j in 0..dim {
+                    for (d, &v) in a.y_dual.iter_mut().zip(y) {
+                        *d = Dual64::from_re(v);
+                    }
+                    a.y_dual[j].eps = 1.0;
+                    a.rates_dual
+                        .eval(scene, Dual64::from_re(t), &a.y_dual, &mut a.dy_dual)?;
+                    for i in 0..dim {
+                        jac[i * dim + j] = a.dy_dual[i].eps;
+                    }
                 }
             }
-            return Ok(true);
-        }
-        jac.fill(0.0);
-        for i in 0..n {
-            jac[i * dim + n + i] = 1.0;
-        }
-        for j in 0..dim {
-            for (d, &v) in self.y_dual.iter_mut().zip(y) {
-                *d = Dual64::from_re(v);
-            }
-            self.y_dual[j].eps = 1.0;
-            let (q, qd) = self.y_dual.split_at(n);
-            self.kkt_dual.solve_rows(
-                &Lagrangian(&self.scene),
-                &[],
-                &self.scene,
-                Stabilisation::None,
-                GRows::Viscous(self.k),
-                Dual64::from_re(t),
-                q,
-                qd,
-                "formulation visc",
-            )?;
-            for i in 0..n {
-                jac[(n + i) * dim + j] = self.kkt_dual.qdd()[i].eps;
+            Workspace::Cartesian(c) => {
+                c.kkt_dual.jacobian(y, &mut c.y_dual, 0, jac, |kkt, y| {
+                    solve(kkt, scene, gain, Dual64::from_re(t), y)
+                })?;
             }
         }
         Ok(true)
@@ -287,12 +314,12 @@ impl<S: Scene> OdeSystem for Visc<S> {
     /// Diagnostics and the guard on `(q, q̇)` (nothing is projected: the
     /// hooks are unstabilised, so the state is never changed).
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (q, rest) = y.split_at_mut(self.n);
-        match self.adapted.as_mut() {
-            None => self.hooks.after_step(&self.scene, t, q, rest),
-            Some(a) => {
-                a.rates.velocities(&self.scene, t, q, rest)?;
-                let changed = self.hooks.after_step(&self.scene, t, q, &mut a.rates.qd)?;
+        match &mut self.ws {
+            Workspace::Cartesian(_) => self.hooks.after_step_y(&self.scene, t, y),
+            Workspace::Adapted(a) => {
+                a.hook_velocities(&self.scene, t, y)?;
+                let q = &mut y[..self.n];
+                let changed = self.hooks.after_step(&self.scene, t, q, &mut a.hook_qd)?;
                 debug_assert!(!changed, "visc's hooks never project");
                 Ok(false)
             }
@@ -300,22 +327,22 @@ impl<S: Scene> OdeSystem for Visc<S> {
     }
 
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let (q, rest) = y.split_at(self.n);
-        match self.adapted.as_mut() {
-            None => self.hooks.guard(&self.scene, t, q, rest),
-            Some(a) => {
-                a.rates.velocities(&self.scene, t, q, rest).ok()?;
-                self.hooks.guard(&self.scene, t, q, &a.rates.qd)
+        match &mut self.ws {
+            Workspace::Cartesian(_) => self.hooks.guard_y(&self.scene, t, y),
+            Workspace::Adapted(a) => {
+                a.hook_velocities(&self.scene, t, y).ok()?;
+                self.hooks.guard(&self.scene, t, &y[..self.n], &a.hook_qd)
             }
         }
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        let (q, rest) = y.split_at(self.n);
-        match self.adapted.as_mut() {
-            None => self.hooks.guard_reason(&self.scene, t, q, rest),
-            Some(a) => match a.rates.velocities(&self.scene, t, q, rest) {
-                Ok(()) => self.hooks.guard_reason(&self.scene, t, q, &a.rates.qd),
+        match &mut self.ws {
+            Workspace::Cartesian(_) => self.hooks.guard_reason_y(&self.scene, t, y),
+            Workspace::Adapted(a) => match a.hook_velocities(&self.scene, t, y) {
+                Ok(()) => self
+                    .hooks
+                    .guard_reason(&self.scene, t, &y[..self.n], &a.hook_qd),
                 Err(e) => e.message,
             },
         }
@@ -344,7 +371,7 @@ impl<S: Scene> Model for Visc<S> {
     /// from 1e-6 on; only at 1e-4 is full Newton more accurate, 3e-4 against
     /// 4e-3 for k ≥ 1e6).
     fn radau_newton(&self) -> RadauNewton {
-        match self.form {
+        match self.form() {
             Form::Cartesian => RadauNewton::Full,
             Form::Adapted => RadauNewton::Simplified,
         }
@@ -366,11 +393,6 @@ impl<S: Scene> Model for Visc<S> {
         &self.options
     }
 
-    /// `λ = −k g` (the friction force is `Gᵀλ`), then `ν` of holonomic constraints.
-    fn multiplier_names(&self) -> Vec<String> {
-        multiplier_names(self.s, self.scene.info().k())
-    }
-
     /// Starts on the constraints, from the same data as B.
     fn make_consistent(
         &mut self,
@@ -385,7 +407,8 @@ impl<S: Scene> Model for Visc<S> {
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
         self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
         let mut y: Vec<f64> = init.q.iter().chain(&init.qd).copied().collect();
-        if let Some(a) = self.adapted.as_mut() {
+        if let Workspace::Adapted(a) = &mut self.ws {
+            a.hook_at = None;
             a.rates
                 .adapted(&self.scene, init.t0, &init.q, &init.qd, &mut y[self.n..])
                 .map_err(|e| {
@@ -395,34 +418,36 @@ impl<S: Scene> Model for Visc<S> {
         Ok(y)
     }
 
-    /// `(q, q̇)`, and `λ = −k g`: in the adapted form `−k w`, the state itself.
+    /// `(q, q̇)`, and `λ = −k g` (the friction force is `Gᵀλ`), then `ν` of
+    /// holonomic constraints: in the adapted form `λ = −k w`, the state itself.
     fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
         let (n, s) = (self.n, self.s);
-        if let Some(a) = self.adapted.as_mut() {
-            let (q, v) = y.split_at(n);
-            a.rates.velocities(&self.scene, t, q, v)?;
-            obs.q.copy_from_slice(q);
-            obs.qd.copy_from_slice(&a.rates.qd);
-            // No holonomic constraints in this form: the multipliers are λ only.
-            for (m, w) in obs.multipliers.iter_mut().zip(&v[n - s..]) {
-                *m = -self.k * w;
-            }
-            return Ok(());
-        }
-        let (q, qd) = y.split_at(n);
+        let (q, rest) = y.split_at(n);
         obs.q.copy_from_slice(q);
-        obs.qd.copy_from_slice(qd);
-        if obs.multipliers.is_empty() {
-            return Ok(());
-        }
-        self.scene.nonholonomic(t, q, qd, &mut self.g[..s]);
-        for (m, g) in obs.multipliers.iter_mut().zip(&self.g[..s]) {
-            *m = -self.k * g;
-        }
-        if obs.multipliers.len() > s {
-            self.solve_at(t, q, qd)?;
-            for (m, v) in obs.multipliers[s..].iter_mut().zip(&self.kkt.mu()[s..]) {
-                *m = -v;
+        match &mut self.ws {
+            Workspace::Adapted(a) => {
+                a.hook_velocities(&self.scene, t, y)?;
+                obs.qd.copy_from_slice(&a.hook_qd);
+                // No holonomic constraints in this form: the multipliers are λ only.
+                for (m, w) in obs.multipliers.iter_mut().zip(&rest[n - s..]) {
+                    *m = -self.k * w;
+                }
+            }
+            Workspace::Cartesian(c) => {
+                obs.qd.copy_from_slice(rest);
+                if obs.multipliers.is_empty() {
+                    return Ok(());
+                }
+                self.scene.nonholonomic(t, q, rest, &mut c.g[..s]);
+                for (m, g) in obs.multipliers.iter_mut().zip(&c.g[..s]) {
+                    *m = -self.k * g;
+                }
+                if obs.multipliers.len() > s {
+                    solve(&mut c.kkt, &self.scene, self.k, t, y)?;
+                    for (m, v) in obs.multipliers[s..].iter_mut().zip(&c.kkt.mu()[s..]) {
+                        *m = -v;
+                    }
+                }
             }
         }
         Ok(())

@@ -143,13 +143,20 @@ const STEP_TRUNCATION: f64 = 1e-13;
 
 /// Scale of each row of the derivative array: `1 + Σ_j |∂D_l/∂d_j · d_j|`,
 /// the size of the terms that cancel in it.
-fn row_scales(jac: &DMatrix<f64>, d: &[f64], scales: &mut [f64]) {
+pub(crate) fn row_scales(jac: &DMatrix<f64>, d: &[f64], scales: &mut [f64]) {
     for (l, sc) in scales.iter_mut().enumerate() {
         *sc = 1.0
             + (0..d.len())
                 .map(|j| (jac[(l, j)] * d[j]).abs())
                 .sum::<f64>();
     }
+}
+
+/// `max_l |v_l / scales_l|`: the largest residual relative to its row's scale.
+pub(crate) fn relative(v: &[f64], scales: &[f64]) -> f64 {
+    v.iter()
+        .zip(scales)
+        .fold(0.0f64, |a, (x, s)| a.max((x / s).abs()))
 }
 
 /// `R⁻¹ J C`: rows divided by their term scale, columns multiplied by
@@ -207,11 +214,6 @@ pub fn complete<S: Scene>(
     // compared by the damping logic does not move under it.
     let objective =
         |v: &[f64], sc: &[f64]| v.iter().zip(sc).map(|(x, s)| (x / s).powi(2)).sum::<f64>();
-    let relative = |v: &[f64], sc: &[f64]| {
-        v.iter()
-            .zip(sc)
-            .fold(0.0f64, |a, (x, s)| a.max((x / s).abs()))
-    };
     let before = relative(&value, &scales);
     let mut res = before;
     let mut iterations = 0;

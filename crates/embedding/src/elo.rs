@@ -36,9 +36,26 @@ pub fn theta<S: Scene, D: Scalar>(
     qddi: &[D],
 ) -> D {
     let n = scene.info().n();
-    let (m, s) = (e.independent.len(), e.dependent.len());
     let zero = D::from(0.0);
-    let dzero = Dual::from_re(zero);
+    let mut q = [zero; MAX_DOF];
+    let mut qd = [zero; MAX_DOF];
+    reconstruct(scene, e, t, qi, qdi, qddi, &mut q, &mut qd);
+    scene.lagrangian(t, &q[..n], &qd[..n])
+}
+
+/// The full coordinates `(q, q̇)` from `(q_I, q̇_I, q̈_I)`: `q_D = φ`, `q̇_D = dφ/dt`.
+pub fn reconstruct<S: Scene, D: Scalar>(
+    scene: &S,
+    e: &EmbeddingInfo,
+    t: D,
+    qi: &[D],
+    qdi: &[D],
+    qddi: &[D],
+    q: &mut [D],
+    qd: &mut [D],
+) {
+    let (m, s) = (e.independent.len(), e.dependent.len());
+    let dzero = Dual::from_re(D::from(0.0));
     let mut qi_jet = [dzero; MAX_DOF];
     let mut qdi_jet = [dzero; MAX_DOF];
     for k in 0..m {
@@ -48,45 +65,6 @@ pub fn theta<S: Scene, D: Scalar>(
     let mut dep = [dzero; MAX_DOF];
     scene.embedding(
         Dual::new(t, D::from(1.0)),
-        &qi_jet[..m],
-        &qdi_jet[..m],
-        &mut dep[..s],
-    );
-    let mut q = [zero; MAX_DOF];
-    let mut qd = [zero; MAX_DOF];
-    for (k, &i) in e.independent.iter().enumerate() {
-        q[i] = qi[k];
-        qd[i] = qdi[k];
-    }
-    for (j, &i) in e.dependent.iter().enumerate() {
-        q[i] = dep[j].re;
-        qd[i] = dep[j].eps;
-    }
-    scene.lagrangian(t, &q[..n], &qd[..n])
-}
-
-/// The full coordinates `(q, q̇)` from `(q_I, q̇_I, q̈_I)`: `q_D = φ`, `q̇_D = dφ/dt`.
-pub fn reconstruct<S: Scene>(
-    scene: &S,
-    e: &EmbeddingInfo,
-    t: f64,
-    qi: &[f64],
-    qdi: &[f64],
-    qddi: &[f64],
-    q: &mut [f64],
-    qd: &mut [f64],
-) {
-    let (m, s) = (e.independent.len(), e.dependent.len());
-    let dzero = Dual::from_re(0.0);
-    let mut qi_jet = [dzero; MAX_DOF];
-    let mut qdi_jet = [dzero; MAX_DOF];
-    for k in 0..m {
-        qi_jet[k] = Dual::new(qi[k], qdi[k]);
-        qdi_jet[k] = Dual::new(qdi[k], qddi[k]);
-    }
-    let mut dep = [dzero; MAX_DOF];
-    scene.embedding(
-        Dual::new(t, 1.0),
         &qi_jet[..m],
         &qdi_jet[..m],
         &mut dep[..s],

@@ -21,9 +21,9 @@
 
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::guard::{SingularGuard, magnitude};
-use nonholo_core::init::ExtraName;
+use nonholo_core::init::{ExtraName, lambda_names};
 use nonholo_core::integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
-use nonholo_core::model::{FormulationInfo, Model, Observation, multiplier_names};
+use nonholo_core::model::{FormulationInfo, Model, Observation};
 use nonholo_core::monitor::Monitor;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene, SceneInfo};
@@ -205,10 +205,6 @@ impl<S: Scene> Embedding<S> {
         })
     }
 
-    pub fn scene(&self) -> &S {
-        &self.scene
-    }
-
     /// What the initial-data set-up found (after [`Model::initial_state`]).
     pub fn report(&self) -> Option<&InitReport> {
         self.report.as_ref()
@@ -225,17 +221,7 @@ impl<S: Scene> Embedding<S> {
             elo_array::<_, f64, Dual2_64>(&self.scene, &self.e, t, &self.d, &mut self.e_out);
             let mut w = nalgebra::DMatrix::zeros(m, m);
             for j in 0..m {
-                for (k, v) in self.d_dual.iter_mut().enumerate() {
-                    *v = Dual64::from_re(d[k]);
-                }
-                self.d_dual[4 * m + j].eps = 1.0;
-                elo_array::<_, Dual64, Dual2<Dual64>>(
-                    &self.scene,
-                    &self.e,
-                    Dual64::from_re(t),
-                    &self.d_dual,
-                    &mut self.e_dual,
-                );
+                self.e_direction(t, 4 * m + j);
                 for mu in 0..m {
                     w[(mu, j)] = self.e_dual[mu].eps;
                 }
@@ -252,6 +238,23 @@ impl<S: Scene> Embedding<S> {
                 d[4 * m + k] -= delta[k];
             }
         }
+    }
+
+    /// `∂E/∂d_j` at `d = self.d` (`(z, q⁗)`, 5m numbers): one dual pass
+    /// of the equations (19) seeded along `d_j`, into `self.e_dual[..m]`
+    /// (the `eps` parts).
+    fn e_direction(&mut self, t: f64, j: usize) {
+        for (v, &x) in self.d_dual.iter_mut().zip(&self.d) {
+            *v = Dual64::from_re(x);
+        }
+        self.d_dual[j].eps = 1.0;
+        elo_array::<_, Dual64, Dual2<Dual64>>(
+            &self.scene,
+            &self.e,
+            Dual64::from_re(t),
+            &self.d_dual,
+            &mut self.e_dual,
+        );
     }
 
     /// Physical `(q, q̇)` from `z` into the model's buffers, dependent angles
@@ -291,7 +294,7 @@ impl<S: Scene> Embedding<S> {
     /// has fallen below zero.
     fn check_stage(&mut self, t: f64, z: &[f64]) -> Result<(), SystemError> {
         let p = self.singular_vector(t, z);
-        if p > 0 && self.guard.value(&self.r, p) + self.guard.tol < 0.0 {
+        if self.guard.crossed(&self.r, p) {
             return Err(SystemError::new(format!(
                 "a stage crossed the singular set of the embedding map {} ({})",
                 self.e.formula, self.e.singular_set
@@ -484,18 +487,10 @@ impl<S: Scene> ImplicitSystem for Embedding<S> {
             jy[i * dim + m + i] = -1.0;
         }
         // Columns of ∂E/∂(z, ż₃): one dual pass each.
+        self.d[..4 * m].copy_from_slice(&y[..4 * m]);
+        self.d[4 * m..].copy_from_slice(&yp[3 * m..4 * m]);
         for j in 0..5 * m {
-            for (k, v) in self.d_dual.iter_mut().enumerate() {
-                *v = Dual64::from_re(if k < 4 * m { y[k] } else { yp[k - m] });
-            }
-            self.d_dual[j].eps = 1.0;
-            elo_array::<_, Dual64, Dual2<Dual64>>(
-                &self.scene,
-                &self.e,
-                Dual64::from_re(t),
-                &self.d_dual,
-                &mut self.e_dual,
-            );
+            self.e_direction(t, j);
             for mu in 0..m {
                 let v = self.e_dual[mu].eps;
                 if j < 4 * m {
@@ -698,16 +693,10 @@ impl<S: Scene> Model for Embedding<S> {
     /// derivatives of the independent coordinates (`x_ddot`, `x_dddot`, …).
     fn extra_init_names(&self) -> Vec<ExtraName> {
         let coords = self.scene.info().coordinates;
-        let mut names: Vec<ExtraName> = multiplier_names(self.e.dependent.len(), 0)
-            .into_iter()
-            .map(|n| {
-                ExtraName::new(
-                    n,
-                    "",
-                    "multiplier λ(0) of the vakonomic motion A is matched with (spec, section A)",
-                )
-            })
-            .collect();
+        let mut names = lambda_names(
+            self.e.dependent.len(),
+            "multiplier λ(0) of the vakonomic motion A is matched with (spec, section A)",
+        );
         for order in [2, 3] {
             for &i in self.e.independent {
                 names.push(ExtraName::new(

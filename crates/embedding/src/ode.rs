@@ -105,7 +105,7 @@ use nonholo_core::Scene;
 use nonholo_core::scene::EmbeddingInfo;
 use num_dual::{Dual2, Dual64};
 
-use crate::analysis::{LEVELS, derivative_array};
+use crate::analysis::{LEVELS, derivative_array, relative, row_scales};
 use crate::elo::elo_array;
 use crate::jet::Jet4;
 
@@ -305,18 +305,14 @@ impl Reduction {
     }
 
     /// Rank of `∂D/∂u` in use.
-    pub fn rank_u(&self) -> Option<usize> {
+    #[cfg(test)]
+    fn rank_u(&self) -> Option<usize> {
         self.rank_u
     }
 
     /// Work counters since [`Reduction::reset`].
     pub fn stats(&self) -> ReductionStats {
         self.stats
-    }
-
-    /// `u = (q⁗, q⁽⁵⁾, q⁽⁶⁾)` of the last solve or projection.
-    pub fn unknowns(&self) -> &[f64] {
-        &self.d[4 * self.m..]
     }
 
     /// `w(z) = q⁗`: solves `D(z, u) = 0` for `u` (least squares off the
@@ -472,13 +468,9 @@ impl Reduction {
         let mut value = vec![0.0; rows];
         let mut jac = DMatrix::zeros(rows, 7 * m);
         derivative_array(scene, e, t, &self.d, &mut value, &mut jac);
-        Ok((0..rows).fold(0.0f64, |a, l| {
-            let scale = 1.0
-                + (0..7 * m)
-                    .map(|j| (jac[(l, j)] * self.d[j]).abs())
-                    .sum::<f64>();
-            a.max(value[l].abs() / scale)
-        }))
+        let mut scales = vec![0.0; rows];
+        row_scales(&jac, &self.d, &mut scales);
+        Ok(relative(&value, &scales))
     }
 
     /// The chord iteration on the unknowns `d[first..7m]` (`first = 4m`:

@@ -75,23 +75,26 @@ fn disk_trajectory_invariants_and_closed_form() {
     }
     let (mut q, mut qd) = ([0.0; 4], [0.0; 4]);
     let mut obs = Observation::new(4, 2);
+    let (mut err_q, mut err_lambda) = (0.0f64, 0.0f64);
     for t in [0.3, 7.7, 31.4, 50.0] {
         run.observe_at(t, &mut obs).unwrap();
         disk.closed_form(&run.initial.q, &run.initial.qd, t, &mut q, &mut qd)
             .unwrap();
         for i in 0..4 {
-            assert!(
-                (obs.q[i] - q[i]).abs() < 1e-10,
-                "t = {t}: q[{i}] {} vs {}",
-                obs.q[i],
-                q[i]
-            );
+            err_q = err_q.max((obs.q[i] - q[i]).abs());
         }
         // The multipliers are the contact force on the disk: m ẍ = λ1, m ÿ = λ2 (m = 1).
         let (s, c) = q[2].sin_cos();
         let (ax, ay) = (-qd[3] * qd[2] * s, qd[3] * qd[2] * c);
-        assert!((obs.multipliers[0] - ax).abs() < 1e-9 && (obs.multipliers[1] - ay).abs() < 1e-9);
+        err_lambda = err_lambda
+            .max((obs.multipliers[0] - ax).abs())
+            .max((obs.multipliers[1] - ay).abs());
     }
+    eprintln!("disk: closed-form error q {err_q:e}, λ {err_lambda:e}");
+    // Measured 8.3e-13 (q, after 50 s at tolerance 1e-13) and 2.3e-15 (λ,
+    // an O(1) force: round-off); bounds about 10× and 40× above.
+    assert!(err_q < 1e-11, "q error {err_q:e}");
+    assert!(err_lambda < 1e-13, "λ error {err_lambda:e}");
 }
 
 /// Appell–Hamel under B: straight horizontal path, ρ̇ = c g/(1 + c²),
@@ -118,24 +121,36 @@ fn appell_hamel_matches_closed_form() {
         );
         assert!(run.completed(), "c = {c}: {:?}", run.failure);
         let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
+        let (mut err_q, mut err_qd, mut err_lambda) = (0.0f64, 0.0f64, 0.0f64);
         for (t, o) in run.solution.t.iter().zip(&run.samples) {
             s.closed_form(&run.initial.q, &run.initial.qd, *t, &mut q, &mut qd)
                 .unwrap();
             for i in 0..3 {
-                assert!(
-                    (o.q[i] - q[i]).abs() < 1e-9 && (o.qd[i] - qd[i]).abs() < 1e-9,
-                    "c = {c}, t = {t}"
-                );
+                err_q = err_q.max((o.q[i] - q[i]).abs());
+                err_qd = err_qd.max((o.qd[i] - qd[i]).abs());
             }
             let lambda = 1.5 * 9.81 / (1.0 + cv * cv);
-            assert!(
-                (o.multipliers[0] - lambda).abs() < 1e-10,
-                "λ {} vs {lambda}",
-                o.multipliers[0]
-            );
+            err_lambda = err_lambda.max((o.multipliers[0] - lambda).abs());
         }
-        assert!(run.diagnostics.energy_drift_max < 1e-11);
-        assert!(run.diagnostics.invariants[0].drift_max < 1e-12);
+        let (energy, invariant) = (
+            run.diagnostics.energy_drift_max,
+            run.diagnostics.invariants[0].drift_max,
+        );
+        eprintln!(
+            "appell-hamel c = {c}: error q {err_q:e}, q̇ {err_qd:e}, λ {err_lambda:e}; \
+             drift energy {energy:e}, invariant {invariant:e}"
+        );
+        // Measured at tolerance 1e-12, worst over c: q 1.6e-13, q̇ 2.9e-14,
+        // λ 3.6e-15 (round-off of an O(10) force), energy drift 2.3e-12
+        // (c = 2), invariant drift 1.0e-13 (c = −0.3). Bounds about 10× above;
+        // the energy's is the previous 1e-11 (4×).
+        assert!(
+            err_q < 2e-12 && err_qd < 5e-13,
+            "c = {c}: q {err_q:e}, q̇ {err_qd:e}"
+        );
+        assert!(err_lambda < 1e-13, "c = {c}: λ {err_lambda:e}");
+        assert!(energy < 1e-11, "c = {c}: energy drift {energy:e}");
+        assert!(invariant < 1e-12, "c = {c}: invariant drift {invariant:e}");
     }
 }
 
@@ -221,21 +236,21 @@ fn pendulum_matches_angle_equation_and_tension() {
         },
     )
     .unwrap();
+    let (mut err_q, mut err_nu) = (0.0f64, 0.0f64);
     for (i, o) in run.samples.iter().enumerate() {
         let (th, thd) = (reference.row(i)[0], reference.row(i)[1]);
-        assert!(
-            (o.q[0] - l * th.sin()).abs() < 1e-9 && (o.q[1] + l * th.cos()).abs() < 1e-9,
-            "t = {}",
-            reference.t[i]
-        );
+        err_q = err_q
+            .max((o.q[0] - l * th.sin()).abs())
+            .max((o.q[1] + l * th.cos()).abs());
         let tension = m * (l * thd * thd + g * th.cos());
-        assert!(
-            (o.multipliers[0] + tension / (2.0 * l)).abs() < 1e-8,
-            "ν {} vs {}",
-            o.multipliers[0],
-            -tension / (2.0 * l)
-        );
+        err_nu = err_nu.max((o.multipliers[0] + tension / (2.0 * l)).abs());
     }
+    eprintln!("pendulum: error (x, y) {err_q:e}, ν {err_nu:e}");
+    // Measured 3.7e-11 ((x, y)) and 4.3e-10 (ν, which involves θ̇²) over
+    // 10 s at tolerance 1e-12 (both B and the angle equation's reference
+    // carry global error); bounds about 12× above.
+    assert!(err_q < 5e-10, "(x, y) error {err_q:e}");
+    assert!(err_nu < 5e-9, "ν error {err_nu:e}");
 }
 
 /// Stabilisation on a long pendulum run at loose tolerance: without it |f|
@@ -412,15 +427,17 @@ fn baumgarte_on_the_sleigh_constraint() {
         &[("stab", "baumgarte"), ("baumgarte_alpha", "2")],
     );
     let sol = solve(Method::Dop853, &mut b, 0.0, &y0, 0.5, &opts).unwrap();
+    let mut err = 0.0f64;
     for (i, &t) in sol.t.iter().enumerate().skip(1) {
         let want = slip * (-2.0 * alpha * t).exp();
-        assert!(
-            (g_of(sol.row(i)) - want).abs() < 1e-10,
-            "t = {t}: g = {} vs {want}",
-            g_of(sol.row(i))
-        );
+        err = err.max((g_of(sol.row(i)) - want).abs());
     }
     let mut plain = chetaev(s, &[]);
     let sol = solve(Method::Dop853, &mut plain, 0.0, &y0, 0.5, &opts).unwrap();
-    assert!((g_of(sol.row(2)) - slip).abs() < 1e-10);
+    let err_plain = (g_of(sol.row(2)) - slip).abs();
+    eprintln!("baumgarte: g error {err:e}, unstabilised {err_plain:e}");
+    // Measured 1.2e-13 and 4.9e-14 with atol = 1e-12 on a violation of
+    // 1e-2: the bound is the integrator's tolerance.
+    assert!(err < 1e-12, "g error {err:e}");
+    assert!(err_plain < 1e-12, "unstabilised g error {err_plain:e}");
 }

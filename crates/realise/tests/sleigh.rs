@@ -376,8 +376,17 @@ fn realisations_stop_at_appell_hamel_singular_set() {
             );
             match &run.failure {
                 Some(e @ IntegrateError::Stopped { t, reason }) => {
+                    eprintln!(
+                        "{what} {method:?}: stopped at {t}, t − t* = {:e}",
+                        t - t_star
+                    );
+                    // B stops at t* (where ρ̇ = 2 + a t reaches singular_tol =
+                    // 1e-8, 3e-9 s before ρ̇ = 0); the realisations at k = N = 1e4
+                    // deviate from B by O(1/k) near the stop: measured t − t* =
+                    // 8.0e-5 (visc) and 4.1e-5 (mass), both integrators. Bound 6×
+                    // above visc's.
                     assert!(
-                        (t - t_star).abs() < 1e-2,
+                        (t - t_star).abs() < 5e-4,
                         "{what} {method:?}: stopped at {t}, t* = {t_star}"
                     );
                     assert!(reason.contains("horizontal speed"), "{reason}");

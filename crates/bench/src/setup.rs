@@ -281,7 +281,7 @@ fn embedding_initial(s: &Sleigh) -> Result<Initial, Error> {
     y.push(LAMBDA);
     let (mut yd, mut ydd, mut yddd) = (vec![0.0; 7], vec![0.0; 7], vec![0.0; 7]);
     c.taylor(0.0, &y, &mut yd, &mut ydd, &mut yddd)
-        .map_err(|e| Error::Numerical(e.message))?;
+        .map_err(|e| Error::numerical("C's Taylor coefficients", e))?;
     let mut names: Vec<nonholo_core::init::ExtraName> = Vec::new();
     let mut given: Vec<(String, String)> = vec![
         ("x".into(), Q[0].to_string()),

@@ -116,7 +116,7 @@ fn accelerations_match_reduced_equations() {
             let q = [x, y, phi];
             let qd = [u * phi.cos(), u * phi.sin(), w];
             let (mut qdd, mut lam) = ([0.0; 3], [0.0; 1]);
-            b.accelerations(0.0, &q, &qd, &mut qdd, &mut lam).unwrap();
+            accelerations(&mut b, 0.0, &q, &qd, &mut qdd, &mut lam).unwrap();
 
             let com = if potential == "com" { 1.0 } else { 0.0 };
             let ud = a * w * w + g * alpha.sin() * phi.cos();

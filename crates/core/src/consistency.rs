@@ -1,7 +1,7 @@
 //! Initial data against the constraints: accept, refuse with the residual,
 //! or project onto the constraint manifold when asked.
 
-use crate::Error;
+use crate::error::{Error, Level};
 use crate::init::Initial;
 use crate::project::{Projection, Projector};
 use crate::scene::Scene;
@@ -46,7 +46,7 @@ pub fn check_or_project<S: Scene>(
         let (q_before, qd_before) = (init.q.clone(), init.qd.clone());
         let r = p
             .project(scene, init.t0, &mut init.q, &mut init.qd, PROJECT_TOL)
-            .map_err(|e| Error::Numerical(format!("--project-init failed: {e}")))?;
+            .map_err(|e| Error::numerical("--project-init", e))?;
         return Ok(Some(InitProjection {
             q_before,
             qd_before,
@@ -57,39 +57,38 @@ pub fn check_or_project<S: Scene>(
     let (pos, v) = (p.cs.position_distance(), p.cs.velocity_distance());
     let tol = INIT_TOL * scale(&init.q);
     if pos.is_nan() || pos > tol {
-        let list = info
-            .holonomic
-            .iter()
-            .zip(&p.cs.f)
-            .map(|(f, r)| format!("{f}: residual {r:.3e}"))
-            .collect::<Vec<_>>()
-            .join("; ");
-        return Err(Error::InconsistentInit(format!(
-            "the initial positions violate the holonomic constraints ({list}; distance {pos:.3e}, \
-             tolerance {tol:.1e}); \
-             give consistent positions or pass --project-init to move them onto the constraints"
-        )));
+        return Err(Error::OffConstraints {
+            level: Level::Positions,
+            residuals: info
+                .holonomic
+                .iter()
+                .zip(&p.cs.f)
+                .map(|(f, r)| (f.to_string(), *r))
+                .collect(),
+            distance: pos,
+            tolerance: tol,
+        });
     }
     let tol = INIT_TOL * scale(&init.qd);
     if v.is_nan() || v > tol {
-        let mut list: Vec<String> = info
+        let mut residuals: Vec<(String, f64)> = info
             .nonholonomic
             .iter()
             .zip(&p.cs.g)
-            .map(|(g, r)| format!("{g}: residual {r:.3e}"))
+            .map(|(g, r)| (g.to_string(), *r))
             .collect();
-        list.extend(
+        residuals.extend(
             info.holonomic
                 .iter()
                 .zip(&p.cs.f_rate)
-                .map(|(f, r)| format!("d/dt of {f}: residual {r:.3e}")),
+                .map(|(f, r)| (format!("d/dt of {f}"), *r)),
         );
-        return Err(Error::InconsistentInit(format!(
-            "the initial velocities violate the constraints ({}; distance {v:.3e}, tolerance {tol:.1e}); \
-             give consistent velocities or pass --project-init to move q̇0 to the nearest \
-             consistent velocity",
-            list.join("; ")
-        )));
+        return Err(Error::OffConstraints {
+            level: Level::Velocities,
+            residuals,
+            distance: v,
+            tolerance: tol,
+        });
     }
     Ok(None)
 }

@@ -160,21 +160,16 @@ pub fn resolve<S: Scene>(
         .map(|(i, _)| format!("{}_dot", info.coordinates[i].name))
         .collect();
     if !chart_given.is_empty() && !raw.is_empty() {
-        return Err(Error::InconsistentInit(format!(
-            "give the velocities either as {} or through the scene's convenience values {}, not both (got {} and {})",
-            info.coordinates
+        return Err(Error::VelocitiesTwice {
+            coordinates: info
+                .coordinates
                 .iter()
                 .map(|c| format!("{}_dot", c.name))
-                .collect::<Vec<_>>()
-                .join(", "),
-            info.velocity_chart
-                .iter()
-                .map(|c| c.name)
-                .collect::<Vec<_>>()
-                .join(", "),
-            raw.join(", "),
-            chart_given.join(", "),
-        )));
+                .collect(),
+            chart: info.velocity_chart.iter().map(|c| c.name.into()).collect(),
+            raw_given: raw,
+            chart_given: chart_given.iter().map(|c| c.to_string()).collect(),
+        });
     }
 
     let mut qd = vec![0.0; n];

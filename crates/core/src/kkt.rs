@@ -10,38 +10,76 @@
 //! ```
 //!
 //! B reads `μ = (−λ, −ν)`; C reads `μ_g = λ̇` and `μ_f = −ν`. The gains are
-//! those of Baumgarte stabilisation, zero otherwise. The matrix is
+//! those of Baumgarte stabilisation, zero otherwise; how the rows of `g`
+//! enter is a [`GRows`] (the ideal constraint here, other kinds in the
+//! realisations). The matrix is
 //! equilibrated (so that singularity is judged independently of units), then
 //! factorised by LU with partial pivoting, in a reused workspace; over
 //! `T = Dual64` the same solve yields directional derivatives (Jacobian
 //! columns, time derivatives).
 
 use nalgebra::DMatrix;
-use nonholo_integrate::SystemError;
-use num_dual::Dual64;
 
 use crate::ad::Jet;
 use crate::constraints::ConstraintState;
-use crate::linalg::{Lu, solve_saddle};
-use crate::scene::{Scalar, ScalarField, Scene};
+use crate::linalg::{Lu, Singular, solve_saddle};
+use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
 use crate::stab::Stabilisation;
 
-/// How the rows of the nonholonomic constraints `g` enter the system.
+/// How the rows of the nonholonomic constraints `g` enter the system: the
+/// one place where formulations differ in the KKT system.
 ///
-/// * `Ideal`: `G q̈ = −ġ₀ − 2α g` (B, C: the constraint holds).
-/// * `Compliant(c)`: `G q̈ − c μ_g = −ġ₀`, the constraint with compliance
-///   `c = 1/N` (the added-mass realisation carrying `λ = N g`, `μ_g = λ̇`).
-/// * `Absent`: no constraint row (an identity block, `μ_g = 0`); `g` acts
-///   only through the field `ℓ` (the added-mass realisation written
-///   directly, `ℓ = L + (N/2) gᵀg`), so `g` and `G` are not evaluated.
-/// * `Viscous(k)`: no constraint row; the viscous force `−k Gᵀ g` joins the
-///   right-hand side (the viscous realisation).
+/// [`Ideal`] is the constraint itself (B, C); the realisations (crate
+/// `nonholo-realise`) write compliant rows, or none with the constraint
+/// acting through a force or through the field `ℓ`.
+pub trait GRows {
+    /// Whether `g`, `G` and `ġ₀` are evaluated before [`GRows::write`]
+    /// (not when `g` acts only through the field `ℓ`).
+    fn needs_g(&self) -> bool {
+        true
+    }
+
+    /// Baumgarte gains `(α, β)` of the holonomic rows (zero: `f̈ = 0`).
+    fn holonomic_gains(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
+    /// Writes rows and right-hand side `n..n + s` of the system, and may add
+    /// to the force part `rhs[..n]`; `cs` holds `g`, `G`, `ġ₀` if
+    /// [`GRows::needs_g`].
+    fn write<T: Scalar>(
+        &self,
+        n: usize,
+        cs: &ConstraintState<T>,
+        matrix: &mut DMatrix<T>,
+        rhs: &mut [T],
+    );
+}
+
+/// The ideal constraint, `G q̈ = −ġ₀ − 2α g`, with the holonomic rows
+/// `F q̈ = −f̈₀ − 2α ḟ − β² f`; the gains are those of Baumgarte
+/// stabilisation, zero otherwise (B, C).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GRows {
-    Ideal,
-    Compliant(f64),
-    Absent,
-    Viscous(f64),
+pub struct Ideal(pub Stabilisation);
+
+impl GRows for Ideal {
+    fn holonomic_gains(&self) -> (f64, f64) {
+        self.0.gains()
+    }
+
+    fn write<T: Scalar>(
+        &self,
+        n: usize,
+        cs: &ConstraintState<T>,
+        matrix: &mut DMatrix<T>,
+        rhs: &mut [T],
+    ) {
+        let alpha = self.0.gains().0;
+        cs.write_rows(0..cs.s, matrix, n);
+        for i in 0..cs.s {
+            rhs[n + i] = -cs.g_rate0[i] - cs.g[i] * (2.0 * alpha);
+        }
+    }
 }
 
 /// Workspace of the KKT solve over base scalar `T`.
@@ -71,6 +109,11 @@ impl<T: Scalar> Kkt<T> {
         }
     }
 
+    /// A workspace for the constraints of a scene.
+    pub fn for_scene(info: &SceneInfo) -> Self {
+        Kkt::new(info.n(), info.s(), info.k())
+    }
+
     /// `q̈` of the last solve.
     pub fn qdd(&self) -> &[T] {
         &self.sol[..self.n]
@@ -82,36 +125,18 @@ impl<T: Scalar> Kkt<T> {
     }
 
     /// Assembles and solves the system at `(t, q, q̇)` for the field `ell`
-    /// with parameters `p`; `what` names the formulation in messages.
+    /// with parameters `p`, the rows of `g` entering as `rows` says.
     #[allow(clippy::too_many_arguments)]
-    pub fn solve<F: ScalarField, S: Scene>(
+    pub fn solve<F: ScalarField, S: Scene, R: GRows>(
         &mut self,
         ell: &F,
         p: &[T],
         scene: &S,
-        stab: Stabilisation,
+        rows: &R,
         t: T,
         q: &[T],
         qd: &[T],
-        what: &str,
-    ) -> Result<(), SystemError> {
-        self.solve_rows(ell, p, scene, stab, GRows::Ideal, t, q, qd, what)
-    }
-
-    /// [`Kkt::solve`] with the rows of `g` entering as `rows` says.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve_rows<F: ScalarField, S: Scene>(
-        &mut self,
-        ell: &F,
-        p: &[T],
-        scene: &S,
-        stab: Stabilisation,
-        rows: GRows,
-        t: T,
-        q: &[T],
-        qd: &[T],
-        what: &str,
-    ) -> Result<(), SystemError> {
+    ) -> Result<(), Singular> {
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
@@ -124,45 +149,15 @@ impl<T: Scalar> Kkt<T> {
             &mut self.matrix.view_mut((0, 0), (n, n)),
             &mut self.sol[..n],
         );
-        let (alpha, beta) = stab.gains();
         if s > 0 {
-            // `g` and `G` are needed unless `g` enters through `ℓ` alone.
-            if rows != GRows::Absent {
+            if rows.needs_g() {
                 self.cs
                     .evaluate_nonholonomic(&mut self.jet, scene, t, q, qd);
             }
-            match rows {
-                GRows::Ideal => {
-                    self.cs.write_rows(0..s, &mut self.matrix, n);
-                    for i in 0..s {
-                        self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
-                    }
-                }
-                GRows::Compliant(c) => {
-                    self.cs.write_rows(0..s, &mut self.matrix, n);
-                    for i in 0..s {
-                        self.matrix[(n + i, n + i)] = T::from(-c);
-                        self.sol[n + i] = -self.cs.g_rate0[i];
-                    }
-                }
-                GRows::Absent | GRows::Viscous(_) => {
-                    if let GRows::Viscous(gain) = rows {
-                        // The friction force `−k Gᵀ g` joins `Q`.
-                        for i in 0..s {
-                            for j in 0..n {
-                                self.sol[j] -= self.cs.jac[(i, j)] * self.cs.g[i] * gain;
-                            }
-                        }
-                    }
-                    // No constraint row: `μ_g = 0` from an identity block.
-                    for i in 0..s {
-                        self.matrix[(n + i, n + i)] = T::from(1.0);
-                        self.sol[n + i] = T::from(0.0);
-                    }
-                }
-            }
+            rows.write(n, &self.cs, &mut self.matrix, &mut self.sol);
         }
         if k > 0 {
+            let (alpha, beta) = rows.holonomic_gains();
             self.cs.evaluate_holonomic(&mut self.jet, scene, t, q, qd);
             self.cs.write_rows(s..s + k, &mut self.matrix, n + s);
             for i in 0..k {
@@ -178,53 +173,5 @@ impl<T: Scalar> Kkt<T> {
             &mut self.scale,
             &mut self.sol,
         )
-        .map_err(|e| {
-            SystemError::new(format!(
-                "KKT system of {what} singular ({e}): constraints dependent, \
-                 or the kinetic energy degenerate on the admissible velocities"
-            ))
-        })?;
-        Ok(())
-    }
-}
-
-impl Kkt<Dual64> {
-    /// `∂f/∂y` into `jac` (row-major, `dim × dim`, `dim = y.len()`) for a
-    /// right-hand side `f(y) = (q̇, q̈, μ_g[..lambda_rows])` of
-    /// `y = (q, q̇, λ)` with `λ` of length `lambda_rows` (0: `y = (q, q̇)`):
-    /// `∂q̇/∂q̇ = I`, then per column `j` one dual pass of `solve` — which
-    /// solves this system at its dual `y` — seeded with `ẏ = e_j` in `y_dual`.
-    pub fn jacobian<F>(
-        &mut self,
-        y: &[f64],
-        y_dual: &mut [Dual64],
-        lambda_rows: usize,
-        jac: &mut [f64],
-        mut solve: F,
-    ) -> Result<(), SystemError>
-    where
-        F: FnMut(&mut Self, &[Dual64]) -> Result<(), SystemError>,
-    {
-        let n = self.n;
-        let dim = y.len();
-        debug_assert_eq!(dim, 2 * n + lambda_rows);
-        jac.fill(0.0);
-        for i in 0..n {
-            jac[i * dim + n + i] = 1.0;
-        }
-        for j in 0..dim {
-            for (d, &v) in y_dual.iter_mut().zip(y) {
-                *d = Dual64::from_re(v);
-            }
-            y_dual[j].eps = 1.0;
-            solve(self, &y_dual[..dim])?;
-            for i in 0..n {
-                jac[(n + i) * dim + j] = self.sol[i].eps;
-            }
-            for i in 0..lambda_rows {
-                jac[(2 * n + i) * dim + j] = self.sol[n + i].eps;
-            }
-        }
-        Ok(())
     }
 }

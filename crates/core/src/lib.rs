@@ -8,9 +8,12 @@
 //!   derivatives by automatic differentiation.
 //! * [`constraints`], [`project`]: constraint pieces at a state; projection
 //!   onto the constraint manifold.
+//! * [`kkt`]: the constrained-acceleration system of the formulations with
+//!   multipliers; [`binding`]: a formulation's equations bound to a scene.
 //! * [`model`], [`run`]: the formulation-independent view used by the lab.
 
 pub mod ad;
+pub mod binding;
 pub mod consistency;
 pub mod constraints;
 mod error;
@@ -26,9 +29,10 @@ pub mod run;
 pub mod scene;
 pub mod stab;
 
-pub use error::Error;
+pub use binding::{Binding, Equations, EvalError};
+pub use error::{Error, Level};
 pub use init::Initial;
-pub use model::{FormulationInfo, Model, Observation};
+pub use model::{Description, FormulationInfo, Model, Observation};
 pub use monitor::Diagnostics;
 pub use param::{Bound, Kind, ParamSpec, Params, Value};
 pub use run::{Run, RunConfig, RunStatus, simulate};

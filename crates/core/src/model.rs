@@ -48,9 +48,26 @@ impl Observation {
     }
 }
 
+/// What a model binds: the scene and the formulation, with their resolved
+/// parameters and options.
+#[derive(Debug, Clone, Copy)]
+pub struct Description<'a> {
+    pub scene: &'static SceneInfo,
+    pub formulation: &'static FormulationInfo,
+    /// Resolved scene parameters.
+    pub params: &'a Params,
+    /// Resolved formulation options.
+    pub options: &'a Params,
+}
+
 /// A formulation bound to a scene, ready to integrate: an explicit form
 /// `y' = f(t, y)`, an implicit form `F(t, y, y') = 0`, or both.
+///
+/// The formulations with a KKT right-hand side are [`crate::binding::Binding`]s of
+/// their [`crate::binding::Equations`]; formulation A implements it itself.
 pub trait Model: Send {
+    /// The scene and formulation this model binds.
+    fn describe(&self) -> Description<'_>;
     /// The explicit form, if the formulation has one.
     fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
         None
@@ -69,17 +86,28 @@ pub trait Model: Send {
     }
     /// Consistent `y'(t0)` for the implicit form, after [`Model::initial_state`].
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
-        Err(Error::Unavailable(format!(
-            "formulation `{}` has no implicit form",
-            self.formulation().name
-        )))
+        Err(Error::numerical(
+            "the initial slope",
+            format!(
+                "formulation `{}` has no implicit form",
+                self.formulation().name
+            ),
+        ))
     }
-    fn scene_info(&self) -> &'static SceneInfo;
-    fn formulation(&self) -> &'static FormulationInfo;
+    fn scene_info(&self) -> &'static SceneInfo {
+        self.describe().scene
+    }
+    fn formulation(&self) -> &'static FormulationInfo {
+        self.describe().formulation
+    }
     /// Resolved scene parameters.
-    fn scene_params(&self) -> &Params;
+    fn scene_params(&self) -> &Params {
+        self.describe().params
+    }
     /// Resolved formulation options.
-    fn options(&self) -> &Params;
+    fn options(&self) -> &Params {
+        self.describe().options
+    }
     /// Names of the reported multipliers (`lambda`, or `lambda1`, ...; `nu...`
     /// for holonomic constraints), empty if the formulation has none. By
     /// default one per constraint of the scene, `λ` then `ν`.

@@ -262,26 +262,36 @@ impl Params {
             .map(|i| self.values[i])
     }
 
-    /// The real value of `name`.
-    ///
-    /// # Panics
-    /// If `name` is not a real parameter of this set: a programming error in
-    /// the scene or formulation that asks, never a consequence of input.
-    pub fn real(&self, name: &str) -> f64 {
+    /// The real value of `name`; [`Error::UnknownName`] if this set has no
+    /// real parameter of that name.
+    pub fn real(&self, name: &str) -> Result<f64, Error> {
         match self.get(name) {
-            Some(Value::Real(x)) => x,
-            other => panic!("`{name}` is not a real parameter here (found {other:?})"),
+            Some(Value::Real(x)) => Ok(x),
+            _ => Err(self.unknown(name, "real parameter", |k| matches!(k, Kind::Real { .. }))),
         }
     }
 
-    /// The word chosen for `name`.
-    ///
-    /// # Panics
-    /// If `name` is not a choice parameter of this set (a programming error).
-    pub fn choice(&self, name: &str) -> &'static str {
+    /// The word chosen for `name`; [`Error::UnknownName`] if this set has no
+    /// choice parameter of that name.
+    pub fn choice(&self, name: &str) -> Result<&'static str, Error> {
         match self.get(name) {
-            Some(Value::Choice(c)) => c,
-            other => panic!("`{name}` is not a choice parameter here (found {other:?})"),
+            Some(Value::Choice(c)) => Ok(c),
+            _ => Err(self.unknown(name, "choice parameter", |k| matches!(k, Kind::Choice(_)))),
+        }
+    }
+
+    /// `name` is not a parameter of this set of the kind asked for: the
+    /// names that are.
+    fn unknown(&self, name: &str, what: &str, kind: impl Fn(Kind) -> bool) -> Error {
+        Error::UnknownName {
+            what: what.to_string(),
+            name: name.to_string(),
+            valid: self
+                .specs
+                .iter()
+                .filter(|s| kind(s.kind))
+                .map(|s| s.name.to_string())
+                .collect(),
         }
     }
 
@@ -328,10 +338,30 @@ mod tests {
     #[test]
     fn resolves_defaults_and_overrides() {
         let p = Params::resolve(SPECS, &given(&[("potential", "com")]), "parameter").unwrap();
-        assert_eq!(p.real("alpha"), 0.3);
-        assert_eq!(p.choice("potential"), "com");
+        assert_eq!(p.real("alpha"), Ok(0.3));
+        assert_eq!(p.choice("potential"), Ok("com"));
         let p = Params::resolve(SPECS, &given(&[("alpha", "30deg")]), "parameter").unwrap();
-        assert!((p.real("alpha") - std::f64::consts::PI / 6.0).abs() < 1e-15);
+        assert!((p.real("alpha").unwrap() - std::f64::consts::PI / 6.0).abs() < 1e-15);
+    }
+
+    /// Asking for a name the set does not have, or a real as a choice, is an
+    /// error naming the parameters of that kind, never a panic.
+    #[test]
+    fn access_by_a_wrong_name_or_kind_is_an_error() {
+        let p = Params::defaults(SPECS);
+        let e = p.real("alhpa").unwrap_err();
+        assert_eq!(
+            e,
+            Error::UnknownName {
+                what: "real parameter".into(),
+                name: "alhpa".into(),
+                valid: vec!["alpha".into()],
+            }
+        );
+        assert!(
+            matches!(p.choice("alpha"), Err(Error::UnknownName { valid, .. }) if valid == ["potential"])
+        );
+        assert!(p.real("potential").is_err());
     }
 
     #[test]

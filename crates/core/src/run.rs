@@ -151,11 +151,10 @@ pub fn simulate(
             &config.options,
         )
     } else {
-        return Err(Error::Unavailable(format!(
-            "formulation `{formulation}` is an implicit (differential-algebraic) system and \
-             `{}` integrates explicit ones only: use --integrator radau5",
-            config.method.name()
-        )));
+        return Err(Error::NoExplicitForm {
+            formulation,
+            method: config.method.name(),
+        });
     };
     let (mut solution, mut failure) = match result {
         Ok(s) => (s, None),

@@ -299,27 +299,6 @@ impl<S: Scene> ScalarField for Augmented<'_, S> {
     }
 }
 
-/// `L + (N/2) gᵀg` with `N = p[0]`: the Lagrangian of the added-mass
-/// realisation of the nonholonomic constraints (spec, "Realisations").
-pub struct Penalised<'a, S>(pub &'a S);
-
-impl<S: Scene> ScalarField for Penalised<'_, S> {
-    fn n(&self) -> usize {
-        self.0.info().n()
-    }
-    #[inline]
-    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], p: &[D]) -> D {
-        let s = self.0.info().s();
-        let mut g = [D::from(0.0); MAX_CONSTRAINTS];
-        self.0.nonholonomic(t, q, qd, &mut g[..s]);
-        let mut l = self.0.lagrangian(t, q, qd);
-        for gi in &g[..s] {
-            l += p[0] * *gi * *gi * 0.5;
-        }
-        l
-    }
-}
-
 /// The scene's nonholonomic constraints `g` as a [`VectorField`].
 pub struct Nonholonomic<'a, S>(pub &'a S);
 

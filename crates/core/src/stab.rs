@@ -3,6 +3,7 @@
 
 use nonholo_integrate::SystemError;
 
+use crate::Error;
 use crate::consistency::PROJECT_TOL;
 use crate::guard::{SingularGuard, magnitude};
 use crate::monitor::{Diagnostics, Monitor};
@@ -63,16 +64,21 @@ pub enum Stabilisation {
 }
 
 impl Stabilisation {
-    /// From options that include [`STAB`], [`BAUMGARTE_ALPHA`], [`BAUMGARTE_BETA`].
-    pub fn from_options(options: &Params) -> Self {
-        match options.choice("stab") {
+    /// From options that include [`STAB`], [`BAUMGARTE_ALPHA`],
+    /// [`BAUMGARTE_BETA`]; [`Stabilisation::None`] for options without
+    /// [`STAB`] (formulations that do not enforce the constraints).
+    pub fn from_options(options: &Params) -> Result<Self, Error> {
+        if options.get(STAB.name).is_none() {
+            return Ok(Stabilisation::None);
+        }
+        Ok(match options.choice(STAB.name)? {
             "baumgarte" => Stabilisation::Baumgarte {
-                alpha: options.real("baumgarte_alpha"),
-                beta: options.real("baumgarte_beta"),
+                alpha: options.real(BAUMGARTE_ALPHA.name)?,
+                beta: options.real(BAUMGARTE_BETA.name)?,
             },
             "projection" => Stabilisation::Projection,
             _ => Stabilisation::None,
-        }
+        })
     }
 
     /// Baumgarte gains `(α, β)`; zero unless Baumgarte is chosen.
@@ -97,28 +103,18 @@ pub struct StepHooks {
 }
 
 impl StepHooks {
-    /// From options that include the stabilisation options and [`SINGULAR_TOL`].
-    pub fn new<S: Scene>(scene: &S, options: &Params) -> Self {
-        let stab = Stabilisation::from_options(options);
-        StepHooks {
+    /// From options that include [`SINGULAR_TOL`] and, for formulations that
+    /// enforce the constraints, the stabilisation options (see
+    /// [`Stabilisation::from_options`]).
+    pub fn new<S: Scene>(scene: &S, options: &Params) -> Result<Self, Error> {
+        let stab = Stabilisation::from_options(options)?;
+        Ok(StepHooks {
             stab,
             projector: (stab == Stabilisation::Projection).then(|| Projector::new(scene)),
             monitor: Monitor::new(scene),
-            guard: SingularGuard::new(options.real("singular_tol")),
+            guard: SingularGuard::new(options.real(SINGULAR_TOL.name)?),
             r: [0.0; MAX_SINGULAR],
-        }
-    }
-
-    /// Diagnostics and the singular-set guard only, for formulations that do
-    /// not enforce the nonholonomic constraints (the realisations).
-    pub fn unstabilised<S: Scene>(scene: &S, singular_tol: f64) -> Self {
-        StepHooks {
-            stab: Stabilisation::None,
-            projector: None,
-            monitor: Monitor::new(scene),
-            guard: SingularGuard::new(singular_tol),
-            r: [0.0; MAX_SINGULAR],
-        }
+        })
     }
 
     /// Starts the diagnostics and the guard of a new run at the initial state.
@@ -198,49 +194,7 @@ impl StepHooks {
         )
     }
 
-    /// [`StepHooks::check_stage`] at a state `y` that begins with `(q, q̇)`.
-    pub fn check_stage_y<S: Scene>(
-        &mut self,
-        scene: &S,
-        t: f64,
-        y: &[f64],
-    ) -> Result<(), SystemError> {
-        let (q, qd) = split(scene, y);
-        self.check_stage(scene, t, q, qd)
-    }
-
-    /// [`StepHooks::after_step`] on a state `y` that begins with `(q, q̇)`
-    /// (what follows is left alone).
-    pub fn after_step_y<S: Scene>(
-        &mut self,
-        scene: &S,
-        t: f64,
-        y: &mut [f64],
-    ) -> Result<bool, SystemError> {
-        let n = scene.info().n();
-        let (q, rest) = y.split_at_mut(n);
-        self.after_step(scene, t, q, &mut rest[..n])
-    }
-
-    /// [`StepHooks::guard`] at a state `y` that begins with `(q, q̇)`.
-    pub fn guard_y<S: Scene>(&mut self, scene: &S, t: f64, y: &[f64]) -> Option<f64> {
-        let (q, qd) = split(scene, y);
-        self.guard(scene, t, q, qd)
-    }
-
-    /// [`StepHooks::guard_reason`] at a state `y` that begins with `(q, q̇)`.
-    pub fn guard_reason_y<S: Scene>(&mut self, scene: &S, t: f64, y: &[f64]) -> String {
-        let (q, qd) = split(scene, y);
-        self.guard_reason(scene, t, q, qd)
-    }
-
     pub fn diagnostics(&self) -> &Diagnostics {
         self.monitor.diagnostics()
     }
-}
-
-/// `(q, q̇)` at the front of a state `y`.
-fn split<'a, S: Scene>(scene: &S, y: &'a [f64]) -> (&'a [f64], &'a [f64]) {
-    let n = scene.info().n();
-    (&y[..n], &y[n..2 * n])
 }

@@ -23,7 +23,7 @@ use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::guard::{SingularGuard, magnitude};
 use nonholo_core::init::{ExtraName, lambda_names};
 use nonholo_core::integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
-use nonholo_core::model::{FormulationInfo, Model, Observation};
+use nonholo_core::model::{Description, FormulationInfo, Model, Observation};
 use nonholo_core::monitor::Monitor;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene, SceneInfo};
@@ -159,6 +159,14 @@ pub struct Embedding<S: Scene> {
     stop_z: Vec<f64>,
 }
 
+/// Initial data that contradict A's own equations.
+fn inconsistent(reason: String) -> Error {
+    Error::InconsistentInit {
+        formulation: INFO.name,
+        reason,
+    }
+}
+
 /// Names of the derivatives A accepts in `--init` for coordinate `c`.
 fn derivative_name(c: &str, order: usize) -> String {
     match order {
@@ -179,10 +187,10 @@ impl<S: Scene> Embedding<S> {
         let e = info.embedding.expect("checked by applicable");
         let (n, m) = (info.n(), e.independent.len());
         Ok(Embedding {
-            guard: SingularGuard::new(options.real("singular_tol")),
+            guard: SingularGuard::new(options.real(SINGULAR_TOL.name)?),
             r: [0.0; MAX_SINGULAR],
-            branch_map: options.choice("branch") == "map",
-            project_hidden: options.choice("stab") == "projection",
+            branch_map: options.choice(BRANCH.name)? == "map",
+            project_hidden: options.choice(STAB.name)? == "projection",
             options,
             e,
             n,
@@ -663,25 +671,21 @@ impl<S: Scene> Model for Embedding<S> {
 
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
         if self.yp0.is_empty() {
-            return Err(Error::Numerical("initial_state was not called".into()));
+            return Err(Error::numerical(
+                "the initial slope",
+                "initial_state was not called",
+            ));
         }
         Ok(self.yp0.clone())
     }
 
-    fn scene_info(&self) -> &'static SceneInfo {
-        self.scene.info()
-    }
-
-    fn formulation(&self) -> &'static FormulationInfo {
-        &INFO
-    }
-
-    fn scene_params(&self) -> &Params {
-        self.scene.params()
-    }
-
-    fn options(&self) -> &Params {
-        &self.options
+    fn describe(&self) -> Description<'_> {
+        Description {
+            scene: self.scene.info(),
+            formulation: &INFO,
+            params: self.scene.params(),
+            options: &self.options,
+        }
     }
 
     /// A has no multipliers.
@@ -736,18 +740,21 @@ impl<S: Scene> Model for Embedding<S> {
                 .iter()
                 .map(|&i| derivative_name(coords[i].name, 2))
                 .collect();
-            return Err(Error::InconsistentInit(format!(
-                "formulation A needs q̈_I(0): give {} (or `lambda`, from which they are matched \
-                 with the vakonomic motion)",
-                names.join(", ")
-            )));
+            return Err(Error::MissingInit {
+                formulation: INFO.letter,
+                needs: "q̈_I(0)".into(),
+                names,
+                hint: Some(
+                    "or `lambda`, from which they are matched with the vakonomic motion".into(),
+                ),
+            });
         }
         for k in 0..m {
             d[2 * m + k] = second[k].expect("checked");
         }
         let third_given = third.iter().all(Option::is_some);
         if third.iter().any(Option::is_some) && !third_given {
-            return Err(Error::InconsistentInit(
+            return Err(inconsistent(
                 "give every third derivative of the independent coordinates, or none".into(),
             ));
         }
@@ -778,7 +785,7 @@ impl<S: Scene> Model for Embedding<S> {
             }
             if diff.abs() > 1e-9 * (1.0 + init.q[i].abs()) && !self.branch_map {
                 {
-                    return Err(Error::InconsistentInit(format!(
+                    return Err(inconsistent(format!(
                         "the embedding map {} gives {} = {:.12} but {} = {} was given (difference \
                          {diff:.6}); for the sleigh this is backward motion, where the map turns \
                          the heading by π — pass --option branch=map to study that branch",
@@ -789,7 +796,7 @@ impl<S: Scene> Model for Embedding<S> {
             branch_shift.push(diff);
             let dd = qd[i] - init.qd[i];
             if dd.abs() > 1e-8 * (1.0 + init.qd[i].abs()) {
-                return Err(Error::InconsistentInit(format!(
+                return Err(inconsistent(format!(
                     "{}_dot = {} does not match the embedding map's rate {:.12} for the given \
                      second derivatives (eq. 15)",
                     coords[i].name, init.qd[i], qd[i]
@@ -820,7 +827,7 @@ impl<S: Scene> Model for Embedding<S> {
                 HIDDEN_CHECK_RTOL,
             )
             .map_err(|msg| {
-                Error::InconsistentInit(format!(
+                inconsistent(format!(
                     "the given third derivatives violate the hidden constraints of A: {msg}; \
                      omit them to have them computed"
                 ))
@@ -836,8 +843,8 @@ impl<S: Scene> Model for Embedding<S> {
             d.copy_from_slice(&check);
             checked = Some(c);
         }
-        let completion = complete(&self.scene, &self.e, t0, &mut d, true, HIDDEN_RTOL)
-            .map_err(Error::InconsistentInit)?;
+        let completion =
+            complete(&self.scene, &self.e, t0, &mut d, true, HIDDEN_RTOL).map_err(inconsistent)?;
         let sv_text = |c: &Completion| {
             c.third_singular_values
                 .iter()
@@ -846,7 +853,7 @@ impl<S: Scene> Model for Embedding<S> {
                 .join(", ")
         };
         if !third_given && !completion.third_unique {
-            return Err(Error::InconsistentInit(format!(
+            return Err(inconsistent(format!(
                 "q⃛_I(0) is not determined by (q, q̇, q̈) at this state: the hidden constraints' \
                  Jacobian in q⃛ has singular values [{}] relative to their gradient in \
                  (q, q̇, q̈, q⃛) (rank < {m}, threshold {RANK_TOL:.0e}), so the completion's q⃛ is \
@@ -867,7 +874,7 @@ impl<S: Scene> Model for Embedding<S> {
         if let Some(check) = checked
             && completion.third_change > 1e-6 * third_scale
         {
-            return Err(Error::InconsistentInit(format!(
+            return Err(inconsistent(format!(
                 "the given third derivatives satisfy A's hidden constraints to {:.3e} relative, \
                  but making them consistent to {HIDDEN_RTOL:.0e} moved them by {:.3e} \
                  (max(1, |q⃛|) = {third_scale:.3e}): q⃛ is ill-determined here (singular values \
@@ -885,9 +892,10 @@ impl<S: Scene> Model for Embedding<S> {
         self.reduction
             .reset(&self.scene, &self.e, t0, &d)
             .map_err(|msg| {
-                Error::Numerical(format!(
-                    "the derivative array of (19) at the initial state: {msg}"
-                ))
+                Error::numerical(
+                    "solving the derivative array of (19) at the initial state",
+                    msg,
+                )
             })?;
         if let Some(log) = self.hidden_log.as_mut() {
             log.clear();

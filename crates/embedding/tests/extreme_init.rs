@@ -300,7 +300,7 @@ fn zero_turning_rate_errors_name_the_singular_quantity() {
     let s = sleigh(0.4, 1.0);
     let y0 = c_state(0.2, 2.0, 0.0, 0.0);
     let msg = match embedding(&s).initial_state(&matched(&s, &y0, false)) {
-        Err(Error::InconsistentInit(msg)) => msg,
+        Err(Error::InconsistentInit { reason, .. }) => reason,
         other => panic!("{other:?}"),
     };
     eprintln!("{msg}");
@@ -321,7 +321,7 @@ fn zero_turning_rate_errors_name_the_singular_quantity() {
         ("y_ddot".into(), 2.0 * 0.2f64.sin()),
     ];
     let msg = match embedding(&s).initial_state(&init) {
-        Err(Error::InconsistentInit(msg)) => msg,
+        Err(Error::InconsistentInit { reason, .. }) => reason,
         other => panic!("{other:?}"),
     };
     eprintln!("{msg}");

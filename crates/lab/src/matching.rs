@@ -52,12 +52,15 @@ pub fn prepare_embedding(scene: &AnyScene, init: &mut Initial) -> Result<MatchRe
     let given_lambda = lambda_names.iter().any(|n| init.extra(n).is_some());
     let given_second = second.iter().any(|n| init.extra(n).is_some());
     if given_lambda && given_second {
-        return Err(Error::InconsistentInit(format!(
-            "give A's initial data either as {} (matched with the vakonomic motion) or as \
-             explicit derivatives {}, not both",
-            lambda_names.join(", "),
-            second.join(", ")
-        )));
+        return Err(Error::InconsistentInit {
+            formulation: "embedding",
+            reason: format!(
+                "give A's initial data either as {} (matched with the vakonomic motion) or as \
+                 explicit derivatives {}, not both",
+                lambda_names.join(", "),
+                second.join(", ")
+            ),
+        });
     }
     scene.clone().visit(Match {
         init,
@@ -87,7 +90,7 @@ impl SceneVisitor for Match<'_> {
         let dim = 2 * n + s;
         let mut y: Vec<f64> = self.init.q.iter().chain(&self.init.qd).copied().collect();
         let fail = |e: nonholo_core::integrate::SystemError| {
-            Error::Numerical(format!("matching A with the vakonomic motion failed: {e}"))
+            Error::numerical("matching A with the vakonomic motion", e)
         };
         let (mut yd, mut ydd, mut yddd) = (vec![0.0; dim], vec![0.0; dim], vec![0.0; dim]);
 
@@ -142,7 +145,7 @@ impl SceneVisitor for Match<'_> {
             let step = a
                 .svd(true, true)
                 .solve(&nalgebra::DVector::from_vec(r), 1e-12)
-                .map_err(|msg| Error::Numerical(format!("inverse map: {msg}")))?;
+                .map_err(|msg| Error::numerical("inverse map", msg))?;
             for j in 0..s {
                 y[2 * n + j] -= step[j];
             }

@@ -260,7 +260,7 @@ fn values_that_do_not_parse_or_are_out_of_range() {
             "a=0.5",
         ],
         2,
-        &["J = 0.1 must exceed a² = 0.25"],
+        &["J = 0.1, a = 0.5 violate J > a² = 0.25"],
     );
     fails_with(
         &["simulate", "--scene", "sleigh-incline", "--init", "u=fast"],

@@ -18,7 +18,7 @@
 //! its own, linear in `w`, which no longer turns with the configuration.
 //!
 //! Right-hand side: `q̈` from the KKT solve of the Cartesian form at
-//! `(q, T v)` (`GRows::Viscous(k)`), then `v̇ = T⁻¹(q̈ − Ṫ v)` with `Ṫ v` the
+//! `(q, T v)` ([`crate::rows::Viscous`]), then `v̇ = T⁻¹(q̈ − Ṫ v)` with `Ṫ v` the
 //! derivative of `T(q, t) v` along `(q̇, 1)` at fixed `v`, by one pass of the
 //! frame over dual numbers. Everything is generic over the scalar, so the
 //! Jacobian is the same code over `Dual64` (nested with the inner pass:
@@ -30,12 +30,14 @@
 
 use nalgebra::DMatrix;
 use nonholo_core::ad::Jet;
+use nonholo_core::binding::EvalError;
 use nonholo_core::integrate::SystemError;
-use nonholo_core::kkt::{GRows, Kkt};
+use nonholo_core::kkt::Kkt;
 use nonholo_core::linalg::Lu;
 use nonholo_core::scene::{ConstraintKind, Lagrangian, Nonholonomic, Scalar, Scene};
-use nonholo_core::stab::Stabilisation;
 use num_dual::Dual;
+
+use crate::rows::Viscous;
 
 const WHAT: &str = "formulation visc (form = adapted)";
 
@@ -169,7 +171,7 @@ impl<D: Scalar> Frame<D> {
 
 /// The adapted right-hand side over base scalar `T`: `(q̇, v̇)` from `(q, v)`.
 #[derive(Debug, Clone)]
-pub(crate) struct Rates<T: Scalar> {
+pub struct Rates<T: Scalar> {
     n: usize,
     k: f64,
     frame: Frame<T>,
@@ -258,18 +260,16 @@ impl<T: Scalar> Rates<T> {
         q: &[T],
         v: &[T],
         vd: &mut [T],
-    ) -> Result<(), SystemError> {
+    ) -> Result<(), EvalError> {
         let n = self.n;
-        self.kkt.solve_rows(
+        self.kkt.solve(
             &Lagrangian(scene),
             &[],
             scene,
-            Stabilisation::None,
-            GRows::Viscous(self.k),
+            &Viscous(self.k),
             t,
             q,
             &self.qd,
-            WHAT,
         )?;
         // Ṫ v: T(q + τ q̇, t + τ) v at fixed v, its τ-derivative.
         for i in 0..n {
@@ -288,22 +288,6 @@ impl<T: Scalar> Rates<T> {
         self.lu_t.solve(&self.t_lu, &mut self.b);
         vd.copy_from_slice(&self.b);
         Ok(())
-    }
-
-    /// `(q̇, v̇)` at `(t, y = (q, v))` into `dy`.
-    pub(crate) fn eval<S: Scene>(
-        &mut self,
-        scene: &S,
-        t: T,
-        y: &[T],
-        dy: &mut [T],
-    ) -> Result<(), SystemError> {
-        let n = self.n;
-        let (q, v) = y.split_at(n);
-        self.velocities(scene, t, q, v)?;
-        let (dq, dv) = dy.split_at_mut(n);
-        dq.copy_from_slice(&self.qd);
-        self.accelerations(scene, t, q, v, dv)
     }
 }
 

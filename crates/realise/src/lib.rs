@@ -13,6 +13,7 @@
 
 pub mod adapted;
 pub mod mass;
+pub mod rows;
 pub mod visc;
 
 pub use mass::Mass;

@@ -29,17 +29,19 @@
 //! compliance form starts with `λ(0) = λ0`. The multiplier reported is
 //! `λ` (compliance: the state; direct: `N g`), comparable with C's.
 
-use nonholo_core::consistency::{InitProjection, PROJECT_TOL, check_or_project};
+use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::consistency::PROJECT_TOL;
 use nonholo_core::init::{ExtraName, lambda_names, lambda0};
-use nonholo_core::integrate::{OdeSystem, RadauNewton, SystemError};
-use nonholo_core::kkt::{GRows, Kkt};
-use nonholo_core::model::{FormulationInfo, Model, Observation};
+use nonholo_core::integrate::RadauNewton;
+use nonholo_core::kkt::Kkt;
+use nonholo_core::model::FormulationInfo;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::project::Projector;
-use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Penalised, Scalar, Scene, SceneInfo};
-use nonholo_core::stab::{SINGULAR_TOL, Stabilisation, StepHooks};
-use nonholo_core::{Diagnostics, Error, Initial};
-use num_dual::Dual64;
+use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Scalar, ScalarField, Scene, SceneInfo};
+use nonholo_core::stab::{SINGULAR_TOL, Stabilisation};
+use nonholo_core::{Error, Initial};
+
+use crate::rows::{Absent, Compliant};
 
 /// The added-mass gain `N`.
 pub const N: ParamSpec = ParamSpec::real(
@@ -81,58 +83,42 @@ pub enum Form {
 }
 
 /// The added-mass realisation bound to a scene.
-pub struct Mass<S: Scene> {
-    scene: S,
-    options: Params,
+pub type Mass<S> = Binding<S, MassEquations>;
+
+/// The equations of `mass`: the form, the gain `N`, and the initial shift.
+#[derive(Debug, Clone, Copy)]
+pub struct MassEquations {
     gain: f64,
     form: Form,
-    n: usize,
-    s: usize,
-    kkt: Kkt<f64>,
-    kkt_dual: Kkt<Dual64>,
-    y_dual: Vec<Dual64>,
-    g: [f64; MAX_CONSTRAINTS],
-    hooks: StepHooks,
     /// `‖Δq̇0‖` of the initial shift to `g = λ0/N`.
     shift: f64,
 }
 
-impl<S: Scene> Mass<S> {
-    pub fn new(scene: S, options: Params) -> Result<Self, Error> {
-        let info = scene.info();
-        crate::applicable(info).map_err(|reason| Error::NotApplicable {
-            formulation: INFO.name.into(),
-            scene: info.name.into(),
-            reason,
-        })?;
-        let (n, s, k) = (info.n(), info.s(), info.k());
-        let form = match options.choice("form") {
-            "direct" => Form::Direct,
-            _ => Form::Compliance,
-        };
-        let dim = match form {
-            Form::Compliance => 2 * n + s,
-            Form::Direct => 2 * n,
-        };
-        Ok(Mass {
-            gain: options.real("N"),
-            form,
-            hooks: StepHooks::unstabilised(&scene, options.real("singular_tol")),
-            options,
-            n,
-            s,
-            kkt: Kkt::new(n, s, k),
-            kkt_dual: Kkt::new(n, s, k),
-            y_dual: vec![Dual64::from_re(0.0); dim],
-            g: [0.0; MAX_CONSTRAINTS],
-            shift: 0.0,
-            scene,
-        })
+impl MassEquations {
+    /// The form of the equations.
+    pub fn form(&self) -> Form {
+        self.form
     }
+}
 
-    /// The KKT solve at `y` (`(q, q̇, λ)` or `(q, q̇)`), results in `self.kkt`.
-    fn solve_at(&mut self, t: f64, y: &[f64]) -> Result<(), SystemError> {
-        solve(&mut self.kkt, &self.scene, self.form, self.gain, t, y)
+/// `L + (N/2) gᵀg` with `N = p[0]`: the Lagrangian of the added-mass
+/// realisation written directly.
+struct Penalised<'a, S>(&'a S);
+
+impl<S: Scene> ScalarField for Penalised<'_, S> {
+    fn n(&self) -> usize {
+        self.0.info().n()
+    }
+    #[inline]
+    fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], p: &[D]) -> D {
+        let s = self.0.info().s();
+        let mut g = [D::from(0.0); MAX_CONSTRAINTS];
+        self.0.nonholonomic(t, q, qd, &mut g[..s]);
+        let mut l = self.0.lagrangian(t, q, qd);
+        for gi in &g[..s] {
+            l += p[0] * *gi * *gi * 0.5;
+        }
+        l
     }
 }
 
@@ -145,83 +131,143 @@ fn solve<S: Scene, T: Scalar>(
     gain: f64,
     t: T,
     y: &[T],
-) -> Result<(), SystemError> {
+) -> Result<(), EvalError> {
     let n = scene.info().n();
     let (q, rest) = y.split_at(n);
     let (qd, lambda) = rest.split_at(n);
     match form {
-        Form::Compliance => kkt.solve_rows(
+        Form::Compliance => kkt.solve(
             &Augmented(scene),
             lambda,
             scene,
-            Stabilisation::None,
-            GRows::Compliant(1.0 / gain),
+            &Compliant(1.0 / gain),
             t,
             q,
             qd,
-            "formulation mass",
-        ),
-        Form::Direct => kkt.solve_rows(
+        )?,
+        Form::Direct => kkt.solve(
             &Penalised(scene),
             &[T::from(gain)],
             scene,
-            Stabilisation::None,
-            GRows::Absent,
+            &Absent,
             t,
             q,
             qd,
-            "formulation mass",
-        ),
+        )?,
     }
+    Ok(())
 }
 
-impl<S: Scene> OdeSystem for Mass<S> {
-    fn dim(&self) -> usize {
-        self.y_dual.len()
+impl Equations for MassEquations {
+    type Work<T: Scalar> = Kkt<T>;
+    const INFO: &'static FormulationInfo = &INFO;
+
+    fn new<S: Scene>(_scene: &S, options: &mut Params) -> Result<Self, Error> {
+        let form = match options.choice(FORM.name)? {
+            "direct" => Form::Direct,
+            _ => Form::Compliance,
+        };
+        Ok(MassEquations {
+            gain: options.real(N.name)?,
+            form,
+            shift: 0.0,
+        })
     }
 
-    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
-        let (n, s) = (self.n, self.s);
-        self.hooks.check_stage_y(&self.scene, t, y)?;
-        self.solve_at(t, y)?;
-        dy[..n].copy_from_slice(&y[n..2 * n]);
-        dy[n..2 * n].copy_from_slice(self.kkt.qdd());
+    fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
+        Kkt::for_scene(scene.info())
+    }
+
+    fn dim(&self, info: &SceneInfo) -> usize {
+        match self.form {
+            Form::Compliance => 2 * info.n() + info.s(),
+            Form::Direct => 2 * info.n(),
+        }
+    }
+
+    /// `q̈`, and `λ̇` in the compliance form.
+    fn accelerations<S: Scene, T: Scalar>(
+        &self,
+        scene: &S,
+        _stab: Stabilisation,
+        kkt: &mut Kkt<T>,
+        t: T,
+        y: &[T],
+        rest: &mut [T],
+    ) -> Result<(), EvalError> {
+        let info = scene.info();
+        let (n, s) = (info.n(), info.s());
+        solve(kkt, scene, self.form, self.gain, t, y)?;
+        rest[..n].copy_from_slice(kkt.qdd());
         if self.form == Form::Compliance {
-            dy[2 * n..].copy_from_slice(&self.kkt.mu()[..s]);
+            rest[n..].copy_from_slice(&kkt.mu()[..s]);
         }
         Ok(())
     }
 
-    /// `∂f/∂y`: the solve repeated with one dual direction per column of `y`.
-    fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut [f64]) -> Result<bool, SystemError> {
-        let (scene, form, gain) = (&self.scene, self.form, self.gain);
-        let lambda_rows = match form {
-            Form::Compliance => self.s,
-            Form::Direct => 0,
-        };
-        self.kkt_dual
-            .jacobian(y, &mut self.y_dual, lambda_rows, jac, |kkt, y| {
-                solve(kkt, scene, form, gain, Dual64::from_re(t), y)
+    /// `λ` (compliance: the state; direct: `N g`), then `ν` of holonomic
+    /// constraints from the solve.
+    fn multipliers<S: Scene>(
+        &self,
+        scene: &S,
+        _stab: Stabilisation,
+        kkt: &mut Kkt<f64>,
+        t: f64,
+        y: &[f64],
+        qd: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), EvalError> {
+        let info = scene.info();
+        let (n, s) = (info.n(), info.s());
+        match self.form {
+            Form::Compliance => out[..s].copy_from_slice(&y[2 * n..]),
+            Form::Direct => {
+                let mut g = [0.0; MAX_CONSTRAINTS];
+                scene.nonholonomic(t, &y[..n], qd, &mut g[..s]);
+                for (m, g) in out.iter_mut().zip(&g[..s]) {
+                    *m = self.gain * g;
+                }
+            }
+        }
+        if out.len() > s {
+            solve(kkt, scene, self.form, self.gain, t, y)?;
+            for (m, v) in out[s..].iter_mut().zip(&kkt.mu()[s..]) {
+                *m = -v;
+            }
+        }
+        Ok(())
+    }
+
+    /// `q̇0` moved, nearest in the kinetic-energy metric, to `g = λ0/N`;
+    /// the compliance form starts with `λ(0) = λ0`.
+    fn initial_state<S: Scene>(
+        &mut self,
+        scene: &S,
+        _kkt: &mut Kkt<f64>,
+        init: &Initial,
+    ) -> Result<Vec<f64>, Error> {
+        let lambda0 = lambda0(init, scene.info().s());
+        let target: Vec<f64> = lambda0.iter().map(|l| l / self.gain).collect();
+        let mut qd = init.qd.clone();
+        let shift = Projector::new(scene)
+            .shift_velocity(scene, init.t0, &init.q, &mut qd, &target, PROJECT_TOL)
+            .map_err(|e| {
+                Error::numerical(format!("mass: moving q̇0 to g = λ0/N = {target:?}"), e)
             })?;
-        Ok(true)
+        self.shift = shift.dqd_norm;
+        let mut y: Vec<f64> = init.q.iter().chain(&qd).copied().collect();
+        if self.form == Form::Compliance {
+            y.extend(&lambda0);
+        }
+        Ok(y)
     }
 
-    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        self.hooks.after_step_y(&self.scene, t, y)
-    }
-
-    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        self.hooks.guard_y(&self.scene, t, y)
-    }
-
-    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        self.hooks.guard_reason_y(&self.scene, t, y)
-    }
-}
-
-impl<S: Scene> Model for Mass<S> {
-    fn ode(&mut self) -> Option<&mut dyn OdeSystem> {
-        Some(self)
+    /// `lambda` (or `lambda1`, …): `λ0`, the limit multiplier; `g(0) = λ0/N`.
+    fn extra_init_names(&self, info: &SceneInfo) -> Vec<ExtraName> {
+        lambda_names(
+            info.s(),
+            "initial multiplier λ0 = N g(0) (the motion tends to C's with this λ0)",
+        )
     }
 
     /// The direct form's Jacobian turns with the state at rate ~N (as for
@@ -236,91 +282,7 @@ impl<S: Scene> Model for Mass<S> {
         }
     }
 
-    fn scene_info(&self) -> &'static SceneInfo {
-        self.scene.info()
-    }
-
-    fn formulation(&self) -> &'static FormulationInfo {
-        &INFO
-    }
-
-    fn scene_params(&self) -> &Params {
-        self.scene.params()
-    }
-
-    fn options(&self) -> &Params {
-        &self.options
-    }
-
-    /// `lambda` (or `lambda1`, …): `λ0`, the limit multiplier; `g(0) = λ0/N`.
-    fn extra_init_names(&self) -> Vec<ExtraName> {
-        lambda_names(
-            self.s,
-            "initial multiplier λ0 = N g(0) (the motion tends to C's with this λ0)",
-        )
-    }
-
-    /// The given data must satisfy the constraints (as for C); the shift to
-    /// `g = λ0/N` is part of the realisation and made in `initial_state`.
-    fn make_consistent(
-        &mut self,
-        init: &mut Initial,
-        project: bool,
-    ) -> Result<Option<InitProjection>, Error> {
-        check_or_project(&self.scene, init, project)
-    }
-
-    fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
-        let lambda0 = lambda0(init, self.s);
-        let target: Vec<f64> = lambda0.iter().map(|l| l / self.gain).collect();
-        let mut qd = init.qd.clone();
-        let shift = Projector::new(&self.scene)
-            .shift_velocity(&self.scene, init.t0, &init.q, &mut qd, &target, PROJECT_TOL)
-            .map_err(|e| {
-                Error::Numerical(format!(
-                    "mass: moving q̇0 to g = λ0/N = {target:?} failed: {e}"
-                ))
-            })?;
-        self.shift = shift.dqd_norm;
-        self.hooks.start(&self.scene, init.t0, &init.q, &qd);
-        let mut y: Vec<f64> = init.q.iter().chain(&qd).copied().collect();
-        if self.form == Form::Compliance {
-            y.extend(&lambda0);
-        }
-        Ok(y)
-    }
-
-    fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
-        let (n, s) = (self.n, self.s);
-        let (q, qd) = (&y[..n], &y[n..2 * n]);
-        obs.q.copy_from_slice(q);
-        obs.qd.copy_from_slice(qd);
-        if obs.multipliers.is_empty() {
-            return Ok(());
-        }
-        match self.form {
-            Form::Compliance => obs.multipliers[..s].copy_from_slice(&y[2 * n..]),
-            Form::Direct => {
-                self.scene.nonholonomic(t, q, qd, &mut self.g[..s]);
-                for (m, g) in obs.multipliers.iter_mut().zip(&self.g[..s]) {
-                    *m = self.gain * g;
-                }
-            }
-        }
-        if obs.multipliers.len() > s {
-            self.solve_at(t, y)?;
-            for (m, v) in obs.multipliers[s..].iter_mut().zip(&self.kkt.mu()[s..]) {
-                *m = -v;
-            }
-        }
-        Ok(())
-    }
-
     fn init_report(&self) -> Vec<(&'static str, f64)> {
         vec![("init_velocity_shift", self.shift)]
-    }
-
-    fn diagnostics(&self) -> Diagnostics {
-        self.hooks.diagnostics().clone()
     }
 }

@@ -441,16 +441,16 @@ fn adapted_form_refused_where_it_does_not_apply() {
 #[test]
 fn auto_form_resolves_per_scene_and_is_recorded() {
     let defaults = Params::defaults(visc::OPTIONS);
-    assert_eq!(defaults.choice("form"), "auto");
+    assert_eq!(defaults.choice("form"), Ok("auto"));
     let s: Sleigh = scene(&[]);
     let v = Visc::new(s, defaults.clone()).unwrap();
-    assert_eq!(v.form(), visc::Form::Adapted);
-    assert_eq!(v.options().choice("form"), "adapted");
+    assert_eq!(v.equations().form(), visc::Form::Adapted);
+    assert_eq!(v.options().choice("form"), Ok("adapted"));
     let d: RollingDisk = scene(&[]);
     let v = Visc::new(d, defaults.clone()).unwrap();
-    assert_eq!(v.form(), visc::Form::Adapted);
+    assert_eq!(v.equations().form(), visc::Form::Adapted);
     let a: AppellHamel = scene(&[]);
     let v = Visc::new(a, defaults).unwrap();
-    assert_eq!(v.form(), visc::Form::Cartesian);
-    assert_eq!(v.options().choice("form"), "cartesian");
+    assert_eq!(v.equations().form(), visc::Form::Cartesian);
+    assert_eq!(v.options().choice("form"), Ok("cartesian"));
 }

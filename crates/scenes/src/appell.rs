@@ -100,9 +100,9 @@ impl Scene for AppellHamel {
     fn from_params(params: &Params) -> Result<Self, Error> {
         Ok(AppellHamel {
             params: params.clone(),
-            m: params.real("m"),
-            g: params.real("g"),
-            c: params.real("c"),
+            m: params.real("m")?,
+            g: params.real("g")?,
+            c: params.real("c")?,
         })
     }
 

@@ -93,10 +93,10 @@ impl Scene for RollingDisk {
     fn from_params(params: &Params) -> Result<Self, Error> {
         Ok(RollingDisk {
             params: params.clone(),
-            m: params.real("m"),
-            i: params.real("I"),
-            jr: params.real("Jr"),
-            r: params.real("R"),
+            m: params.real("m")?,
+            i: params.real("I")?,
+            jr: params.real("Jr")?,
+            r: params.real("R")?,
         })
     }
 

@@ -77,9 +77,9 @@ impl Scene for Pendulum {
     fn from_params(params: &Params) -> Result<Self, Error> {
         Ok(Pendulum {
             params: params.clone(),
-            m: params.real("m"),
-            g: params.real("g"),
-            l: params.real("l"),
+            m: params.real("m")?,
+            g: params.real("g")?,
+            l: params.real("l")?,
         })
     }
 

@@ -124,22 +124,24 @@ impl Scene for Sleigh {
     const INFO: &'static SceneInfo = &INFO;
 
     fn from_params(params: &Params) -> Result<Self, Error> {
-        let (j, a) = (params.real("J"), params.real("a"));
+        let (j, a) = (params.real("J")?, params.real("a")?);
         if j <= a * a {
-            return Err(Error::InconsistentParams(format!(
-                "J = {j} must exceed a² = {}: J is the squared radius of gyration about the blade, \
-                 ρ² + a², and the mass matrix has determinant m³(J − a²)",
-                a * a
-            )));
+            return Err(Error::InconsistentParams {
+                requirement: format!("J > a² = {}", a * a),
+                values: vec![("J".into(), j), ("a".into(), a)],
+                why: "J is the squared radius of gyration about the blade, ρ² + a², and the mass \
+                      matrix has determinant m³(J − a²)"
+                    .into(),
+            });
         }
         Ok(Sleigh {
             params: params.clone(),
-            m: params.real("m"),
+            m: params.real("m")?,
             j,
             a,
-            g: params.real("g"),
-            alpha: params.real("alpha"),
-            potential: match params.choice("potential") {
+            g: params.real("g")?,
+            alpha: params.real("alpha")?,
+            potential: match params.choice("potential")? {
                 "com" => Potential::Com,
                 _ => Potential::Paper,
             },

@@ -2,8 +2,8 @@
 #![allow(dead_code)]
 
 use nonholo_chetaev::{Chetaev, OPTIONS};
-use nonholo_core::integrate::{Method, Options};
-use nonholo_core::{Params, Run, RunConfig, Scene, init, simulate};
+use nonholo_core::integrate::{Method, OdeSystem, Options, SystemError};
+use nonholo_core::{Model, Observation, Params, Run, RunConfig, Scene, init, simulate};
 
 pub fn pairs(items: &[(&str, &str)]) -> Vec<(String, String)> {
     items
@@ -70,4 +70,27 @@ pub fn fitted_order(h: &[f64], err: &[f64]) -> f64 {
     let sxy: f64 = x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum();
     let sxx: f64 = x.iter().map(|a| (a - mx) * (a - mx)).sum();
     sxy / sxx
+}
+
+/// `q̈` into `qdd` and `λ` then `ν` into `multipliers` (as many as given) of
+/// B at `(t, q, q̇)`: the right-hand side and the observation of the model.
+pub fn accelerations<S: Scene>(
+    b: &mut Chetaev<S>,
+    t: f64,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &mut [f64],
+    multipliers: &mut [f64],
+) -> Result<(), SystemError> {
+    let n = q.len();
+    let y: Vec<f64> = q.iter().chain(qd).copied().collect();
+    let mut dy = vec![0.0; 2 * n];
+    b.rhs(t, &y, &mut dy)?;
+    qdd.copy_from_slice(&dy[n..]);
+    let mut obs = Observation::new(n, b.multiplier_names().len());
+    b.observe(t, &y, &mut obs)?;
+    for (m, v) in multipliers.iter_mut().zip(&obs.multipliers) {
+        *m = *v;
+    }
+    Ok(())
 }

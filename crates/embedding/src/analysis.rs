@@ -77,20 +77,60 @@ pub fn derivative_array<S: Scene>(
     }
 }
 
+/// Largest number of QR sweeps of an SVD before it is given up as not
+/// converging (nalgebra iterates for ever by default: with a NaN entry it
+/// never converges). Converging decompositions of the small matrices here
+/// take a few dozen.
+const SVD_MAX_ITER: usize = 10_000;
+
+/// The singular value decomposition of `a`, or why there is none: entries
+/// that are not finite (the equations evaluated on the singular set of the
+/// embedding map), or no convergence within [`SVD_MAX_ITER`] sweeps.
+pub fn svd_of(
+    a: DMatrix<f64>,
+    compute_u: bool,
+    compute_v: bool,
+) -> Result<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, String> {
+    if let Some(((i, j), v)) = a
+        .iter()
+        .enumerate()
+        .map(|(k, v)| ((k % a.nrows(), k / a.nrows()), v))
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(format!(
+            "the equations are not finite here (entry ({i}, {j}) of a {}×{} Jacobian is {v})",
+            a.nrows(),
+            a.ncols()
+        ));
+    }
+    let (r, c) = a.shape();
+    a.try_svd(compute_u, compute_v, f64::EPSILON, SVD_MAX_ITER)
+        .ok_or_else(|| format!("the SVD of a {r}×{c} Jacobian did not converge"))
+}
+
+/// Numerical rank, the singular values (largest first), and the last kept
+/// and first dropped of them.
+type Rank = (usize, Vec<f64>, (f64, f64));
+
 /// Numerical rank and the singular values on either side of the threshold.
-fn rank(a: &DMatrix<f64>) -> (usize, Vec<f64>, (f64, f64)) {
-    let sv = a.clone().svd(false, false).singular_values;
+fn rank(a: &DMatrix<f64>) -> Result<Rank, String> {
+    let sv = svd_of(a.clone(), false, false)?.singular_values;
     let mut s: Vec<f64> = sv.iter().copied().collect();
     s.sort_by(|x, y| y.total_cmp(x));
     let top = s.first().copied().unwrap_or(0.0);
     let r = s.iter().filter(|&&v| v > RANK_TOL * top).count();
     let kept = if r > 0 { s[r - 1] } else { 0.0 };
     let dropped = s.get(r).copied().unwrap_or(0.0);
-    (r, s, (kept, dropped))
+    Ok((r, s, (kept, dropped)))
 }
 
 /// Structure of the equations at a consistent point `d` (7m numbers).
-pub fn structure<S: Scene>(scene: &S, e: &EmbeddingInfo, t: f64, d: &[f64]) -> Structure {
+pub fn structure<S: Scene>(
+    scene: &S,
+    e: &EmbeddingInfo,
+    t: f64,
+    d: &[f64],
+) -> Result<Structure, String> {
     let m = e.independent.len();
     let mut value = vec![0.0; LEVELS * m];
     let mut jac = DMatrix::zeros(LEVELS * m, 7 * m);
@@ -98,21 +138,21 @@ pub fn structure<S: Scene>(scene: &S, e: &EmbeddingInfo, t: f64, d: &[f64]) -> S
     let b = balanced(&jac, d);
     // W alone, scaled like its own entries (it is symmetric, no row terms needed).
     let w = jac.view((0, 4 * m), (m, m)).clone_owned();
-    let (rank_w, w_sv, gap_w) = rank(&w);
-    let (rank_all, _, gap_all) = rank(&b);
+    let (rank_w, w_sv, gap_w) = rank(&w)?;
+    let (rank_all, _, gap_all) = rank(&b)?;
     let ju = b.view((0, 4 * m), (LEVELS * m, 3 * m)).clone_owned();
-    let (rank_u, _, gap_u) = rank(&ju);
+    let (rank_u, _, gap_u) = rank(&ju)?;
     let hidden = rank_all - rank_u;
     let kept = gap_w.0.min(gap_all.0).min(gap_u.0);
     let dropped = gap_w.1.max(gap_all.1).max(gap_u.1);
-    Structure {
+    Ok(Structure {
         m,
         rank_w,
         hidden_constraints: hidden,
         free_initial_data: 4 * m - hidden,
         w_singular_values: w_sv,
         rank_gap: (kept, dropped),
-    }
+    })
 }
 
 /// Outcome of a consistent completion.
@@ -239,7 +279,7 @@ pub fn complete<S: Scene>(
         });
         let rs = DVector::from_fn(rows, |l, _| value[l] / scales[l]);
         let current = objective(&value, &scales);
-        let svd = js.svd(true, true);
+        let svd = svd_of(js, true, true)?;
         let (u, vt) = (
             svd.u.as_ref().expect("u requested"),
             svd.v_t.as_ref().expect("v_t requested"),
@@ -289,7 +329,7 @@ pub fn complete<S: Scene>(
         ));
     }
     let (third_unique, third_singular_values) = if move_third {
-        let sv = third_determination(&jac, d, m);
+        let sv = third_determination(&jac, d, m)?;
         let unique = sv.last().is_some_and(|&s| s > RANK_TOL);
         (unique, sv)
     } else {
@@ -323,7 +363,9 @@ fn unreachable_text(
     let (rows, unknowns) = (jac.nrows(), jac.ncols() - first);
     let js = DMatrix::from_fn(rows, unknowns, |l, k| jac[(l, first + k)] / scales[l]);
     let rs = DVector::from_fn(rows, |l, _| value[l] / scales[l]);
-    let svd = js.svd(true, false);
+    let Ok(svd) = svd_of(js, true, false) else {
+        return String::new();
+    };
     let u = svd.u.as_ref().expect("u requested");
     let top = svd.singular_values.max();
     let mut reachable = DVector::zeros(rows);
@@ -380,13 +422,13 @@ fn unreachable_text(
 /// `(φ̈, ü)` is `[[−Jω/u, 0], [2Jφ̈/u, 1]]`, determinant `−Jω/u`: at `ω = 0`
 /// it has rank 1, `h₁` no longer involves `q⃛` (it fixes `u̇ = g_s cos φ`
 /// instead) and `φ̈` — C's `λ(0)` — is free.
-pub fn third_determination(jac: &DMatrix<f64>, d: &[f64], m: usize) -> Vec<f64> {
+pub fn third_determination(jac: &DMatrix<f64>, d: &[f64], m: usize) -> Result<Vec<f64>, String> {
     let b = balanced(jac, d);
     let rows = b.nrows();
     let bu = b.view((0, 4 * m), (rows, 3 * m)).clone_owned();
     let mut bu_sq = DMatrix::zeros(rows.max(3 * m), 3 * m);
     bu_sq.view_mut((0, 0), (rows, 3 * m)).copy_from(&bu);
-    let svd = bu_sq.svd(true, false);
+    let svd = svd_of(bu_sq, true, false)?;
     let u = svd.u.expect("u requested");
     let sv = &svd.singular_values;
     let top = sv.max();
@@ -396,17 +438,16 @@ pub fn third_determination(jac: &DMatrix<f64>, d: &[f64], m: usize) -> Vec<f64> 
         .collect();
     let mut out = vec![0.0; m];
     if null.is_empty() {
-        return out;
+        return Ok(out);
     }
     let h = DMatrix::from_fn(rows, null.len(), |l, k| u[(l, null[k])]);
     let hz = h.tr_mul(&b.view((0, 0), (rows, 4 * m)).clone_owned());
     let hq = hz.view((0, 3 * m), (null.len(), m)).clone_owned();
-    let scale = hz.svd(false, false).singular_values.max();
+    let scale = svd_of(hz, false, false)?.singular_values.max();
     if scale == 0.0 {
-        return out;
+        return Ok(out);
     }
-    let mut s: Vec<f64> = hq
-        .svd(false, false)
+    let mut s: Vec<f64> = svd_of(hq, false, false)?
         .singular_values
         .iter()
         .copied()
@@ -415,5 +456,5 @@ pub fn third_determination(jac: &DMatrix<f64>, d: &[f64], m: usize) -> Vec<f64> 
     for (o, v) in out.iter_mut().zip(s) {
         *o = v / scale;
     }
-    out
+    Ok(out)
 }

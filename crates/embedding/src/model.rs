@@ -30,7 +30,7 @@ use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene, SceneInfo};
 use nonholo_core::{Diagnostics, Error, Initial};
 use num_dual::{Dual2, Dual2_64, Dual64};
 
-use crate::analysis::{Completion, RANK_TOL, Structure, complete, structure};
+use crate::analysis::{Completion, RANK_TOL, Structure, complete, structure, svd_of};
 use crate::elo::{MAX_DOF, elo_array, reconstruct};
 use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
 
@@ -234,7 +234,9 @@ impl<S: Scene> Embedding<S> {
                     w[(mu, j)] = self.e_dual[mu].eps;
                 }
             }
-            let svd = w.svd(true, true);
+            let Ok(svd) = svd_of(w, true, true) else {
+                return;
+            };
             let top = svd.singular_values.max();
             let Ok(delta) = svd.solve(
                 &nalgebra::DVector::from_column_slice(&self.e_out),
@@ -764,6 +766,21 @@ impl<S: Scene> Model for Embedding<S> {
             }
         }
 
+        // The map has no value on its singular set (the sleigh at zero
+        // speed): nothing below can be evaluated there.
+        let p = self
+            .scene
+            .embedding_singularity(t0, &d[..m], &d[m..2 * m], &mut self.r);
+        let size = magnitude(&self.r, p);
+        if p > 0 && (size.is_nan() || size <= self.guard.tol) {
+            return Err(inconsistent(format!(
+                "the initial state lies on the singular set of the embedding map {} — {} \
+                 (|r| = {size:.3e}, singular_tol = {:.1e}): the map gives no dependent \
+                 coordinates there; start A away from it",
+                self.e.formula, self.e.singular_set, self.guard.tol
+            )));
+        }
+
         // The dependent coordinates are the map's: check the given ones.
         let mut q = vec![0.0; self.n];
         let mut qd = vec![0.0; self.n];
@@ -885,7 +902,7 @@ impl<S: Scene> Model for Embedding<S> {
                 sv_text(&completion)
             )));
         }
-        let structure = structure(&self.scene, &self.e, t0, &d);
+        let structure = structure(&self.scene, &self.e, t0, &d).map_err(inconsistent)?;
         self.polish_fourth(t0, &mut d);
         // The explicit form starts from the same completion: its u is the
         // first warm start, and the rank of ∂D/∂u is fixed here.

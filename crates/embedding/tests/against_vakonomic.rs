@@ -173,7 +173,7 @@ fn sleigh_structure_and_completion() {
                     d[6 + k]
                 );
             }
-            let st = structure(&s, &e, 0.0, &d);
+            let st = structure(&s, &e, 0.0, &d).unwrap();
             assert_eq!(
                 (st.rank_w, st.hidden_constraints, st.free_initial_data),
                 (1, 2, 6),

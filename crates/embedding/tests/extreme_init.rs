@@ -200,7 +200,7 @@ fn zero_turning_rate_leaves_third_derivatives_free() {
         let mut v = vec![0.0; 6];
         let mut jac = DMatrix::zeros(6, 14);
         derivative_array(&s, &e, 0.0, &d, &mut v, &mut jac);
-        let sv = third_determination(&jac, &d, 2);
+        let sv = third_determination(&jac, &d, 2).unwrap();
         eprintln!("ω = {omega:e}: singular values of the hidden constraints in q⃛ {sv:?}");
         assert!(sv[0] > 0.05, "{sv:?}");
         smallest.push(sv[1]);
@@ -330,4 +330,34 @@ fn zero_turning_rate_errors_name_the_singular_quantity() {
         "{msg}"
     );
     assert!(!msg.contains("starting guess"), "{msg}");
+}
+
+/// Zero speed, where the map `φ = atan2(ẏ, ẋ)` has no value: refused at
+/// once with the distance from the singular set (it used to send nalgebra's
+/// SVD into an endless loop on the non-finite derivative array).
+#[test]
+fn zero_speed_is_refused_not_looped_on() {
+    let s = sleigh(0.4, 1.0);
+    let y0 = c_state(0.2, 0.0, 0.7, 0.0);
+    let msg = match embedding(&s).initial_state(&matched(&s, &y0, false)) {
+        Err(Error::InconsistentInit { reason, .. }) => reason,
+        other => panic!("{other:?}"),
+    };
+    assert!(msg.contains("singular set of the embedding map"), "{msg}");
+    assert!(
+        msg.contains("|r| = 0.000e0, singular_tol = 1.0e-3"),
+        "{msg}"
+    );
+}
+
+/// The decomposition behind A's structure analysis refuses non-finite
+/// matrices instead of iterating on them.
+#[test]
+fn svd_of_a_non_finite_matrix_is_an_error() {
+    let mut a = DMatrix::from_element(3, 2, 1.0);
+    a[(2, 1)] = f64::NAN;
+    let e = nonholo_embedding::analysis::svd_of(a, true, true).unwrap_err();
+    assert!(e.contains("entry (2, 1)") && e.contains("NaN"), "{e}");
+    let ok = nonholo_embedding::analysis::svd_of(DMatrix::identity(3, 3), false, false).unwrap();
+    assert_eq!(ok.singular_values.as_slice(), &[1.0, 1.0, 1.0]);
 }

@@ -11,6 +11,7 @@
 
 use nonholo_core::integrate::OdeSystem;
 use nonholo_core::{Error, Initial, Params, Scene};
+use nonholo_embedding::analysis::svd_of;
 use nonholo_scenes::{AnyScene, SceneVisitor};
 use nonholo_vakonomic::Vakonomic;
 
@@ -142,9 +143,11 @@ impl SceneVisitor for Match<'_> {
             let a = nalgebra::DMatrix::from_fn(m, s, |k, j| {
                 jac[(n + e.independent[k]) * dim + 2 * n + j]
             });
-            let step = a
-                .svd(true, true)
-                .solve(&nalgebra::DVector::from_vec(r), 1e-12)
+            let step = svd_of(a, true, true)
+                .and_then(|svd| {
+                    svd.solve(&nalgebra::DVector::from_vec(r), 1e-12)
+                        .map_err(str::to_string)
+                })
                 .map_err(|msg| Error::numerical("inverse map", msg))?;
             for j in 0..s {
                 y[2 * n + j] -= step[j];

@@ -38,7 +38,7 @@ mod system;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
-pub use options::{Method, Options, RadauNewton};
+pub use options::{Method, Options, Radau5Options, RadauNewton};
 pub use solution::{Solution, Stats};
 pub use system::{ImplicitSystem, OdeSystem};
 

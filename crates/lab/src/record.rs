@@ -239,7 +239,7 @@ impl RunRecord {
                 radau_newton: cfg
                     .method
                     .is_implicit()
-                    .then(|| cfg.options.radau_newton.name().to_string()),
+                    .then(|| cfg.options.radau5.newton.name().to_string()),
             },
             params: params_json(run.model.scene_params()),
             options: params_json(run.model.options()),

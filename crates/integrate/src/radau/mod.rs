@@ -872,21 +872,21 @@ impl Work {
 /// Checks the Radau-specific options and the implicit initial data.
 fn validate_radau(opts: &Options, yp0: Option<&[f64]>, index: &[u8]) -> Result<(), String> {
     let n = index.len();
-    if opts.newton_max_iter == 0 {
+    if opts.radau5.newton_max_iter == 0 {
         return Err("newton_max_iter must be at least 1".into());
     }
-    if let Some(f) = opts.newton_tol {
+    if let Some(f) = opts.radau5.newton_tol {
         if !(f > 0.0 && f.is_finite()) {
             return Err(format!("newton_tol = {f} must be positive and finite"));
         }
     }
-    if opts.jacobian_reuse.is_nan() || opts.jacobian_reuse >= 1.0 {
+    if opts.radau5.jacobian_reuse.is_nan() || opts.radau5.jacobian_reuse >= 1.0 {
         return Err(format!(
             "jacobian_reuse = {} must be < 1",
-            opts.jacobian_reuse
+            opts.radau5.jacobian_reuse
         ));
     }
-    let (lo, hi) = opts.keep_step;
+    let (lo, hi) = opts.radau5.keep_step;
     if !(lo > 0.0 && lo <= 1.0 && hi >= 1.0 && hi.is_finite()) {
         return Err(format!(
             "keep_step = ({lo}, {hi}) must satisfy 0 < lo <= 1 <= hi < ∞"
@@ -1026,14 +1026,15 @@ fn run<P: Problem>(
     let atol: Vec<f64> = atol_user.iter().map(|a| rtol * a / opts.rtol).collect();
     let tol = Tol { rtol, atol: &atol };
     let np = NewtonParams {
-        nit: opts.newton_max_iter,
+        nit: opts.radau5.newton_max_iter,
         fnewt: opts
+            .radau5
             .newton_tol
             .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
-        thet: opts.jacobian_reuse,
+        thet: opts.radau5.jacobian_reuse,
         fixed: opts.fixed_step.is_some(),
     };
-    let (quot1, quot2) = opts.keep_step;
+    let (quot1, quot2) = opts.radau5.keep_step;
     // Step-size controller of RADAU5: SAFE, FACL, FACR, CFAC.
     let (safe, facl, facr) = (0.9, 5.0, 1.0 / 8.0);
     let cfac = safe * (1 + 2 * np.nit) as f64;
@@ -1041,7 +1042,7 @@ fn run<P: Problem>(
     let span = t_end - t0;
     let hmax = opts.h_max.unwrap_or(span);
     let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
-    let mut w = Work::new(n, P::IDENTITY_JP, opts.radau_newton == RadauNewton::Full);
+    let mut w = Work::new(n, P::IDENTITY_JP, opts.radau5.newton == RadauNewton::Full);
     // Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
     let full = w.full.is_some();
     let mut h = match (fixed, opts.h_init) {

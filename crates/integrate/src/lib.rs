@@ -31,15 +31,22 @@ mod dense;
 mod driver;
 mod error;
 mod explicit;
+mod guard;
 mod options;
 mod radau;
+mod record;
 mod solution;
+mod stop;
 mod system;
+mod validate;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
+pub use explicit::ExplicitRk;
 pub use options::{Method, Options, Radau5Options, RadauNewton};
+pub use radau::{Radau5, Radau5Implicit};
 pub use solution::{Solution, Stats};
+pub use stop::StopReason;
 pub use system::{ImplicitSystem, OdeSystem};
 
 /// Integrates `sys` from `(t0, y0)` to `t_end` with `method` and `opts`.
@@ -84,8 +91,8 @@ pub fn solve<S: OdeSystem + ?Sized>(
     opts: &Options,
 ) -> Result<Solution, Failure> {
     match method {
-        Method::Radau5 => radau::solve_ode(sys, t0, y0, t_end, opts),
-        _ => explicit::solve(method, sys, t0, y0, t_end, opts),
+        Method::Radau5 => Radau5::new(sys, t0, y0, t_end, opts)?.solve(),
+        _ => ExplicitRk::new(method, sys, t0, y0, t_end, opts)?.solve(),
     }
 }
 
@@ -112,5 +119,5 @@ pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     t_end: f64,
     opts: &Options,
 ) -> Result<Solution, Failure> {
-    radau::solve_implicit(sys, t0, y0, yp0, t_end, opts)
+    Radau5Implicit::new(sys, t0, y0, yp0, t_end, opts)?.solve()
 }

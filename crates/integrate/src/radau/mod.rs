@@ -1,8 +1,9 @@
 //! RADAU5 — the implicit Runge–Kutta method Radau IIA of order 5 with
 //! step-size control and continuous output, for stiff ODEs `y' = f(t, y)`
-//! ([`crate::solve`] with [`Method::Radau5`]) and fully implicit systems
-//! `F(t, y, y') = 0`, including differential-algebraic equations of index
-//! up to 3 ([`crate::solve_implicit`]).
+//! ([`crate::solve`] with [`Method::Radau5`]; solver state [`Radau5`]) and
+//! fully implicit systems `F(t, y, y') = 0`, including
+//! differential-algebraic equations of index up to 3
+//! ([`crate::solve_implicit`]; solver state [`Radau5Implicit`]).
 //!
 //! **Reference.** E. Hairer & G. Wanner, *Solving Ordinary Differential
 //! Equations II. Stiff and Differential-Algebraic Problems*, 2nd ed.,
@@ -69,7 +70,7 @@
 //!   rejection `J` is recomputed only if it was not taken at the current
 //!   state.
 //!
-//! **Full Newton iteration** (`Options::radau_newton =`
+//! **Full Newton iteration** (`Options::radau5.newton =`
 //! [`RadauNewton::Full`]). The same stage equations, unknowns `Z`, same
 //! starting values; each iteration evaluates `J_k`, `J'_k` at the three
 //! stage points `(t_n + c_k h, y_n + Z_k, Y'_k)`, `Y'_k = h⁻¹ Σ_j (A⁻¹)_kj Z_j`
@@ -184,23 +185,23 @@
 //! from the values at the nodes) for `Options::dense`, output samples,
 //! guard location and the Newton starting values.
 //!
-//! # Options (all of [`Options`])
+//! # Settings ([`Options`], and [`crate::Radau5Options`] in `Options::radau5`)
 //!
-//! | option | meaning here | default |
+//! | setting | meaning here | default |
 //! |---|---|---|
 //! | `rtol`, `atol` | tolerances, transformed as above | `1e-6`, `1e-6` |
+//! | `atol_components` | per-component `atol` (transformed like `atol`) | `None` |
 //! | `fixed_step` | fixed step mode | `None` |
 //! | `h_init` | first step | `HINIT` / first guess |
 //! | `h_max` | largest step | `t_end − t0` |
 //! | `max_steps` | budget on trial steps (accepted + rejected) | `10⁷` |
 //! | `max_wall_time_s` | budget, checked every 8 trial steps | `None` |
-//! | `output`, `dense` | samples and continuous extension, as for the explicit methods | `[]`, `true` |
-//! | `newton_max_iter` | `NIT` | 7 |
-//! | `newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
-//! | `jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
-//! | `keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
-//! | `radau_newton` | simplified (RADAU5) or full Newton iteration | `Simplified` |
-//! | `atol_components` | per-component `atol` (transformed like `atol`) | `None` |
+//! | `output`, `dense`, `hit_output` | samples and continuous extension, as for the explicit methods | `[]`, `true`, `false` |
+//! | `radau5.newton` | simplified (RADAU5) or full Newton iteration | `Auto` (here: simplified) |
+//! | `radau5.newton_max_iter` | `NIT` | 7 |
+//! | `radau5.newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
+//! | `radau5.jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
+//! | `radau5.keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
 //!
 //! # Counters ([`Stats`])
 //!
@@ -232,10 +233,36 @@
 //!   mode, where the single retry with a fresh Jacobian is not.
 //! - `stiffness_detected`: always `None`; `wall_time_s`: as usual.
 //!
-//! # The step loop and its failures
+//! # A step and its failures
 //!
-//! Every failure is a [`Failure`] whose partial solution holds the samples,
-//! step polynomials and counters up to `error.time()`.
+//! [`Radau5::step`] (and [`Radau5Implicit::step`]) runs the loop head
+//! shared with the explicit methods (`crate::driver`: budgets, minimum
+//! step, landing on `t_end` with RADAU5's `t + 1.0001 h >= t_end` and on
+//! output times), then trial steps of [`RadauCore`] in RADAU5's order until
+//! one is accepted:
+//!
+//! 1. **Iteration matrices** ([`RadauCore::iteration_matrix`]): `J`, `J'`
+//!    at the step start when a new Jacobian is due, and the factorisations
+//!    of `γ/h J' + J` and `(α + iβ)/h J' + J` when `h` or `J` changed.
+//! 2. **Starting values**: the last collocation polynomial extrapolated
+//!    (zero at the first step), with the error scale of the step.
+//! 3. **Newton iteration** ([`RadauCore::newton`]): simplified or full, with
+//!    RADAU5's convergence monitor.
+//! 4. **Error estimate and step-size control** ([`RadauCore::error_control`];
+//!    not with a fixed step): accept, or reject with the next trial size.
+//!
+//! Every rejection goes through [`RadauCore::reject`] (counted, retried
+//! from the same state, with a fresh Jacobian unless the current one was
+//! taken there). After the accepted step the driver calls `after_step`,
+//! then [`RadauCore`] evaluates `f` (or `F`) at the new state, the guard is
+//! watched and the next step size settled (keep `h` within `keep_step`,
+//! land on `t_end`).
+//!
+//! A budget ends the run with [`crate::StopReason::Budget`], a guard zero
+//! with [`crate::StopReason::Guard`], every other failure with
+//! [`crate::StopReason::Failed`]; from `solve` every failure is a
+//! [`Failure`] whose partial solution holds the samples, step polynomials
+//! and counters up to `error.time()`.
 //!
 //! - [`IntegrateError::InvalidInput`] (before any step): the checks of the
 //!   explicit methods, `newton_max_iter = 0`, `newton_tol` not positive,
@@ -278,8 +305,9 @@
 //! guard on the state it left (the contract stated on the traits).
 //!
 //! Workspaces (Jacobians, both factorisations, the full-Newton matrix, stage
-//! vectors) are allocated once per run; the step loop allocates only when it stores samples and
-//! step polynomials.
+//! vectors) are allocated once per run, by [`Radau5::new`] and
+//! [`Radau5Implicit::new`]; a step allocates only when it stores samples
+//! and step polynomials.
 
 mod linalg;
 mod newton;

@@ -3,7 +3,7 @@
 
 use super::problem::{Problem, UROUND};
 use super::tableau::Tableau;
-use super::work::Work;
+use super::work::{FullNewton, Work};
 use crate::explicit::control::all_finite;
 use crate::{Stats, SystemError};
 
@@ -47,6 +47,38 @@ struct Monitor {
     dynold: f64,
     /// Previous quotient of successive norms.
     thqold: f64,
+}
+
+impl FullNewton {
+    /// Row block `k` of `∂G/∂Z` from `J_k`, `J'_k` (in `jy`, `jyp`):
+    /// `[h⁻¹ (A⁻¹)_k1 J'_k, h⁻¹ (A⁻¹)_k2 J'_k, h⁻¹ (A⁻¹)_k3 J'_k]` plus `J_k`
+    /// in column block `k` (`J'_k = I` when `identity_jp`); and `−G_k` (`gk`)
+    /// into the right-hand side.
+    fn row_block(&mut self, k: usize, ainv: &[[f64; 3]; 3], h: f64, identity_jp: bool, gk: &[f64]) {
+        let n = gk.len();
+        let nn = 3 * n;
+        for i in 0..n {
+            let r = k * n + i;
+            let row = &mut self.lu.a[r * nn..(r + 1) * nn];
+            for (j, blk) in row.chunks_exact_mut(n).enumerate() {
+                let a = ainv[k][j] / h;
+                if identity_jp {
+                    blk.fill(0.0);
+                    blk[i] = a;
+                } else {
+                    for (b, &jp) in blk.iter_mut().zip(&self.jyp[i * n..(i + 1) * n]) {
+                        *b = a * jp;
+                    }
+                }
+                if j == k {
+                    for (b, &jv) in blk.iter_mut().zip(&self.jy[i * n..(i + 1) * n]) {
+                        *b += jv;
+                    }
+                }
+            }
+            self.rhs[r] = -gk[i];
+        }
+    }
 }
 
 impl Work {
@@ -212,7 +244,6 @@ impl Work {
         stats: &mut Stats,
     ) -> Newton {
         let n = self.n;
-        let nn = 3 * n;
         let Tableau { c, ti, ainv, .. } = self.tab;
         let mut m = self.begin_newton(np);
         loop {
@@ -244,29 +275,7 @@ impl Work {
                 if !all_finite(&full.jy) || (!P::IDENTITY_JP && !all_finite(&full.jyp)) {
                     return Newton::NonFinite;
                 }
-                // Row block k: [h⁻¹ (A⁻¹)_k1 J'_k, h⁻¹ (A⁻¹)_k2 J'_k, h⁻¹ (A⁻¹)_k3 J'_k] + J_k
-                // in column block k.
-                for i in 0..n {
-                    let r = k * n + i;
-                    let row = &mut full.lu.a[r * nn..(r + 1) * nn];
-                    for (j, blk) in row.chunks_exact_mut(n).enumerate() {
-                        let a = ainv[k][j] / h;
-                        if P::IDENTITY_JP {
-                            blk.fill(0.0);
-                            blk[i] = a;
-                        } else {
-                            for (b, &jp) in blk.iter_mut().zip(&full.jyp[i * n..(i + 1) * n]) {
-                                *b = a * jp;
-                            }
-                        }
-                        if j == k {
-                            for (b, &jv) in blk.iter_mut().zip(&full.jy[i * n..(i + 1) * n]) {
-                                *b += jv;
-                            }
-                        }
-                    }
-                    full.rhs[r] = -gk[i];
-                }
+                full.row_block(k, &ainv, h, P::IDENTITY_JP, gk);
             }
             stats.lu_decompositions += 1;
             if full.lu.factor().is_err() {

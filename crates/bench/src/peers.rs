@@ -21,7 +21,9 @@ use std::time::Instant;
 
 use diffsol::{NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod};
 use nonholo_chetaev::Chetaev;
-use nonholo_core::integrate::{Dense, Method, OdeSystem, Options, RadauNewton, solve};
+use nonholo_core::integrate::{
+    Dense, Method, OdeSystem, Options, Radau5Options, RadauNewton, solve,
+};
 use nonholo_core::{Model, Params, Scene};
 use nonholo_realise::{Visc, visc};
 use nonholo_scenes::Sleigh;
@@ -332,7 +334,10 @@ fn run_ours(
         atol: tol,
         output: grid.to_vec(),
         dense,
-        radau_newton: newton,
+        radau5: Radau5Options {
+            newton,
+            ..Radau5Options::default()
+        },
         ..Options::default()
     };
     let start = Instant::now();

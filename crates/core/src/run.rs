@@ -134,8 +134,8 @@ pub fn simulate(
     let formulation = model.formulation().name;
     // The Newton iteration of Radau IIA: the caller's choice, else the model's.
     let mut config = config;
-    if config.options.radau_newton == RadauNewton::Auto {
-        config.options.radau_newton = model.radau_newton();
+    if config.options.radau5.newton == RadauNewton::Auto {
+        config.options.radau5.newton = model.radau_newton();
     }
     let result = if config.method.is_implicit() && model.implicit().is_some() {
         let yp0 = model.initial_slope()?;

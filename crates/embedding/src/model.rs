@@ -152,11 +152,11 @@ pub struct Embedding<S: Scene> {
     /// `(t, before, after)` hidden-constraint residuals per accepted step of
     /// the explicit form, if asked for ([`Embedding::record_hidden`]).
     hidden_log: Option<Vec<[f64; 3]>>,
-    /// The explicit form's last guard evaluation that was `<= 0` (the time,
-    /// what was measured; the state in `stop_z`): the integrator stops at
-    /// that state, and its reason then reports what fired there.
-    stop_record: Option<(f64, Result<Resolution, String>)>,
-    stop_z: Vec<f64>,
+    /// What the explicit form's last guard evaluation that was `<= 0` (or
+    /// NaN) measured: the integrator asks for the reason at exactly that
+    /// state (the contract of `OdeSystem::guard_reason`), which then reports
+    /// what fired there.
+    stop_record: Option<Result<Resolution, String>>,
 }
 
 /// Initial data that contradict A's own equations.
@@ -208,7 +208,6 @@ impl<S: Scene> Embedding<S> {
             reduction: Reduction::new(m),
             hidden_log: None,
             stop_record: None,
-            stop_z: vec![0.0; 4 * m],
             scene,
         })
     }
@@ -613,8 +612,7 @@ impl<S: Scene> OdeSystem for Embedding<S> {
         let singular = self.guard_value(t, y);
         let g = self.explicit_guard(singular, &resolution);
         if g.is_nan() || g <= 0.0 {
-            self.stop_z.copy_from_slice(&y[..4 * self.m]);
-            self.stop_record = Some((t, resolution));
+            self.stop_record = Some(resolution);
         }
         Some(g)
     }
@@ -624,8 +622,8 @@ impl<S: Scene> OdeSystem for Embedding<S> {
     /// parts, the speed, the limit and the extrapolated zero of the speed.
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
         let resolution = match self.stop_record.take() {
-            Some((at, r)) if at == t && self.stop_z[..] == y[..4 * self.m] => r,
-            _ => self.reduction.resolution(&self.scene, &self.e, t, y),
+            Some(r) => r,
+            None => self.reduction.resolution(&self.scene, &self.e, t, y),
         };
         let singular = self.guard_value(t, y);
         if singular.is_some_and(|g| g <= self.explicit_guard(None, &resolution)) {

@@ -1,226 +1,179 @@
-//! Pieces of the step loop shared by the explicit driver (`explicit::run`)
-//! and the Radau IIA driver (`radau`): the record of samples, step
-//! polynomials and counters, input validation, the budgets checked before
-//! every trial step, the fixed-step count and the location of guard
-//! crossings on a step polynomial.
+//! The step loop shared by every method: a [`Driver`] holds the state of a
+//! run (time, state, step size, samples, counters, guard) and advances it
+//! one accepted step per [`Driver::step`]; the method itself is a [`Core`]
+//! that attempts trial steps.
+//!
+//! One call of [`Driver::step`] reads, in order:
+//!
+//! 1. **Start** (first call only): the sample at `t0`, the guard at `t0`
+//!    (`<= 0` stops at once), `t_end == t0`, then [`Core::start`] (e.g.
+//!    `f(t0, y0)`) and the first step size (`fixed_step`, else
+//!    `min(h_init, h_max)`, else the method's [`Core::initial_step`]).
+//! 2. **Trial steps** until one is accepted, each preceded by the loop head
+//!    ([`Driver::trial_steps`]): budgets (`max_steps` trial steps, the wall
+//!    clock every 8 trial steps), the minimum step size `h_min(t)` (see
+//!    [`StepFloor`]), and landing: the fixed-step grid `t0 + k h`, or for
+//!    adaptive methods `t_end` (when `t + stretch·h` reaches it, Hairer's
+//!    [`Landing`]) and, with `Options::hit_output`, the next output time.
+//!    [`Core::attempt`] then accepts, rejects (the step is retried from the
+//!    same state with the size it proposes), repeats or fails.
+//! 3. **The accepted step** ([`Driver::accepted`]): counters,
+//!    [`Core::accept`] (the new state), the step polynomial stored, then
+//!    `after_step` of the system and [`Core::new_state`] (what the method
+//!    needs at the possibly projected state), the guard watch on that
+//!    state, samples of the output grid inside the step, `t_end`, and the
+//!    next step size ([`Core::proposal`] bounded by `h_max` and, after a
+//!    rejection, by `h`; [`Core::settle`]).
+//!
+//! Every terminal [`StopReason`] leaves the driver at the last time
+//! reached, so that [`Driver::into_solution`] is the partial solution of a
+//! [`Failure`].
 
-use std::time::Instant;
+use std::mem::swap;
 
-use crate::dense::eval_nested;
-use crate::explicit::control::all_finite;
-use crate::{Dense, Failure, IntegrateError, Method, Options, Solution, Stats, StiffnessEstimate};
+use crate::guard::guard_crossing;
+use crate::record::Record;
+use crate::{
+    Failure, IntegrateError, Options, Solution, Stats, StiffnessEstimate, StopReason, SystemError,
+};
 
-/// Samples, step polynomials and counters collected during a run.
-pub(crate) struct Record {
-    pub(crate) method: Method,
-    pub(crate) dim: usize,
-    pub(crate) ncoef: usize,
-    /// Requested output times, `t_end` appended if missing.
-    pub(crate) grid: Vec<f64>,
-    /// Index of the next grid time to sample.
-    pub(crate) next: usize,
-    pub(crate) t: Vec<f64>,
-    pub(crate) y: Vec<f64>,
-    pub(crate) dense: Option<Dense>,
-    pub(crate) stats: Stats,
-    pub(crate) start: Instant,
+/// What the step loop asks of the system (through the method's wrapper of
+/// it): its hooks and its count of evaluations of `f` (or `F`).
+pub(crate) trait Hooks {
+    /// Evaluations of `f` (or `F`) so far.
+    fn evals(&self) -> usize;
+    /// [`crate::OdeSystem::after_step`].
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError>;
+    /// [`crate::OdeSystem::guard`].
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64>;
+    /// [`crate::OdeSystem::guard_reason`].
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String;
 }
 
-impl Record {
-    pub(crate) fn next_time(&self) -> Option<f64> {
-        self.grid.get(self.next).copied()
+/// A trial step `[t, t_new]` of size `h` as the loop head set it up.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Trial {
+    /// Start of the step (the current time).
+    pub t: f64,
+    /// Step size, `t_new − t` up to rounding (exactly that when landing).
+    pub h: f64,
+    /// End of the step.
+    pub t_new: f64,
+    /// `h_min(t)`: a rejection that would take `h` below it ends the run.
+    pub h_min: f64,
+    /// No step has been accepted yet.
+    pub first: bool,
+    /// The previous trial step was rejected.
+    pub after_reject: bool,
+    /// The step polynomial will be needed (`Options::dense`, a guard, or
+    /// an output time inside the step): methods for which it costs
+    /// evaluations compute it only then.
+    pub need_poly: bool,
+}
+
+/// How a trial step ended.
+pub(crate) enum Attempt {
+    /// Accepted: the method holds the new state, its polynomial and its
+    /// proposal for the next step size.
+    Accepted,
+    /// Rejected: retry from the same state with step size `h` (`nonfinite`:
+    /// because of a non-finite stage or estimate, which turns a later
+    /// step-size collapse into [`IntegrateError::NonFinite`]).
+    Rejected { h: f64, nonfinite: bool },
+    /// Try the same step again without counting a rejection (Radau5 with a
+    /// fixed step: once more with a fresh Jacobian).
+    Repeat,
+    /// The run cannot go on.
+    Failed(IntegrateError),
+}
+
+/// When an adaptive step is stretched to land on `t_end` (or on the next
+/// output time, `Options::hit_output`): `t + stretch·h` reaches it
+/// (`inclusive`: `>=`, else `>`), as in Hairer's codes (`dopri5.f`,
+/// `dop853.f`: `1.01`, `>`; `radau5.f`: `1.0001`, `>=`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Landing {
+    pub stretch: f64,
+    pub inclusive: bool,
+}
+
+impl Landing {
+    /// Whether a step of size `h` from `t` is to end at `target`.
+    fn reaches(self, t: f64, h: f64, target: f64) -> bool {
+        let overshoot = t + self.stretch * h - target;
+        if self.inclusive {
+            overshoot >= 0.0
+        } else {
+            overshoot > 0.0
+        }
+    }
+}
+
+/// One integration method inside the shared step loop: its workspaces and
+/// its state between steps (derivative at the current state, step-size
+/// controller, Jacobian, …). `P` is the system as the method sees it.
+pub(crate) trait Core<P: Hooks> {
+    /// Coefficient vectors of the step polynomial (nested form of [`crate::Dense`]).
+    const NCOEF: usize;
+    /// How an adaptive step lands on `t_end` and output times.
+    const LANDING: Landing;
+
+    /// At the initial state, before the first step: what the method needs
+    /// there (e.g. `f(t0, y0)`).
+    fn start(&mut self, p: &mut P, t0: f64, y0: &[f64]) -> Result<(), IntegrateError>;
+
+    /// The first step size when neither `fixed_step` nor `h_init` is given
+    /// (Hairer's `HINIT` or its first guess), at most `h_max`; after
+    /// [`Core::start`].
+    fn initial_step(&mut self, p: &mut P, t0: f64, y0: &[f64], h_max: f64) -> f64;
+
+    /// Where an explicit method's stiffness test fired (for budget errors).
+    fn stiffness(&self) -> Option<StiffnessEstimate> {
+        None
     }
 
-    /// Samples every pending grid time `<= t_lim`: `y_lim` at `t_lim` itself,
-    /// the step polynomial `(coef, t_n, h_n)` before it.
-    pub(crate) fn emit(
+    /// Attempts the trial step `trial` from the current state `y`.
+    fn attempt(&mut self, p: &mut P, trial: Trial, y: &[f64], stats: &mut Stats) -> Attempt;
+
+    /// The trial step was accepted (`stats.steps` counts it already): writes
+    /// `y_{n+1}` into `y`; returns whether [`Core::coef`] holds the step's
+    /// polynomial.
+    fn accept(&mut self, trial: Trial, y: &mut Vec<f64>, stats: &mut Stats) -> bool;
+
+    /// After `after_step` at the new state `(t, y)` (`projected`: it moved
+    /// `y`; `last`: the run ends here): what the method needs at that state
+    /// (e.g. `f(t, y)`); an error ends the run.
+    fn new_state(
         &mut self,
-        t_lim: f64,
-        y_lim: &[f64],
-        poly: Option<(&[f64], f64, f64)>,
-        buf: &mut [f64],
-    ) {
-        while let Some(tau) = self.next_time() {
-            if tau > t_lim {
-                break;
-            }
-            match poly {
-                Some((coef, tn, h)) if tau < t_lim => {
-                    eval_nested(coef, self.dim, self.ncoef, (tau - tn) / h, buf);
-                    self.y.extend_from_slice(buf);
-                }
-                _ => {
-                    // Only `tau == t_lim` can get here: the driver computes
-                    // the polynomial whenever a grid time lies inside a step.
-                    debug_assert!(tau == t_lim);
-                    self.y.extend_from_slice(y_lim);
-                }
-            }
-            self.t.push(tau);
-            self.next += 1;
-        }
-    }
-
-    /// The budget error before the next trial step from `(t, h)`, if any:
-    /// `max_steps` trial steps (accepted + rejected) done →
-    /// [`IntegrateError::TooManySteps`]; `max_wall_time_s` elapsed, checked
-    /// every 8 trial steps → [`IntegrateError::TimeBudgetExceeded`].
-    pub(crate) fn budget_exceeded(
-        &self,
-        opts: &Options,
+        p: &mut P,
         t: f64,
-        h: f64,
-        stiffness: Option<StiffnessEstimate>,
-    ) -> Option<IntegrateError> {
-        let trials = self.stats.steps + self.stats.rejected_steps;
-        if trials >= opts.max_steps {
-            return Some(IntegrateError::TooManySteps {
-                t,
-                max_steps: opts.max_steps,
-                h,
-                stiffness,
-            });
-        }
-        let limit = opts.max_wall_time_s?;
-        (trials % 8 == 0 && self.start.elapsed().as_secs_f64() > limit).then_some(
-            IntegrateError::TimeBudgetExceeded {
-                t,
-                seconds: limit,
-                h,
-                stiffness,
-            },
-        )
-    }
+        y: &[f64],
+        projected: bool,
+        last: bool,
+    ) -> Result<(), IntegrateError>;
 
-    pub(crate) fn finish(mut self, t_last: f64, y_last: &[f64], rhs_evals: usize) -> Solution {
-        self.stats.rhs_evals = rhs_evals;
-        self.stats.wall_time_s = self.start.elapsed().as_secs_f64();
-        Solution {
-            method: self.method,
-            dim: self.dim,
-            t: self.t,
-            y: self.y,
-            dense: self.dense,
-            t_last,
-            y_last: y_last.to_vec(),
-            stats: self.stats,
-        }
-    }
+    /// The polynomial of the last accepted step (when [`Core::accept`] said so).
+    fn coef(&self) -> &[f64];
 
-    pub(crate) fn fail(
-        self,
-        error: IntegrateError,
-        t_last: f64,
-        y_last: &[f64],
-        rhs_evals: usize,
-    ) -> Failure {
-        Failure {
-            error,
-            partial: self.finish(t_last, y_last, rhs_evals),
-        }
+    /// The next step size the method proposes after an accepted step;
+    /// `None` with a fixed step.
+    fn proposal(&self) -> Option<f64>;
+
+    /// The next step from `t` after an accepted step of size `h`, given the
+    /// proposal `h_new` bounded by `h_max` (and by `h` after a rejection):
+    /// the step size and whether it lands on `t_end`.
+    fn settle(&mut self, _t: f64, _h: f64, h_new: f64, _t_end: f64) -> (f64, bool) {
+        (h_new, false)
     }
 }
 
-/// Checks the initial data and options; the message says what is wrong.
-pub(crate) fn validate(
-    needs_fixed_step: bool,
-    dim: usize,
-    t0: f64,
-    y0: &[f64],
-    t_end: f64,
-    opts: &Options,
-) -> Result<(), String> {
-    let positive = |x: f64| x > 0.0 && x.is_finite();
-    if dim == 0 {
-        return Err("the system has dimension 0".into());
-    }
-    if y0.len() != dim {
-        return Err(format!(
-            "y0 has length {} but the system has dimension {dim}",
-            y0.len()
-        ));
-    }
-    if !t0.is_finite() || !t_end.is_finite() {
-        return Err(format!("t0 = {t0} and t_end = {t_end} must be finite"));
-    }
-    if t_end < t0 {
-        return Err(format!(
-            "t_end = {t_end} < t0 = {t0}: backward integration is not supported"
-        ));
-    }
-    if !all_finite(y0) {
-        return Err("y0 is not finite".into());
-    }
-    if !positive(opts.rtol) || !positive(opts.atol) {
-        return Err(format!(
-            "rtol = {} and atol = {} must be positive and finite",
-            opts.rtol, opts.atol
-        ));
-    }
-    if opts.rtol < RTOL_MIN {
-        return Err(format!(
-            "rtol = {:e} is below 100·ε = {RTOL_MIN:.2e}: double precision (ε = {:.2e}) \
-             cannot deliver a relative accuracy finer than about that (rounding in the \
-             stages and in t alone is of order ε per step); use rtol >= {RTOL_MIN:.2e}",
-            opts.rtol,
-            f64::EPSILON
-        ));
-    }
-    if let Some(a) = &opts.atol_components {
-        if a.len() != dim {
-            return Err(format!(
-                "atol_components has length {} but the system has dimension {dim}",
-                a.len()
-            ));
-        }
-        if let Some((i, v)) = a.iter().enumerate().find(|(_, v)| !positive(**v)) {
-            return Err(format!(
-                "atol_components[{i}] = {v} must be positive and finite"
-            ));
-        }
-    }
-    match opts.fixed_step {
-        None if needs_fixed_step => return Err("this method needs Options::fixed_step".into()),
-        Some(h) if !positive(h) => {
-            return Err(format!("fixed_step = {h} must be positive and finite"));
-        }
-        _ => {}
-    }
-    for (name, v) in [("h_init", opts.h_init), ("h_max", opts.h_max)] {
-        if let Some(h) = v {
-            if !positive(h) {
-                return Err(format!("{name} = {h} must be positive and finite"));
-            }
-        }
-    }
-    if let Some(s) = opts.max_wall_time_s {
-        if s.is_nan() || s < 0.0 {
-            return Err(format!("max_wall_time_s = {s} must be >= 0"));
-        }
-    }
-    let mut prev = f64::NEG_INFINITY;
-    for &tau in &opts.output {
-        if !(tau >= t0 && tau <= t_end) {
-            return Err(format!("output time {tau} lies outside [{t0}, {t_end}]"));
-        }
-        if tau <= prev {
-            return Err(format!("output times must increase ({prev} then {tau})"));
-        }
-        prev = tau;
-    }
-    Ok(())
-}
-
-/// The smallest relative tolerance accepted: `100·ε ≈ 2.2e-14`.
-pub(crate) const RTOL_MIN: f64 = 100.0 * f64::EPSILON;
-
-/// The absolute tolerance of every component: `Options::atol_components`,
-/// else `Options::atol` repeated (validated before).
-pub(crate) fn atol_vector(opts: &Options, dim: usize) -> Vec<f64> {
-    match &opts.atol_components {
-        Some(a) => a.clone(),
-        None => vec![opts.atol; dim],
-    }
+/// Where the driver is in its run.
+enum Phase {
+    /// [`Driver::step`] has not been called yet.
+    Start,
+    Running,
+    /// A terminal reason was returned; every later call returns it again.
+    Done(StopReason),
 }
 
 /// The smallest step size of the adaptive step loops:
@@ -260,87 +213,333 @@ pub(crate) fn fixed_step_count(span: f64, h: f64) -> usize {
     ((span / h) * (1.0 - 1e-12)).ceil().max(1.0) as usize
 }
 
-/// Watches the guard across an accepted step `[t_old, t]` of size `h =
-/// t − t_old` whose polynomial (nested form of [`Dense`], `ncoef` vectors of
-/// length `y.len()`) is `coef`, `(t, y)` being the state after
-/// `after_step`. `g_prev` holds the guard at the step start (`None`: no
-/// guard, nothing is evaluated).
-///
-/// If the guard changed from `> 0` to `<= 0`, the crossing is located on
-/// the polynomial (Illinois iteration to `~1e-14` relative in `t`): its
-/// time is returned and the state there written into `y_root` (`y` itself
-/// when it is the step end). Otherwise `g_prev` takes the new value (kept
-/// if the guard returned `None`). `buf` is a workspace.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn guard_crossing(
-    mut guard: impl FnMut(f64, &[f64]) -> Option<f64>,
-    g_prev: &mut Option<f64>,
-    coef: &[f64],
-    ncoef: usize,
-    t_old: f64,
+/// The state of a run and the step loop shared by every method (see the
+/// module documentation). `P` is the system, `C` the method.
+pub(crate) struct Driver<P, C> {
+    problem: P,
+    core: C,
+    rec: Record,
+    t0: f64,
+    t_end: f64,
+    /// Current time and state (after a guard stop: the located ones).
     t: f64,
+    y: Vec<f64>,
+    /// Size of the next trial step.
     h: f64,
-    y: &[f64],
-    y_root: &mut [f64],
-    buf: &mut [f64],
-) -> Option<f64> {
-    let gp = (*g_prev)?;
-    let gn = guard(t, y)?;
-    if !(gp > 0.0 && gn <= 0.0) {
-        *g_prev = Some(gn);
-        return None;
-    }
-    let dim = y.len();
-    let g = |s: f64| {
-        eval_nested(coef, dim, ncoef, s, buf);
-        guard(t_old + s * h, buf).unwrap_or(f64::NAN)
-    };
-    let tol_t = (1e-14 * t_old.abs().max(t.abs())).max(4.0 * f64::EPSILON * h);
-    let s = locate_root(g, gp, gn, tol_t / h);
-    Some(if s >= 1.0 {
-        y_root.copy_from_slice(y);
-        t
-    } else {
-        eval_nested(coef, dim, ncoef, s, y_root);
-        t_old + s * h
-    })
+    h_max: f64,
+    h_init: Option<f64>,
+    /// Fixed step: `(h, number of steps)`.
+    fixed: Option<(f64, usize)>,
+    hit_output: bool,
+    /// Set by [`Driver::begin`] from the first step size.
+    floor: StepFloor,
+    /// The current trial step ends at `t_end`.
+    last: bool,
+    /// The previous trial step was rejected.
+    after_reject: bool,
+    /// The last rejection was caused by a non-finite stage, state or error
+    /// estimate: a step-size collapse then is reported as `NonFinite`.
+    nonfinite_reject: bool,
+    /// The guard at the last accepted state (`None`: no guard).
+    g_prev: Option<f64>,
+    /// The guard is watched (it returned a value at `t0`).
+    guard_active: bool,
+    /// The state at a located guard zero.
+    y_root: Vec<f64>,
+    buf: Vec<f64>,
+    phase: Phase,
 }
 
-/// Illinois iteration for a zero of `g(s)` on `[0, 1]` with `g(0) = ga > 0 >= g(1) = gb`.
-/// Returns `s` with `g(s) <= 0` (or NaN) within `tol` of the last `s` with `g > 0`.
-pub(crate) fn locate_root(
-    mut g: impl FnMut(f64) -> f64,
-    mut ga: f64,
-    mut gb: f64,
-    tol: f64,
-) -> f64 {
-    let (mut a, mut b) = (0.0_f64, 1.0_f64);
-    // Which end moved last: +1 for a, -1 for b.
-    let mut side = 0;
-    for _ in 0..200 {
-        if b - a <= tol || gb == 0.0 {
-            break;
-        }
-        let mut s = b - gb * (b - a) / (gb - ga);
-        if !(s > a && s < b) {
-            s = 0.5 * (a + b);
-        }
-        let gs = g(s);
-        if gs > 0.0 {
-            a = s;
-            ga = gs;
-            if side == 1 {
-                gb *= 0.5;
-            }
-            side = 1;
-        } else {
-            b = s;
-            gb = gs;
-            if side == -1 {
-                ga *= 0.5;
-            }
-            side = -1;
+impl<P: Hooks, C: Core<P>> Driver<P, C> {
+    /// A run of `core` on `problem` from `(t0, y0)` to `t_end`, with the
+    /// record `rec` of [`Record::new`]; `opts` validated.
+    pub(crate) fn new(
+        problem: P,
+        core: C,
+        rec: Record,
+        t0: f64,
+        y0: &[f64],
+        t_end: f64,
+        opts: &Options,
+    ) -> Self {
+        let dim = y0.len();
+        let span = t_end - t0;
+        Driver {
+            problem,
+            core,
+            rec,
+            t0,
+            t_end,
+            t: t0,
+            y: y0.to_vec(),
+            h: f64::NAN,
+            h_max: opts.h_max.unwrap_or(span),
+            h_init: opts.h_init,
+            fixed: opts.fixed_step.map(|h| (h, fixed_step_count(span, h))),
+            hit_output: opts.hit_output,
+            floor: StepFloor::new(span, 1.0),
+            last: false,
+            after_reject: false,
+            nonfinite_reject: false,
+            g_prev: None,
+            guard_active: false,
+            y_root: vec![0.0; dim],
+            buf: vec![0.0; dim],
+            phase: Phase::Start,
         }
     }
-    b
+
+    /// Current time.
+    pub(crate) fn t(&self) -> f64 {
+        self.t
+    }
+
+    /// Current state.
+    pub(crate) fn y(&self) -> &[f64] {
+        &self.y
+    }
+
+    /// Counters so far (`rhs_evals` and `wall_time_s` included).
+    pub(crate) fn stats(&self) -> Stats {
+        let mut stats = self.rec.stats.clone();
+        stats.rhs_evals = self.problem.evals();
+        stats.wall_time_s = self.rec.start.elapsed().as_secs_f64();
+        stats
+    }
+
+    /// Samples, continuous extension and counters up to the current time.
+    pub(crate) fn into_solution(self) -> Solution {
+        let evals = self.problem.evals();
+        self.rec.finish(self.t, &self.y, evals)
+    }
+
+    /// Steps to the end: `Ok` at `t_end`, else the [`Failure`] with the
+    /// partial solution (a guard stop as [`IntegrateError::Stopped`]).
+    pub(crate) fn solve(mut self) -> Result<Solution, Failure> {
+        let error = loop {
+            match self.step() {
+                StopReason::Accepted { .. } => {}
+                StopReason::End { .. } => return Ok(self.into_solution()),
+                StopReason::Guard { t, reason } => break IntegrateError::Stopped { t, reason },
+                StopReason::Budget(error) | StopReason::Failed(error) => break error,
+            }
+        };
+        Err(Failure {
+            error,
+            partial: self.into_solution(),
+        })
+    }
+
+    /// Advances the run by one accepted step (see the module documentation).
+    pub(crate) fn step(&mut self) -> StopReason {
+        match &self.phase {
+            Phase::Done(stop) => return stop.clone(),
+            Phase::Start => {
+                self.phase = Phase::Running;
+                if let Some(stop) = self.begin() {
+                    return self.done(stop);
+                }
+            }
+            Phase::Running => {}
+        }
+        let trial = match self.trial_steps() {
+            Ok(trial) => trial,
+            Err(stop) => return self.done(stop),
+        };
+        match self.accepted(trial) {
+            stop @ StopReason::Accepted { .. } => stop,
+            stop => self.done(stop),
+        }
+    }
+
+    /// Records a terminal reason.
+    fn done(&mut self, stop: StopReason) -> StopReason {
+        self.phase = Phase::Done(stop.clone());
+        stop
+    }
+
+    /// Before the first step: sample and guard at `t0`, the method's start,
+    /// the first step size. `Some` ends the run.
+    fn begin(&mut self) -> Option<StopReason> {
+        let (t0, t_end) = (self.t0, self.t_end);
+        self.rec.emit(t0, &self.y, None, &mut self.buf);
+        self.g_prev = self.problem.guard(t0, &self.y);
+        self.guard_active = self.g_prev.is_some();
+        if self.g_prev.is_some_and(|g| g <= 0.0) {
+            let reason = self.problem.guard_reason(t0, &self.y);
+            return Some(StopReason::Guard { t: t0, reason });
+        }
+        if t_end == t0 {
+            return Some(StopReason::End { t: t0 });
+        }
+        if let Err(e) = self.core.start(&mut self.problem, t0, &self.y) {
+            return Some(StopReason::Failed(e));
+        }
+        let h = match (self.fixed, self.h_init) {
+            (Some((h, _)), _) => h,
+            (None, Some(h)) => h.min(self.h_max),
+            (None, None) => self
+                .core
+                .initial_step(&mut self.problem, t0, &self.y, self.h_max),
+        };
+        if !(h > 0.0 && h.is_finite()) {
+            // Only the initial-step choice can get here (the other steps are
+            // validated): its weighted norms overflowed although the
+            // derivative at t0 is finite.
+            return Some(StopReason::Failed(IntegrateError::NonFinite { t: t0 }));
+        }
+        self.h = h;
+        self.floor = StepFloor::new(t_end - t0, h);
+        None
+    }
+
+    /// Trial steps from the current state until one is accepted; each
+    /// after the loop head (budgets, minimum step, landing).
+    fn trial_steps(&mut self) -> Result<Trial, StopReason> {
+        loop {
+            let stiffness = self.core.stiffness();
+            if let Some(e) = self.rec.budget_exceeded(self.t, self.h, stiffness) {
+                return Err(StopReason::Budget(e));
+            }
+            let t_new = self.next_time().map_err(StopReason::Failed)?;
+            let trial = Trial {
+                t: self.t,
+                h: self.h,
+                t_new,
+                h_min: self.floor.at(self.t),
+                first: self.rec.stats.steps == 0,
+                after_reject: self.after_reject,
+                need_poly: self.rec.dense.is_some()
+                    || self.guard_active
+                    || self.rec.next_time().is_some_and(|tau| tau < t_new),
+            };
+            let stats = &mut self.rec.stats;
+            match self.core.attempt(&mut self.problem, trial, &self.y, stats) {
+                Attempt::Accepted => return Ok(trial),
+                Attempt::Rejected { h, nonfinite } => {
+                    self.rec.stats.rejected_steps += 1;
+                    (self.h, self.after_reject, self.last) = (h, true, false);
+                    self.nonfinite_reject = nonfinite;
+                }
+                Attempt::Repeat => {}
+                Attempt::Failed(e) => return Err(StopReason::Failed(e)),
+            }
+        }
+    }
+
+    /// The end of the next trial step: on the fixed-step grid, or `t + h`
+    /// for adaptive methods after the minimum-step check, landing on
+    /// `t_end` and (`hit_output`) on the next output time.
+    fn next_time(&mut self) -> Result<f64, IntegrateError> {
+        let (t, t_end) = (self.t, self.t_end);
+        if let Some((hf, n)) = self.fixed {
+            let k = self.rec.stats.steps + 1;
+            self.last = k >= n;
+            let t_new = if self.last {
+                t_end
+            } else {
+                self.t0 + k as f64 * hf
+            };
+            self.h = t_new - t;
+            return Ok(t_new);
+        }
+        if self.h.abs() < self.floor.at(t) {
+            return Err(if self.nonfinite_reject {
+                IntegrateError::NonFinite { t }
+            } else {
+                IntegrateError::StepSizeTooSmall { t, h: self.h }
+            });
+        }
+        let landing = C::LANDING;
+        if landing.reaches(t, self.h, t_end) {
+            self.h = t_end - t;
+            self.last = true;
+        }
+        Ok(match self.rec.next_time() {
+            // Land on the next output time (`Options::hit_output`).
+            Some(tau)
+                if self.hit_output
+                    && !self.last
+                    && tau > t
+                    && t + landing.stretch * self.h >= tau =>
+            {
+                self.h = tau - t;
+                tau
+            }
+            _ if self.last => t_end,
+            _ => t + self.h,
+        })
+    }
+
+    /// Completes an accepted trial step: new state, step polynomial,
+    /// `after_step` and the method's evaluation there, guard, samples, the
+    /// next step size.
+    fn accepted(&mut self, trial: Trial) -> StopReason {
+        let Trial {
+            t: t_old, h, t_new, ..
+        } = trial;
+        self.rec.stats.steps += 1;
+        self.nonfinite_reject = false;
+        let has_poly = self.core.accept(trial, &mut self.y, &mut self.rec.stats);
+        if has_poly {
+            if let Some(d) = self.rec.dense.as_mut() {
+                d.push(t_old, h, self.core.coef());
+            }
+        }
+        let t = t_new;
+        self.t = t;
+
+        // `after_step` first, then what the method needs at the state it left.
+        let error = match self.problem.after_step(t, &mut self.y) {
+            Err(source) => Some(IntegrateError::System { t, source }),
+            Ok(projected) => {
+                let res = self
+                    .core
+                    .new_state(&mut self.problem, t, &self.y, projected, self.last);
+                res.err()
+            }
+        };
+        if let Some(e) = error {
+            let poly = has_poly.then_some((self.core.coef(), t_old, h));
+            self.rec.emit(t, &self.y, poly, &mut self.buf);
+            return StopReason::Failed(e);
+        }
+
+        // The guard, on the state `after_step` left.
+        let problem = &mut self.problem;
+        let crossing = guard_crossing(
+            |tg, yg| problem.guard(tg, yg),
+            &mut self.g_prev,
+            self.core.coef(),
+            C::NCOEF,
+            t_old,
+            t,
+            h,
+            &self.y,
+            &mut self.y_root,
+            &mut self.buf,
+        );
+        let poly = has_poly.then_some((self.core.coef(), t_old, h));
+        if let Some(t_root) = crossing {
+            let reason = self.problem.guard_reason(t_root, &self.y_root);
+            self.rec.emit(t_root, &self.y_root, poly, &mut self.buf);
+            swap(&mut self.y, &mut self.y_root);
+            self.t = t_root;
+            return StopReason::Guard { t: t_root, reason };
+        }
+
+        self.rec.emit(t, &self.y, poly, &mut self.buf);
+        if self.last {
+            return StopReason::End { t };
+        }
+        if let Some(h_new) = self.core.proposal() {
+            let mut h_new = h_new.min(self.h_max);
+            if self.after_reject {
+                h_new = h_new.min(h);
+            }
+            self.after_reject = false;
+            (self.h, self.last) = self.core.settle(t, h, h_new, self.t_end);
+        }
+        StopReason::Accepted { t }
+    }
 }

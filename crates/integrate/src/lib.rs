@@ -8,12 +8,12 @@
 //! continuous extension, work counters) or a [`Failure`] carrying the error,
 //! the time at which it happened and the partial solution up to that time.
 //!
-//! | method | order | error estimate | dense output order | reference |
-//! |---|---|---|---|---|
-//! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | Kutta 1901 |
-//! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
-//! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
-//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
+//! | method | order | error estimate | dense output order | solver state | reference |
+//! |---|---|---|---|---|---|
+//! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | [`ExplicitRk`] | Kutta 1901 |
+//! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | [`ExplicitRk`] | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
+//! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | [`ExplicitRk`] | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
+//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | [`Radau5`], [`Radau5Implicit`] | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
 //!
 //! Step-size control, initial step selection and stiffness detection follow
 //! Hairer's DOPRI5/DOP853 codes; Radau IIA follows his RADAU5 (simplified
@@ -21,6 +21,38 @@
 //! optionally a full Newton iteration, [`RadauNewton::Full`], for fully
 //! implicit index-3 systems outside Hessenberg form; see the documentation
 //! of `src/radau/mod.rs` for its options, counters and failures).
+//!
+//! # Solving, or stepping
+//!
+//! [`solve`] and [`solve_implicit`] run to `t_end`. They are loops over a
+//! solver state, which can also be driven by hand: [`ExplicitRk`],
+//! [`Radau5`] and [`Radau5Implicit`] are built from `(system, t0, y0[, y'0],
+//! t_end, options)` (invalid input is refused there) and advanced by
+//! `step()`, which returns after every accepted step with a [`StopReason`]:
+//! `Accepted { t }` (the run goes on), or a terminal `End { t }`,
+//! `Guard { t, reason }`, `Budget(error)` or `Failed(error)`. `t()`, `y()`
+//! and `stats()` show the current state; `into_solution()` hands over the
+//! samples, continuous extension and counters up to it, and `solve()` is
+//! `while let Accepted = step() {}` turned into `Ok` or a [`Failure`].
+//! Workspaces are allocated by the constructors; a step allocates only to
+//! store samples and step polynomials.
+//!
+//! All methods share one step loop (budgets, minimum step size, landing on
+//! `t_end` and output times, `after_step` before the guard, the guard
+//! watch, samples, the bounds on the next step size); a method only
+//! attempts trial steps (`src/driver.rs`).
+//!
+//! # Settings
+//!
+//! [`Options`] holds what every method reads (tolerances, per-component
+//! `atol`, fixed step, `h_init`, `h_max`, budgets, output grid, `dense`,
+//! `hit_output`) and [`Radau5Options`] the settings of Radau5 alone (its
+//! Newton iteration and the reuse of Jacobians and step sizes); the
+//! explicit methods have no settings of their own (their controller
+//! constants are those of `dopri5.f` and `dop853.f`). Both structs derive
+//! `serde`'s `Serialize` and `Deserialize` (missing fields take their
+//! defaults, unknown fields are refused), so that the settings can be
+//! written beside every result; their item docs list the defaults.
 
 // A `Failure` carries its partial `Solution` by design, and `Ok` carries a
 // `Solution` of the same size: boxing the error would save nothing.
@@ -31,15 +63,22 @@ mod dense;
 mod driver;
 mod error;
 mod explicit;
+mod guard;
 mod options;
 mod radau;
+mod record;
 mod solution;
+mod stop;
 mod system;
+mod validate;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
-pub use options::{Method, Options, RadauNewton};
+pub use explicit::ExplicitRk;
+pub use options::{Method, Options, Radau5Options, RadauNewton};
+pub use radau::{Radau5, Radau5Implicit};
 pub use solution::{Solution, Stats};
+pub use stop::StopReason;
 pub use system::{ImplicitSystem, OdeSystem};
 
 /// Integrates `sys` from `(t0, y0)` to `t_end` with `method` and `opts`.
@@ -75,6 +114,10 @@ pub use system::{ImplicitSystem, OdeSystem};
 /// the Jacobian comes from [`OdeSystem::jacobian`] or from forward
 /// differences; a stage that cannot be evaluated, a Newton iteration that
 /// fails and a singular iteration matrix reject the step (`h /= 2`).
+///
+/// This is the loop over the solver state's `step()`:
+/// `ExplicitRk::new(method, ..)?.solve()`, or `Radau5::new(..)?.solve()`
+/// for [`Method::Radau5`] (see [`StopReason`]).
 pub fn solve<S: OdeSystem + ?Sized>(
     method: Method,
     sys: &mut S,
@@ -84,8 +127,8 @@ pub fn solve<S: OdeSystem + ?Sized>(
     opts: &Options,
 ) -> Result<Solution, Failure> {
     match method {
-        Method::Radau5 => radau::solve_ode(sys, t0, y0, t_end, opts),
-        _ => explicit::solve(method, sys, t0, y0, t_end, opts),
+        Method::Radau5 => Radau5::new(sys, t0, y0, t_end, opts)?.solve(),
+        _ => ExplicitRk::new(method, sys, t0, y0, t_end, opts)?.solve(),
     }
 }
 
@@ -103,7 +146,8 @@ pub fn solve<S: OdeSystem + ?Sized>(
 /// index-2 and index-3 components by `h` and `h²`. Output grid, continuous
 /// extension, projection, guard, budgets and failures are as for [`solve`];
 /// `rhs_evals` counts evaluations of `F`. Method, error estimate and
-/// counters: see `src/radau/mod.rs`.
+/// counters: see `src/radau/mod.rs`. This is
+/// `Radau5Implicit::new(..)?.solve()`, the loop over its `step()`.
 pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     sys: &mut S,
     t0: f64,
@@ -112,5 +156,5 @@ pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     t_end: f64,
     opts: &Options,
 ) -> Result<Solution, Failure> {
-    radau::solve_implicit(sys, t0, y0, yp0, t_end, opts)
+    Radau5Implicit::new(sys, t0, y0, yp0, t_end, opts)?.solve()
 }

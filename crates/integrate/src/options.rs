@@ -1,3 +1,5 @@
+use serde::{Deserialize, Serialize};
+
 /// The integration method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Method {
@@ -57,9 +59,12 @@ impl Method {
 /// Both variants solve the same collocation equations
 /// `G_k(Z) = F(t_n + c_k h, y_n + Z_k, h⁻¹ Σ_j (A⁻¹)_kj Z_j) = 0` (`k = 1, 2, 3`)
 /// with the same starting values, convergence monitor (`θ`, `η`, the
-/// index-scaled norm, [`Options::newton_tol`], [`Options::newton_max_iter`])
+/// index-scaled norm, [`Radau5Options::newton_tol`], [`Radau5Options::newton_max_iter`])
 /// and the same error estimate; they differ in the Jacobian of the iteration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+///
+/// Serialised by [`RadauNewton::name`] (`"auto"`, `"simplified"`, `"full"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum RadauNewton {
     /// The caller decides (`nonholo_core::simulate` asks the model being
     /// integrated); the integrator itself treats it as [`RadauNewton::Simplified`].
@@ -81,7 +86,7 @@ pub enum RadauNewton {
     /// singular `M`), on which the simplified iteration can stall with
     /// `θ ≈ 1`: there the change of the Jacobian over the step, `O(h)`, is
     /// amplified by the `O(h⁻³)` inverse of the iteration matrix.
-    /// Jacobian reuse and [`Options::keep_step`] do not apply; the error
+    /// Jacobian reuse and [`Radau5Options::keep_step`] do not apply; the error
     /// estimate still factors `γ/h J' + J` at the step start once per step
     /// (not with [`Options::fixed_step`], which has no error estimate).
     Full,
@@ -109,15 +114,41 @@ impl RadauNewton {
     }
 }
 
-/// Integrator settings. `Options::default()` is a reasonable start.
-#[derive(Debug, Clone, PartialEq)]
+/// Integrator settings shared by every method (the base), with the
+/// settings of [`Method::Radau5`] in [`Options::radau5`].
+/// `Options::default()` is a reasonable start.
+///
+/// Serialisable (`serde`): missing fields take their defaults, unknown
+/// fields are refused. The defaults, as in Hairer's headers:
+///
+/// | field | default |
+/// |---|---|
+/// | `rtol`, `atol` | `1e-6`, `1e-6` |
+/// | `atol_components` | `None` (`atol` for every component) |
+/// | `fixed_step` | `None` (adaptive) |
+/// | `h_init` | `None` (`HINIT`) |
+/// | `h_max` | `None` (`t_end − t0`) |
+/// | `max_steps` | `10⁷` |
+/// | `max_wall_time_s` | `None` (unlimited) |
+/// | `output` | `[]` (only `t_end`) |
+/// | `dense` | `true` |
+/// | `hit_output` | `false` |
+/// | `radau5` | [`Radau5Options::default()`] |
+///
+/// The explicit methods (RK4, DOPRI5, DOP853) take no settings of their
+/// own: their step-size controllers use the constants of `dopri5.f` and
+/// `dop853.f`, listed in the method modules' documentation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Options {
     /// Relative tolerance of the local error estimate. Must be at least
     /// `100·ε ≈ 2.2e-14` (double precision cannot deliver more; smaller
     /// values are refused with [`crate::IntegrateError::InvalidInput`]).
+    /// Default `1e-6`.
     pub rtol: f64,
     /// Absolute tolerance of the local error estimate (positive, finite).
     /// Overridden component by component by [`Options::atol_components`].
+    /// Default `1e-6`.
     pub atol: f64,
     /// Per-component absolute tolerances (length `dim`, each positive and
     /// finite). When set they replace [`Options::atol`] in every error norm
@@ -129,50 +160,32 @@ pub struct Options {
     pub atol_components: Option<Vec<f64>>,
     /// Fixed step size: required for RK4; for the embedded methods and
     /// Radau5 it turns step-size control off (used to measure convergence
-    /// orders; Radau5 still iterates Newton to `newton_tol`).
+    /// orders; Radau5 still iterates Newton to `newton_tol`). Default `None`.
     pub fixed_step: Option<f64>,
-    /// Initial step size; `None` chooses it as Hairer's `HINIT`.
+    /// Initial step size; `None` (default) chooses it as Hairer's `HINIT`.
     pub h_init: Option<f64>,
-    /// Largest step size; `None` means `|t_end - t0|`.
+    /// Largest step size; `None` (default) means `|t_end - t0|`.
     pub h_max: Option<f64>,
-    /// Budget on accepted plus rejected steps.
+    /// Budget on accepted plus rejected steps. Default `10_000_000`.
     pub max_steps: usize,
-    /// Budget on wall-clock time in seconds (`None`: unlimited).
+    /// Budget on wall-clock time in seconds (`None`, the default: unlimited).
     pub max_wall_time_s: Option<f64>,
     /// Times at which to sample the solution (increasing, within the span).
     /// The final time is always sampled as the last row if not listed.
+    /// Default empty.
     pub output: Vec<f64>,
     /// Keep the continuous extension of every step ([`crate::Dense`]).
+    /// Default `true`.
     pub dense: bool,
     /// Adaptive methods shorten a step that would pass the next time of
     /// `output` so that it lands on it: the samples are then step end points,
     /// free of the continuous extension's interpolation error (which for
     /// Radau IIA, a polynomial of degree 3, dominates at tight tolerances).
-    /// For reference solutions; costs the extra steps.
+    /// For reference solutions; costs the extra steps. Default `false`.
     pub hit_output: bool,
-    /// [`Method::Radau5`] only: largest number of Newton iterations per
-    /// step, simplified or full (RADAU5's `NIT`, `IWORK(3)`). Default 7.
-    pub newton_max_iter: usize,
-    /// [`Method::Radau5`] only: the Newton iteration stops when its
-    /// estimated remaining error `θ/(1 − θ)·‖ΔZ‖` is at most this, in units
-    /// of the error scale (RADAU5's `FNEWT`, `WORK(4)`). `None` (default):
-    /// `max(10·uround/rtol', min(0.03, sqrt(rtol')))` with RADAU5's internal
-    /// tolerance `rtol' = 0.1·rtol^(2/3)`.
-    pub newton_tol: Option<f64>,
-    /// [`Method::Radau5`] only: after a step whose Newton iteration
-    /// converged with rate `θ <= jacobian_reuse` the Jacobian is kept for the
-    /// next step (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
-    /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
-    pub jacobian_reuse: f64,
-    /// [`Method::Radau5`] only: `(lo, hi)` with `lo <= 1 <= hi`; when the
-    /// Jacobian is kept and the proposed step ratio `h_new/h` lies in
-    /// `[lo, hi]`, the step size is left unchanged, which saves the LU
-    /// decompositions (RADAU5's `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`).
-    /// Default `(1.0, 1.2)`.
-    pub keep_step: (f64, f64),
-    /// [`Method::Radau5`] only: simplified (RADAU5, default) or full Newton
-    /// iteration on the stage equations; see [`RadauNewton`].
-    pub radau_newton: RadauNewton,
+    /// Settings of [`Method::Radau5`] only (the Newton iteration and
+    /// Jacobian reuse); ignored by the explicit methods.
+    pub radau5: Radau5Options,
 }
 
 impl Default for Options {
@@ -189,11 +202,58 @@ impl Default for Options {
             output: Vec::new(),
             dense: true,
             hit_output: false,
+            radau5: Radau5Options::default(),
+        }
+    }
+}
+
+/// Settings of [`Method::Radau5`] (RADAU5's `IWORK`/`WORK` entries for the
+/// Newton iteration and the reuse of Jacobians and step sizes).
+///
+/// Serialisable as [`Options`]; defaults (RADAU5's):
+///
+/// | field | RADAU5 | default |
+/// |---|---|---|
+/// | `newton` | — | [`RadauNewton::Auto`] (the integrator: simplified) |
+/// | `newton_max_iter` | `NIT`, `IWORK(3)` | `7` |
+/// | `newton_tol` | `FNEWT`, `WORK(4)` | `None`: `max(10·uround/rtol', min(0.03, sqrt(rtol')))` |
+/// | `jacobian_reuse` | `THET`, `WORK(3)` | `0.001` |
+/// | `keep_step` | `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)` | `(1.0, 1.2)` |
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Radau5Options {
+    /// Simplified (RADAU5, default) or full Newton iteration on the stage
+    /// equations; see [`RadauNewton`]. Default [`RadauNewton::Auto`].
+    pub newton: RadauNewton,
+    /// Largest number of Newton iterations per step, simplified or full
+    /// (RADAU5's `NIT`, `IWORK(3)`). At least 1. Default 7.
+    pub newton_max_iter: usize,
+    /// The Newton iteration stops when its estimated remaining error
+    /// `θ/(1 − θ)·‖ΔZ‖` is at most this, in units of the error scale
+    /// (RADAU5's `FNEWT`, `WORK(4)`); positive and finite. `None` (default):
+    /// `max(10·uround/rtol', min(0.03, sqrt(rtol')))` with RADAU5's internal
+    /// tolerance `rtol' = 0.1·rtol^(2/3)`.
+    pub newton_tol: Option<f64>,
+    /// After a step whose Newton iteration converged with rate
+    /// `θ <= jacobian_reuse` the Jacobian is kept for the next step
+    /// (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
+    /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
+    pub jacobian_reuse: f64,
+    /// `(lo, hi)` with `0 < lo <= 1 <= hi < ∞`; when the Jacobian is kept
+    /// and the proposed step ratio `h_new/h` lies in `[lo, hi]`, the step
+    /// size is left unchanged, which saves the LU decompositions (RADAU5's
+    /// `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`). Default `(1.0, 1.2)`.
+    pub keep_step: (f64, f64),
+}
+
+impl Default for Radau5Options {
+    fn default() -> Self {
+        Radau5Options {
+            newton: RadauNewton::Auto,
             newton_max_iter: 7,
             newton_tol: None,
             jacobian_reuse: 0.001,
             keep_step: (1.0, 1.2),
-            radau_newton: RadauNewton::Auto,
         }
     }
 }

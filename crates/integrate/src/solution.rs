@@ -35,7 +35,7 @@ pub struct Stats {
     /// in converged and failed attempts alike; zero for explicit methods.
     pub newton_iterations: usize,
     /// Newton iterations that failed to converge (diverged, too slow, or not
-    /// converged within `Options::newton_max_iter`; zero for explicit methods).
+    /// converged within `Radau5Options::newton_max_iter`; zero for explicit methods).
     pub newton_failures: usize,
     /// Wall-clock time of the run in seconds.
     pub wall_time_s: f64,

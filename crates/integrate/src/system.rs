@@ -56,6 +56,15 @@ pub trait OdeSystem {
     }
 
     /// Why the run stopped, for a state at which [`OdeSystem::guard`] is zero.
+    ///
+    /// **Contract** (guaranteed by every method): called once, when the
+    /// guard stops the run, with exactly the `t` and `y` (bitwise) of the
+    /// last guard evaluation that did not return a positive value (`<= 0`,
+    /// NaN or `None`) — the one that located the stop, at `t0`, at the end
+    /// of the step or inside it — and with no call to the system in between
+    /// except guard evaluations that returned `> 0`. So a system can explain
+    /// the stop with what its guard measured there (remembered whenever the
+    /// guard is not positive) instead of measuring again.
     fn guard_reason(&mut self, _t: f64, _y: &[f64]) -> String {
         "guard function reached zero".to_string()
     }
@@ -114,7 +123,7 @@ pub trait ImplicitSystem {
         None
     }
 
-    /// See [`OdeSystem::guard_reason`].
+    /// See [`OdeSystem::guard_reason`], whose contract holds here too.
     fn guard_reason(&mut self, _t: f64, _y: &[f64]) -> String {
         "guard function reached zero".to_string()
     }

@@ -9,8 +9,8 @@ use common::{
     tol_opts,
 };
 use nonholo_integrate::{
-    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton, Solution,
-    SystemError, solve, solve_implicit,
+    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, Radau5Options,
+    RadauNewton, Solution, SystemError, solve, solve_implicit,
 };
 
 fn report(what: &str, s: &Solution) {
@@ -699,7 +699,10 @@ fn pendulum_index_3() {
     );
     assert!(ep < 3e-5 && ev < 1e-4 && el < 2e-2);
     let opts = Options {
-        newton_tol: Some(1e-6),
+        radau5: Radau5Options {
+            newton_tol: Some(1e-6),
+            ..Radau5Options::default()
+        },
         ..tol_opts(1e-10)
     };
     let s = pendulum(false, &opts);
@@ -770,7 +773,10 @@ fn guard_is_located_on_the_collocation_polynomial() {
     let (y0, yp0) = sys.initial(THETA0);
     let opts = Options {
         output: vec![0.25, 0.5, 1.0],
-        newton_tol: Some(1e-6),
+        radau5: Radau5Options {
+            newton_tol: Some(1e-6),
+            ..Radau5Options::default()
+        },
         ..tol_opts(1e-10)
     };
     let f = solve_implicit(&mut sys, 0.0, &y0, &yp0, 10.0, &opts).unwrap_err();
@@ -977,19 +983,31 @@ fn inconsistent_initial_values_are_rejected() {
 fn radau_options_are_validated() {
     let bad = [
         Options {
-            newton_max_iter: 0,
+            radau5: Radau5Options {
+                newton_max_iter: 0,
+                ..Radau5Options::default()
+            },
             ..Options::default()
         },
         Options {
-            newton_tol: Some(0.0),
+            radau5: Radau5Options {
+                newton_tol: Some(0.0),
+                ..Radau5Options::default()
+            },
             ..Options::default()
         },
         Options {
-            jacobian_reuse: 1.0,
+            radau5: Radau5Options {
+                jacobian_reuse: 1.0,
+                ..Radau5Options::default()
+            },
             ..Options::default()
         },
         Options {
-            keep_step: (1.1, 1.2),
+            radau5: Radau5Options {
+                keep_step: (1.1, 1.2),
+                ..Radau5Options::default()
+            },
             ..Options::default()
         },
     ];
@@ -1026,7 +1044,10 @@ fn jacobian_reuse_and_step_keeping() {
     report("oscillator, defaults", &s);
     assert_eq!(s.stats.jacobian_evals, 1);
     let opts = Options {
-        jacobian_reuse: -1.0,
+        radau5: Radau5Options {
+            jacobian_reuse: -1.0,
+            ..Radau5Options::default()
+        },
         ..tol_opts(1e-8)
     };
     let every = solve(
@@ -1041,7 +1062,10 @@ fn jacobian_reuse_and_step_keeping() {
     report("oscillator, jacobian_reuse = −1", &every);
     assert_eq!(every.stats.jacobian_evals, every.stats.steps);
     let opts = Options {
-        keep_step: (1.0, 1.0),
+        radau5: Radau5Options {
+            keep_step: (1.0, 1.0),
+            ..Radau5Options::default()
+        },
         ..tol_opts(1e-8)
     };
     let strict = solve(
@@ -1085,9 +1109,12 @@ fn newton_report(what: &str, s: &Solution) {
     );
 }
 
-fn mode(opts: &Options, radau_newton: RadauNewton) -> Options {
+fn mode(opts: &Options, newton: RadauNewton) -> Options {
     Options {
-        radau_newton,
+        radau5: Radau5Options {
+            newton,
+            ..opts.radau5
+        },
         ..opts.clone()
     }
 }
@@ -1216,7 +1243,10 @@ fn full_newton_reproduces_simplified_answers() {
         (tol_opts(1e-8), [3e-5, 1e-4, 1e-1]),
         (
             Options {
-                newton_tol: Some(1e-6),
+                radau5: Radau5Options {
+                    newton_tol: Some(1e-6),
+                    ..Radau5Options::default()
+                },
                 ..tol_opts(1e-10)
             },
             [1e-8, 5e-6, 5e-3],
@@ -1385,7 +1415,10 @@ fn full_newton_solves_a_pendulum_outside_hessenberg_form() {
     for h in [1e-2, 1e-3, 1e-4] {
         let opts = Options {
             fixed_step: Some(h),
-            jacobian_reuse: -1.0,
+            radau5: Radau5Options {
+                jacobian_reuse: -1.0,
+                ..Radau5Options::default()
+            },
             dense: false,
             ..tol_opts(1e-8)
         };

@@ -4,6 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
+use nonholo_core::integrate::Radau5Options;
 use nonholo_core::{Params, Run, RunStatus, Value};
 use serde::Serialize;
 use serde_json::{Map, Value as Json};
@@ -21,6 +22,15 @@ pub struct IntegratorRecord {
     pub max_wall_time_s: Option<f64>,
     /// Newton iteration of radau5 (`simplified` or `full`); absent for explicit methods.
     pub radau_newton: Option<String>,
+    /// The remaining integrator settings (`nonholo_integrate::Options`), as given.
+    pub atol_components: Option<Vec<f64>>,
+    pub h_init: Option<f64>,
+    pub h_max: Option<f64>,
+    pub output: Vec<f64>,
+    pub dense: bool,
+    pub hit_output: bool,
+    /// radau5's settings in their serde form; absent for explicit methods.
+    pub radau5: Option<Radau5Options>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -239,7 +249,14 @@ impl RunRecord {
                 radau_newton: cfg
                     .method
                     .is_implicit()
-                    .then(|| cfg.options.radau_newton.name().to_string()),
+                    .then(|| cfg.options.radau5.newton.name().to_string()),
+                atol_components: cfg.options.atol_components.clone(),
+                h_init: cfg.options.h_init,
+                h_max: cfg.options.h_max,
+                output: cfg.options.output.clone(),
+                dense: cfg.options.dense,
+                hit_output: cfg.options.hit_output,
+                radau5: cfg.method.is_implicit().then_some(cfg.options.radau5),
             },
             params: params_json(run.model.scene_params()),
             options: params_json(run.model.options()),

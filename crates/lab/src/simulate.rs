@@ -228,7 +228,7 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
         args.max_steps,
     )?;
     options.output = output_grid(t_end, every)?;
-    options.radau_newton = radau_newton(&args.radau_newton)?;
+    options.radau5.newton = radau_newton(&args.radau_newton)?;
     options.max_wall_time_s = args
         .max_wall_time
         .map(|s| positive("--max-wall-time", s))

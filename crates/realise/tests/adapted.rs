@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use nonholo_core::integrate::{Method, OdeSystem, Options, RadauNewton};
+use nonholo_core::integrate::{Method, OdeSystem, Options, Radau5Options, RadauNewton};
 use nonholo_core::{Model, Params, RunConfig, Scene, init, simulate};
 use nonholo_realise::{Visc, visc};
 use nonholo_scenes::{AppellHamel, Pendulum, RollingDisk, Sleigh};
@@ -226,7 +226,10 @@ fn run_visc<S: Scene + Clone>(
                 rtol: tol,
                 atol: tol,
                 output: grid.to_vec(),
-                radau_newton: newton,
+                radau5: Radau5Options {
+                    newton,
+                    ..Radau5Options::default()
+                },
                 ..Options::default()
             },
             t_end,

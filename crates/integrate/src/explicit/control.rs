@@ -2,6 +2,7 @@
 //! sums, the error scale, Hairer's initial step `HINIT`, the step-size
 //! controller and the stiffness test of `dopri5.f`/`dop853.f`.
 
+use crate::driver::Hooks;
 use crate::{OdeSystem, SystemError};
 
 /// The system with a counter of `f` evaluations.
@@ -15,6 +16,24 @@ impl<S: OdeSystem + ?Sized> Rhs<'_, S> {
     pub fn eval(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
         self.evals += 1;
         self.sys.rhs(t, y, dy)
+    }
+}
+
+impl<S: OdeSystem + ?Sized> Hooks for Rhs<'_, S> {
+    fn evals(&self) -> usize {
+        self.evals
+    }
+
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.sys.after_step(t, y)
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        self.sys.guard(t, y)
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        self.sys.guard_reason(t, y)
     }
 }
 

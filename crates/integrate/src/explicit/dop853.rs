@@ -21,7 +21,10 @@
 //! `fac1 = 0.333 <= h_new/h <= fac2 = 6`, `beta = 0` (no Lund
 //! stabilisation), `expo1 = 1/8 − 0.2·beta`; after a rejection the step may
 //! not grow. Initial step by `HINIT` with `iord = 8` unless
-//! `Options::h_init` is given; `h_max` defaults to `|t_end − t0|`.
+//! `Options::h_init` is given; `h_max` defaults to `|t_end − t0|`. These
+//! constants are fixed: the method reads only the shared
+//! [`crate::Options`] (no settings of its own), and runs as the solver
+//! state [`crate::ExplicitRk`].
 //!
 //! **Stiffness test.** After every 1000th accepted step (and then after each
 //! step while it fires): `h·ρ` with `ρ = ‖f(t+h, y_{n+1}) − k_12‖/‖y_{n+1} − y_12‖`

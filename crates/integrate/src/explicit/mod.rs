@@ -1,30 +1,38 @@
 //! Explicit Runge–Kutta methods: RK4 (fixed step), DOPRI5 and DOP853
 //! (adaptive, or fixed step when `Options::fixed_step` is set).
 //!
-//! One driver ([`run`]) serves the three methods; a method ([`Scheme`])
-//! only computes the stages of a trial step, its error estimate, the
-//! derivative at the new point, the stiffness quotient and the coefficients
-//! of its step polynomial. The method modules ([`rk4`], [`dopri5`],
-//! [`dop853`]) document order, reference, defaults and counters.
+//! [`ExplicitRk`] is the solver state of the three methods: the shared
+//! step loop ([`crate::driver`]: budgets, minimum step, landing on `t_end`
+//! and output times, `after_step`, guard, samples) around the core [`Rk`],
+//! which attempts trial steps with Hairer's controller and stiffness test.
+//! A method ([`Scheme`]) only computes the stages of a trial step, its
+//! error estimate, the derivative at the new point, the stiffness quotient
+//! and the coefficients of its step polynomial. The method modules
+//! ([`rk4`], [`dopri5`], [`dop853`]) document order, reference, controller
+//! constants and counters; the methods take no settings beyond the shared
+//! [`Options`].
 //!
-//! # The step loop
+//! # A step
 //!
-//! 1. `f(t0, y0)` is evaluated once; afterwards the derivative at the end of
-//!    each accepted step is the first stage of the next (FSAL). An error of
-//!    `f` at an accepted state is fatal: [`IntegrateError::System`]; a
-//!    non-finite `f(t0, y0)` is [`IntegrateError::InvalidInput`] (naming
-//!    the component). A first step from `HINIT` that is zero or not finite
-//!    (its weighted norms overflowed, e.g. `|f| ~ 1e307`) ends the run
-//!    with [`IntegrateError::NonFinite`] at `t0`.
+//! 1. `f(t0, y0)` is evaluated once (at the first [`ExplicitRk::step`]);
+//!    afterwards the derivative at the end of each accepted step is the
+//!    first stage of the next (FSAL). An error of `f` at an accepted state
+//!    is fatal: [`IntegrateError::System`]; a non-finite `f(t0, y0)` is
+//!    [`IntegrateError::InvalidInput`] (naming the component). A first step
+//!    from `HINIT` that is zero or not finite (its weighted norms
+//!    overflowed, e.g. `|f| ~ 1e307`) ends the run with
+//!    [`IntegrateError::NonFinite`] at `t0`.
 //! 2. Budgets before each trial step: `max_steps` (accepted + rejected) →
 //!    `TooManySteps`; `max_wall_time_s`, checked every 8 trial steps →
-//!    `TimeBudgetExceeded`; `|h| < h_min(t) = max(16 ε |t|, floor)` →
-//!    `StepSizeTooSmall`, or `NonFinite` if the last rejection was for a
-//!    non-finite stage, state or error estimate (the collapse is then
-//!    driven by overflow, not by accuracy). The absolute `floor =
-//!    16 ε min(10⁻⁶ |t_end − t0|, h_first)` only matters near `t = 0`: it is
-//!    positive (repeated shrinking near `t = 0` ends) and at most a
-//!    `3.6e-15` fraction of the first step whatever the span.
+//!    `TimeBudgetExceeded` (both [`StopReason::Budget`]);
+//!    `|h| < h_min(t) = max(16 ε |t|, floor)` → `StepSizeTooSmall`, or
+//!    `NonFinite` if the last rejection was for a non-finite stage, state or
+//!    error estimate (the collapse is then driven by overflow, not by
+//!    accuracy). The absolute `floor = 16 ε min(10⁻⁶ |t_end − t0|,
+//!    h_first)` only matters near `t = 0`: it is positive (repeated
+//!    shrinking near `t = 0` ends) and at most a `3.6e-15` fraction of the
+//!    first step whatever the span. A step that would pass `t_end`
+//!    (`t + 1.01 h > t_end`, as `dopri5.f`) is shortened to land on it.
 //! 3. Adaptive methods reject a step whose error estimate exceeds 1 (Hairer's
 //!    controller), whose error estimate or new state is not finite (`h /= 4`),
 //!    or at one of whose later stages `f` failed (`h /= 4`; if that takes `h`
@@ -36,18 +44,20 @@
 //!    (then `f` is evaluated again there), then the guard is evaluated on
 //!    the projected state (always in this order), and output samples inside
 //!    the step are taken from the polynomial.
+//! 5. A guard that changes from `> 0` to `<= 0` across a step is located on
+//!    the step polynomial (Illinois iteration to `~1e-14` relative in `t`);
+//!    the run stops there ([`StopReason::Guard`];
+//!    [`IntegrateError::Stopped`] from `solve`), `t_last` being the first
+//!    located time at which the guard is `<= 0`.
 //!
 //! Error norms use the scale `atol_i + rtol·max(|y_n,i|, |y_n+1,i|)` with
 //! `atol_i` from `Options::atol_components` if set, else `Options::atol`.
-//! 5. A guard that changes from `> 0` to `<= 0` across a step is located on
-//!    the step polynomial (Illinois iteration to `~1e-14` relative in `t`);
-//!    the run stops there with [`IntegrateError::Stopped`], `t_last` being
-//!    the first located time at which the guard is `<= 0`.
 //!
 //! Every error reports the last time reached (`error.time() ==
 //! Some(partial.t_last)`), with the samples, counters and dense output up to
-//! that time. Stage vectors are allocated once per run; the step loop only
-//! allocates by pushing samples and step polynomials.
+//! that time. Stage vectors are allocated once per run (by
+//! [`ExplicitRk::new`]); a step only allocates by pushing samples and step
+//! polynomials.
 
 pub(crate) mod control;
 mod dop853;
@@ -56,14 +66,18 @@ mod rk4;
 mod tableau;
 
 use std::mem::swap;
-use std::time::Instant;
 
-use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, guard_crossing, validate};
+use crate::driver::{Attempt, Core, Driver, Landing, Trial};
+use crate::record::Record;
+use crate::validate::{atol_vector, validate};
 use crate::{
-    Dense, Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, StiffnessEstimate,
-    SystemError,
+    Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, StiffnessEstimate,
+    StopReason, SystemError,
 };
 use control::{ControlParams, Controller, Rhs, StiffnessTest, Tol, all_finite, hinit};
+use dop853::Dop853;
+use dopri5::Dopri5;
+use rk4::Rk4;
 
 /// The accepted state a step starts from: `t`, `y` and `f(t, y)`.
 #[derive(Clone, Copy)]
@@ -141,24 +155,166 @@ fn hermite(coef: &mut [f64], s: StepData<'_>) {
     }
 }
 
-pub(crate) fn solve<S: OdeSystem + ?Sized>(
+/// An explicit Runge–Kutta run in progress — RK4, DOPRI5 or DOP853 on
+/// `y' = f(t, y)` — advanced one accepted step at a time.
+///
+/// Built from `(sys, t0, y0, t_end, opts)` like [`crate::solve`], which is
+/// `ExplicitRk::new(..)?.solve()`. [`ExplicitRk::step`] returns after every
+/// accepted step and tells why it stopped ([`StopReason`]); the samples on
+/// `opts.output`, the continuous extension and the counters accumulate as
+/// in [`crate::solve`], and [`ExplicitRk::into_solution`] hands them over
+/// at any point. Workspaces are allocated by [`ExplicitRk::new`]; a step
+/// allocates only to store samples and step polynomials.
+///
+/// ```
+/// use nonholo_integrate::{ExplicitRk, Method, OdeSystem, Options, StopReason, SystemError};
+///
+/// struct Decay;
+/// impl OdeSystem for Decay {
+///     fn dim(&self) -> usize {
+///         1
+///     }
+///     fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+///         dy[0] = -y[0];
+///         Ok(())
+///     }
+/// }
+///
+/// let mut sys = Decay;
+/// let opts = Options { rtol: 1e-8, atol: 1e-8, ..Options::default() };
+/// let mut rk = ExplicitRk::new(Method::Dopri5, &mut sys, 0.0, &[1.0], 1.0, &opts).unwrap();
+/// while let StopReason::Accepted { t } = rk.step() {
+///     assert!(t > 0.0 && t < 1.0);
+/// }
+/// assert_eq!(rk.t(), 1.0);
+/// assert!((rk.y()[0] - (-1.0f64).exp()).abs() < 1e-7);
+/// ```
+pub struct ExplicitRk<'a, S: OdeSystem + ?Sized> {
+    inner: Inner<'a, S>,
+}
+
+/// The driver of each method (the stage computation is monomorphised).
+enum Inner<'a, S: OdeSystem + ?Sized> {
+    Rk4(Driver<Rhs<'a, S>, Rk<Rk4>>),
+    Dopri5(Driver<Rhs<'a, S>, Rk<Dopri5>>),
+    Dop853(Driver<Rhs<'a, S>, Rk<Dop853>>),
+}
+
+impl<'a, S: OdeSystem + ?Sized> ExplicitRk<'a, S> {
+    /// A run of `method` (RK4, DOPRI5 or DOP853) on `sys` from `(t0, y0)`
+    /// to `t_end`, with the settings and checks of [`crate::solve`]: an
+    /// [`IntegrateError::InvalidInput`] (also for [`Method::Radau5`], which
+    /// is [`crate::Radau5`]) comes back as a [`Failure`] at once. Nothing
+    /// of `sys` is evaluated before the first [`ExplicitRk::step`].
+    pub fn new(
+        method: Method,
+        sys: &'a mut S,
+        t0: f64,
+        y0: &[f64],
+        t_end: f64,
+        opts: &Options,
+    ) -> Result<Self, Failure> {
+        let inner = match method {
+            Method::Rk4 => Inner::Rk4(driver(method, sys, t0, y0, t_end, opts)?),
+            Method::Dopri5 => Inner::Dopri5(driver(method, sys, t0, y0, t_end, opts)?),
+            Method::Dop853 => Inner::Dop853(driver(method, sys, t0, y0, t_end, opts)?),
+            Method::Radau5 => {
+                let rec = Record::new(method, sys.dim(), 4, opts, t_end);
+                let msg = "radau5 is implicit: use Radau5 (or solve) instead of ExplicitRk";
+                return Err(rec.fail(IntegrateError::InvalidInput(msg.into()), t0, y0, 0));
+            }
+        };
+        Ok(ExplicitRk { inner })
+    }
+
+    /// Advances the run by one accepted step, or says why it cannot
+    /// ([`StopReason`]). The first call also evaluates the guard and `f` at
+    /// `t0` and chooses the first step size.
+    pub fn step(&mut self) -> StopReason {
+        match &mut self.inner {
+            Inner::Rk4(d) => d.step(),
+            Inner::Dopri5(d) => d.step(),
+            Inner::Dop853(d) => d.step(),
+        }
+    }
+
+    /// Current time: `t0` before the first step, the end of the last
+    /// accepted step, or the time a terminal [`StopReason`] reports.
+    pub fn t(&self) -> f64 {
+        match &self.inner {
+            Inner::Rk4(d) => d.t(),
+            Inner::Dopri5(d) => d.t(),
+            Inner::Dop853(d) => d.t(),
+        }
+    }
+
+    /// State at [`ExplicitRk::t`] (after `after_step`).
+    pub fn y(&self) -> &[f64] {
+        match &self.inner {
+            Inner::Rk4(d) => d.y(),
+            Inner::Dopri5(d) => d.y(),
+            Inner::Dop853(d) => d.y(),
+        }
+    }
+
+    /// Work counters so far.
+    pub fn stats(&self) -> Stats {
+        match &self.inner {
+            Inner::Rk4(d) => d.stats(),
+            Inner::Dopri5(d) => d.stats(),
+            Inner::Dop853(d) => d.stats(),
+        }
+    }
+
+    /// Samples, continuous extension and counters up to [`ExplicitRk::t`].
+    pub fn into_solution(self) -> Solution {
+        match self.inner {
+            Inner::Rk4(d) => d.into_solution(),
+            Inner::Dopri5(d) => d.into_solution(),
+            Inner::Dop853(d) => d.into_solution(),
+        }
+    }
+
+    /// Steps to the end (see [`crate::solve`], which this is).
+    pub fn solve(self) -> Result<Solution, Failure> {
+        match self.inner {
+            Inner::Rk4(d) => d.solve(),
+            Inner::Dopri5(d) => d.solve(),
+            Inner::Dop853(d) => d.solve(),
+        }
+    }
+}
+
+/// Validates the input and sets up the driver of scheme `M`.
+fn driver<'a, M: Scheme, S: OdeSystem + ?Sized>(
     method: Method,
-    sys: &mut S,
+    sys: &'a mut S,
     t0: f64,
     y0: &[f64],
     t_end: f64,
     opts: &Options,
-) -> Result<Solution, Failure> {
-    match method {
-        Method::Rk4 => run::<rk4::Rk4, S>(method, sys, t0, y0, t_end, opts),
-        Method::Dopri5 => run::<dopri5::Dopri5, S>(method, sys, t0, y0, t_end, opts),
-        Method::Dop853 => run::<dop853::Dop853, S>(method, sys, t0, y0, t_end, opts),
-        Method::Radau5 => unreachable!("implicit methods are dispatched in lib.rs"),
+) -> Result<Driver<Rhs<'a, S>, Rk<M>>, Failure> {
+    let dim = sys.dim();
+    let rec = Record::new(method, dim, M::NCOEF, opts, t_end);
+    // The scheme has no step-size control exactly when the method needs a fixed step.
+    debug_assert_eq!(M::CONTROL.is_none(), method.needs_fixed_step());
+    if let Err(msg) = validate(method.needs_fixed_step(), dim, t0, y0, t_end, opts) {
+        return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
+    let core = Rk::<M>::new(dim, opts);
+    Ok(Driver::new(
+        Rhs { sys, evals: 0 },
+        core,
+        rec,
+        t0,
+        y0,
+        t_end,
+        opts,
+    ))
 }
 
-/// Outcome of a trial step.
-enum Attempt {
+/// Outcome of the stages of a trial step.
+enum Stages {
     /// Stages computed; the error estimate (0 with a fixed step). If it is
     /// at most 1, `y_new`, `f_new` and (if asked for) the polynomial are set.
     Done(f64),
@@ -168,53 +324,100 @@ enum Attempt {
     NonFinite,
 }
 
-/// Buffers of the step loop, allocated once per run.
-struct Work<M> {
+/// An explicit Runge–Kutta method in the step loop: the scheme's stage
+/// vectors, `f` at the current state, the step-size controller and the
+/// stiffness test. Allocated once per run.
+struct Rk<M> {
     scheme: M,
+    /// `f(t, y)` at the current state (the first stage of the next step).
+    f: Vec<f64>,
     y_new: Vec<f64>,
     f_new: Vec<f64>,
-    /// Coefficients of the current step polynomial.
+    /// Coefficients of the polynomial of the last trial step.
     coef: Vec<f64>,
     /// Evaluations of `f` spent on dense output only (`Stats::dense_rhs_evals`).
     dense_evals: usize,
+    rtol: f64,
+    /// Absolute tolerance of every component.
+    atol: Vec<f64>,
+    /// Hairer's controller; `None` with a fixed step.
+    ctrl: Option<Controller>,
+    stiff: Option<StiffnessTest>,
+    /// Where the stiffness test fired first.
+    stiffness: Option<StiffnessEstimate>,
+    /// The controller's next step size after the last accepted step.
+    h_next: f64,
+    /// The last trial step computed its polynomial.
+    need_dense: bool,
 }
 
-impl<M: Scheme> Work<M> {
-    #[allow(clippy::too_many_arguments)]
-    fn attempt<S: OdeSystem + ?Sized>(
+impl<M: Scheme> Rk<M> {
+    fn new(dim: usize, opts: &Options) -> Self {
+        Rk {
+            scheme: M::new(dim),
+            f: vec![0.0; dim],
+            y_new: vec![0.0; dim],
+            f_new: vec![0.0; dim],
+            coef: vec![0.0; M::NCOEF * dim],
+            dense_evals: 0,
+            rtol: opts.rtol,
+            atol: atol_vector(opts, dim),
+            ctrl: match (opts.fixed_step, M::CONTROL) {
+                (None, Some(p)) => Some(Controller::new(p)),
+                _ => None,
+            },
+            stiff: M::CONTROL.map(|p| StiffnessTest::new(p.stiff_bound)),
+            stiffness: None,
+            h_next: f64::NAN,
+            need_dense: false,
+        }
+    }
+
+    /// The stages of the trial step `[from.t, t_new]` of size `h`, `f` at
+    /// its end and (if `need_dense`) its polynomial.
+    fn stages<S: OdeSystem + ?Sized>(
         &mut self,
         rhs: &mut Rhs<'_, S>,
-        from: Start<'_>,
-        h: f64,
-        t_new: f64,
-        tol: Option<Tol<'_>>,
-        need_dense: bool,
-    ) -> Attempt {
+        y: &[f64],
+        trial: Trial,
+    ) -> Stages {
+        let Trial {
+            t,
+            h,
+            t_new,
+            need_poly: need_dense,
+            ..
+        } = trial;
+        let from = Start { t, y, f: &self.f };
+        let tol = self.ctrl.is_some().then_some(Tol {
+            rtol: self.rtol,
+            atol: &self.atol,
+        });
         let err = match self.scheme.step(rhs, from, h, t_new, &mut self.y_new, tol) {
             Ok(err) => err,
-            Err(e) => return Attempt::Rhs(e),
+            Err(e) => return Stages::Rhs(e),
         };
         if !err.is_finite() {
-            return Attempt::NonFinite;
+            return Stages::NonFinite;
         }
         if err > 1.0 {
-            return Attempt::Done(err);
+            return Stages::Done(err);
         }
         if !all_finite(&self.y_new) {
-            return Attempt::NonFinite;
+            return Stages::NonFinite;
         }
         if let Err(e) = self.scheme.f_new(rhs, t_new, &self.y_new, &mut self.f_new) {
-            return Attempt::Rhs(e);
+            return Stages::Rhs(e);
         }
         if !all_finite(&self.f_new) {
-            return Attempt::NonFinite;
+            return Stages::NonFinite;
         }
         if need_dense {
             let step = StepData {
-                t: from.t,
+                t,
                 h,
-                y: from.y,
-                f0: from.f,
+                y,
+                f0: &self.f,
                 y_new: &self.y_new,
                 f_new: &self.f_new,
             };
@@ -222,293 +425,154 @@ impl<M: Scheme> Work<M> {
             let res = self.scheme.dense(rhs, step, &mut self.coef);
             self.dense_evals += rhs.evals - before;
             if let Err(e) = res {
-                return Attempt::Rhs(e);
+                return Stages::Rhs(e);
             }
             if !all_finite(&self.coef) {
-                return Attempt::NonFinite;
+                return Stages::NonFinite;
             }
         }
-        Attempt::Done(err)
+        Stages::Done(err)
     }
 }
 
-/// The step loop shared by all methods (see the module documentation).
-fn run<M: Scheme, S: OdeSystem + ?Sized>(
-    method: Method,
-    sys: &mut S,
-    t0: f64,
-    y0: &[f64],
-    t_end: f64,
-    opts: &Options,
-) -> Result<Solution, Failure> {
-    let start = Instant::now();
-    let dim = sys.dim();
-    let mut rec = Record {
-        method,
-        dim,
-        ncoef: M::NCOEF,
-        grid: Vec::new(),
-        next: 0,
-        t: Vec::new(),
-        y: Vec::new(),
-        dense: opts.dense.then(|| Dense::new(dim, M::NCOEF)),
-        stats: Stats::default(),
-        start,
-    };
-    // The scheme has no step-size control exactly when the method needs a fixed step.
-    debug_assert_eq!(M::CONTROL.is_none(), method.needs_fixed_step());
-    if let Err(msg) = validate(method.needs_fixed_step(), dim, t0, y0, t_end, opts) {
-        return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
-    }
-    rec.grid.extend_from_slice(&opts.output);
-    if rec.grid.last() != Some(&t_end) {
-        rec.grid.push(t_end);
-    }
-
-    let mut rhs = Rhs { sys, evals: 0 };
-    let mut t = t0;
-    let mut y = y0.to_vec();
-    let mut f = vec![0.0; dim];
-    let mut buf = vec![0.0; dim];
-    let mut w = Work {
-        scheme: M::new(dim),
-        y_new: vec![0.0; dim],
-        f_new: vec![0.0; dim],
-        coef: vec![0.0; M::NCOEF * dim],
-        dense_evals: 0,
+impl<M: Scheme, S: OdeSystem + ?Sized> Core<Rhs<'_, S>> for Rk<M> {
+    const NCOEF: usize = M::NCOEF;
+    const LANDING: Landing = Landing {
+        stretch: 1.01,
+        inclusive: false,
     };
 
-    rec.emit(t0, &y, None, &mut buf);
-    let mut g_prev = rhs.sys.guard(t0, &y);
-    let guard_active = g_prev.is_some();
-    if g_prev.is_some_and(|g| g <= 0.0) {
-        let reason = rhs.sys.guard_reason(t0, &y);
-        return Err(rec.fail(IntegrateError::Stopped { t: t0, reason }, t0, &y, 0));
-    }
-    if t_end == t0 {
-        return Ok(rec.finish(t, &y, 0));
-    }
-    if let Err(source) = rhs.eval(t, &y, &mut f) {
-        let ev = rhs.evals;
-        return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
-    }
-    if let Some(i) = f.iter().position(|v| !v.is_finite()) {
-        let msg = format!(
-            "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
-            f[i]
-        );
-        let ev = rhs.evals;
-        return Err(rec.fail(IntegrateError::InvalidInput(msg), t, &y, ev));
-    }
-
-    let span = t_end - t0;
-    let hmax = opts.h_max.unwrap_or(span);
-    let atol = atol_vector(opts, dim);
-    let tol = Tol {
-        rtol: opts.rtol,
-        atol: &atol,
-    };
-    // Fixed step: (h, number of steps); adaptive: controller and stiffness test.
-    let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
-    let mut ctrl = None;
-    let mut stiff = M::CONTROL.map(|p| StiffnessTest::new(p.stiff_bound));
-    let mut stiffness: Option<StiffnessEstimate> = None;
-    let mut h = match (fixed, M::CONTROL) {
-        (Some((h, _)), _) => h,
-        (None, Some(p)) => {
-            ctrl = Some(Controller::new(p));
-            match opts.h_init {
-                Some(h) => h.min(hmax),
-                None => hinit(
-                    &mut rhs,
-                    t,
-                    &y,
-                    &f,
-                    p.hinit_order,
-                    hmax,
-                    tol,
-                    &mut w.y_new,
-                    &mut w.f_new,
-                ),
-            }
+    /// `f(t0, y0)`, which must be finite.
+    fn start(&mut self, rhs: &mut Rhs<'_, S>, t0: f64, y0: &[f64]) -> Result<(), IntegrateError> {
+        if let Err(source) = rhs.eval(t0, y0, &mut self.f) {
+            return Err(IntegrateError::System { t: t0, source });
         }
-        (None, None) => unreachable!("validated: this method needs a fixed step"),
-    };
-    if !(h > 0.0 && h.is_finite()) {
-        // Only HINIT can get here (the other steps are validated): its
-        // weighted norms of f overflowed although f(t0, y0) is finite.
-        let ev = rhs.evals;
-        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
-    }
-    let floor = StepFloor::new(span, h);
-    let h_min = |t: f64| floor.at(t);
-    let mut reject = false;
-    // The last rejection was caused by a non-finite stage, state or error
-    // estimate: a step-size collapse then is reported as `NonFinite`.
-    let mut nonfinite_reject = false;
-    let mut last = false;
-
-    loop {
-        if let Some(e) = rec.budget_exceeded(opts, t, h, stiffness) {
-            let ev = rhs.evals;
-            return Err(rec.fail(e, t, &y, ev));
+        if let Some(i) = self.f.iter().position(|v| !v.is_finite()) {
+            let msg = format!(
+                "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
+                self.f[i]
+            );
+            return Err(IntegrateError::InvalidInput(msg));
         }
-        let t_new = match fixed {
-            Some((hf, n)) => {
-                let k = rec.stats.steps + 1;
-                last = k >= n;
-                let t_new = if last { t_end } else { t0 + k as f64 * hf };
-                h = t_new - t;
-                t_new
-            }
-            None => {
-                if h.abs() < h_min(t) {
-                    let e = if nonfinite_reject {
-                        IntegrateError::NonFinite { t }
-                    } else {
-                        IntegrateError::StepSizeTooSmall { t, h }
-                    };
-                    let ev = rhs.evals;
-                    return Err(rec.fail(e, t, &y, ev));
-                }
-                if t + 1.01 * h - t_end > 0.0 {
-                    h = t_end - t;
-                    last = true;
-                }
-                match rec.next_time() {
-                    // Land on the next output time (`Options::hit_output`).
-                    Some(tau) if opts.hit_output && !last && tau > t && t + 1.01 * h >= tau => {
-                        h = tau - t;
-                        tau
-                    }
-                    _ if last => t_end,
-                    _ => t + h,
-                }
-            }
+        Ok(())
+    }
+
+    /// Hairer's `HINIT` with the method's order (adaptive methods only).
+    fn initial_step(&mut self, rhs: &mut Rhs<'_, S>, t0: f64, y0: &[f64], h_max: f64) -> f64 {
+        let p = M::CONTROL.expect("validated: a method without control has a fixed step");
+        let tol = Tol {
+            rtol: self.rtol,
+            atol: &self.atol,
         };
+        hinit(
+            rhs,
+            t0,
+            y0,
+            &self.f,
+            p.hinit_order,
+            h_max,
+            tol,
+            &mut self.y_new,
+            &mut self.f_new,
+        )
+    }
 
-        let need_dense =
-            opts.dense || guard_active || rec.next_time().is_some_and(|tau| tau < t_new);
-        let from = Start { t, y: &y, f: &f };
-        let trial_tol = ctrl.is_some().then_some(tol);
-        let attempt = w.attempt(&mut rhs, from, h, t_new, trial_tol, need_dense);
-        rec.stats.dense_rhs_evals = w.dense_evals;
-        let err = match attempt {
-            Attempt::Done(err) => err,
-            Attempt::Rhs(source) => {
-                if ctrl.is_none() || h.abs() / 4.0 < h_min(t) {
-                    let ev = rhs.evals;
-                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
-                }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (h / 4.0, true, false);
-                nonfinite_reject = false;
-                continue;
-            }
-            Attempt::NonFinite => {
-                if ctrl.is_none() {
-                    let ev = rhs.evals;
-                    return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
-                }
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (h / 4.0, true, false);
-                nonfinite_reject = true;
-                continue;
-            }
-        };
-        let mut h_next = h;
-        if let Some(c) = ctrl.as_mut() {
-            if err > 1.0 {
-                rec.stats.rejected_steps += 1;
-                (h, reject, last) = (c.rejected(h, err), true, false);
-                nonfinite_reject = false;
-                continue;
-            }
-            h_next = c.accepted(h, err);
-        }
-        nonfinite_reject = false;
+    fn stiffness(&self) -> Option<StiffnessEstimate> {
+        self.stiffness
+    }
 
-        // The step is accepted.
-        rec.stats.steps += 1;
-        if let Some(st) = stiff.as_mut() {
-            if st.due(rec.stats.steps) {
-                let ratio = w.scheme.stiffness(h, &w.y_new, &w.f_new);
-                if let Some(h_rho) = st.update(ratio) {
-                    rec.stats.stiffness_detected.get_or_insert((t, h_rho));
-                    stiffness.get_or_insert(StiffnessEstimate { t, h, h_rho });
+    /// Stages and error test. Adaptive methods reject a step whose error
+    /// exceeds 1 (Hairer's controller proposes the retry), and one with a
+    /// failing (`h/4`; below `h_min` the run ends) or non-finite stage
+    /// (`h/4`); with a fixed step those end the run.
+    fn attempt(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        trial: Trial,
+        y: &[f64],
+        stats: &mut Stats,
+    ) -> Attempt {
+        let (t, h) = (trial.t, trial.h);
+        self.need_dense = trial.need_poly;
+        let stages = self.stages(rhs, y, trial);
+        stats.dense_rhs_evals = self.dense_evals;
+        let err = match stages {
+            Stages::Done(err) => err,
+            Stages::Rhs(source) => {
+                if self.ctrl.is_none() || h.abs() / 4.0 < trial.h_min {
+                    return Attempt::Failed(IntegrateError::System { t, source });
                 }
-            }
-        }
-        if need_dense {
-            if let Some(d) = rec.dense.as_mut() {
-                d.push(t, h, &w.coef);
-            }
-        }
-        let t_old = t;
-        t = t_new;
-        swap(&mut y, &mut w.y_new);
-        swap(&mut f, &mut w.f_new);
-        let poly = need_dense.then_some((&w.coef[..], t_old, h));
-
-        match rhs.sys.after_step(t, &mut y) {
-            Ok(false) => {}
-            Ok(true) => {
-                let res = rhs.eval(t, &y, &mut f);
-                let error = match res {
-                    Err(source) => Some(IntegrateError::System { t, source }),
-                    Ok(()) if !all_finite(&y) || !all_finite(&f) => {
-                        Some(IntegrateError::NonFinite { t })
-                    }
-                    Ok(()) => None,
+                return Attempt::Rejected {
+                    h: h / 4.0,
+                    nonfinite: false,
                 };
-                if let Some(e) = error {
-                    rec.emit(t, &y, poly, &mut buf);
-                    let ev = rhs.evals;
-                    return Err(rec.fail(e, t, &y, ev));
+            }
+            Stages::NonFinite => {
+                if self.ctrl.is_none() {
+                    return Attempt::Failed(IntegrateError::NonFinite { t });
+                }
+                return Attempt::Rejected {
+                    h: h / 4.0,
+                    nonfinite: true,
+                };
+            }
+        };
+        if let Some(c) = self.ctrl.as_mut() {
+            if err > 1.0 {
+                return Attempt::Rejected {
+                    h: c.rejected(h, err),
+                    nonfinite: false,
+                };
+            }
+            self.h_next = c.accepted(h, err);
+        }
+        Attempt::Accepted
+    }
+
+    /// The stiffness test (when due), then `y_{n+1}` and `f_{n+1}` become current.
+    fn accept(&mut self, trial: Trial, y: &mut Vec<f64>, stats: &mut Stats) -> bool {
+        let (t, h) = (trial.t, trial.h);
+        if let Some(st) = self.stiff.as_mut() {
+            if st.due(stats.steps) {
+                let ratio = self.scheme.stiffness(h, &self.y_new, &self.f_new);
+                if let Some(h_rho) = st.update(ratio) {
+                    stats.stiffness_detected.get_or_insert((t, h_rho));
+                    self.stiffness
+                        .get_or_insert(StiffnessEstimate { t, h, h_rho });
                 }
             }
-            Err(source) => {
-                rec.emit(t, &y, poly, &mut buf);
-                let ev = rhs.evals;
-                return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
-            }
         }
+        swap(y, &mut self.y_new);
+        swap(&mut self.f, &mut self.f_new);
+        self.need_dense
+    }
 
-        // `w.y_new` (the previous state, already in `coef`) is free.
-        let sys = &mut *rhs.sys;
-        let crossing = guard_crossing(
-            |tg, yg| sys.guard(tg, yg),
-            &mut g_prev,
-            &w.coef,
-            M::NCOEF,
-            t_old,
-            t,
-            h,
-            &y,
-            &mut w.y_new,
-            &mut buf,
-        );
-        if let Some(t_root) = crossing {
-            let y_root = &w.y_new;
-            let reason = rhs.sys.guard_reason(t_root, y_root);
-            rec.emit(t_root, y_root, poly, &mut buf);
-            let e = IntegrateError::Stopped { t: t_root, reason };
-            let ev = rhs.evals;
-            return Err(rec.fail(e, t_root, y_root, ev));
+    /// `f` again at a projected state.
+    fn new_state(
+        &mut self,
+        rhs: &mut Rhs<'_, S>,
+        t: f64,
+        y: &[f64],
+        projected: bool,
+        _last: bool,
+    ) -> Result<(), IntegrateError> {
+        if !projected {
+            return Ok(());
         }
-
-        rec.emit(t, &y, poly, &mut buf);
-        if last {
-            let ev = rhs.evals;
-            return Ok(rec.finish(t, &y, ev));
-        }
-        if ctrl.is_some() {
-            h_next = h_next.min(hmax);
-            if reject {
-                h_next = h_next.min(h);
+        match rhs.eval(t, y, &mut self.f) {
+            Err(source) => Err(IntegrateError::System { t, source }),
+            Ok(()) if !all_finite(y) || !all_finite(&self.f) => {
+                Err(IntegrateError::NonFinite { t })
             }
-            reject = false;
-            h = h_next;
+            Ok(()) => Ok(()),
         }
+    }
+
+    fn coef(&self) -> &[f64] {
+        &self.coef
+    }
+
+    fn proposal(&self) -> Option<f64> {
+        self.ctrl.is_some().then_some(self.h_next)
     }
 }

@@ -1,8 +1,9 @@
 //! RADAU5 — the implicit Runge–Kutta method Radau IIA of order 5 with
 //! step-size control and continuous output, for stiff ODEs `y' = f(t, y)`
-//! ([`crate::solve`] with [`Method::Radau5`]) and fully implicit systems
-//! `F(t, y, y') = 0`, including differential-algebraic equations of index
-//! up to 3 ([`crate::solve_implicit`]).
+//! ([`crate::solve`] with [`Method::Radau5`]; solver state [`Radau5`]) and
+//! fully implicit systems `F(t, y, y') = 0`, including
+//! differential-algebraic equations of index up to 3
+//! ([`crate::solve_implicit`]; solver state [`Radau5Implicit`]).
 //!
 //! **Reference.** E. Hairer & G. Wanner, *Solving Ordinary Differential
 //! Equations II. Stiff and Differential-Algebraic Problems*, 2nd ed.,
@@ -69,7 +70,7 @@
 //!   rejection `J` is recomputed only if it was not taken at the current
 //!   state.
 //!
-//! **Full Newton iteration** (`Options::radau_newton =`
+//! **Full Newton iteration** (`Options::radau5.newton =`
 //! [`RadauNewton::Full`]). The same stage equations, unknowns `Z`, same
 //! starting values; each iteration evaluates `J_k`, `J'_k` at the three
 //! stage points `(t_n + c_k h, y_n + Z_k, Y'_k)`, `Y'_k = h⁻¹ Σ_j (A⁻¹)_kj Z_j`
@@ -180,27 +181,27 @@
 //! # Continuous output
 //!
 //! The collocation polynomial (order 3 inside the step, `CONTR5`), stored in
-//! the nested form of [`Dense`] (`y_n + s(b + (1 − s)(c + s d))`, converted
+//! the nested form of [`crate::Dense`] (`y_n + s(b + (1 − s)(c + s d))`, converted
 //! from the values at the nodes) for `Options::dense`, output samples,
 //! guard location and the Newton starting values.
 //!
-//! # Options (all of [`Options`])
+//! # Settings ([`Options`], and [`crate::Radau5Options`] in `Options::radau5`)
 //!
-//! | option | meaning here | default |
+//! | setting | meaning here | default |
 //! |---|---|---|
 //! | `rtol`, `atol` | tolerances, transformed as above | `1e-6`, `1e-6` |
+//! | `atol_components` | per-component `atol` (transformed like `atol`) | `None` |
 //! | `fixed_step` | fixed step mode | `None` |
 //! | `h_init` | first step | `HINIT` / first guess |
 //! | `h_max` | largest step | `t_end − t0` |
 //! | `max_steps` | budget on trial steps (accepted + rejected) | `10⁷` |
 //! | `max_wall_time_s` | budget, checked every 8 trial steps | `None` |
-//! | `output`, `dense` | samples and continuous extension, as for the explicit methods | `[]`, `true` |
-//! | `newton_max_iter` | `NIT` | 7 |
-//! | `newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
-//! | `jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
-//! | `keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
-//! | `radau_newton` | simplified (RADAU5) or full Newton iteration | `Simplified` |
-//! | `atol_components` | per-component `atol` (transformed like `atol`) | `None` |
+//! | `output`, `dense`, `hit_output` | samples and continuous extension, as for the explicit methods | `[]`, `true`, `false` |
+//! | `radau5.newton` | simplified (RADAU5) or full Newton iteration | `Auto` (here: simplified) |
+//! | `radau5.newton_max_iter` | `NIT` | 7 |
+//! | `radau5.newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
+//! | `radau5.jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
+//! | `radau5.keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
 //!
 //! # Counters ([`Stats`])
 //!
@@ -232,10 +233,36 @@
 //!   mode, where the single retry with a fresh Jacobian is not.
 //! - `stiffness_detected`: always `None`; `wall_time_s`: as usual.
 //!
-//! # The step loop and its failures
+//! # A step and its failures
 //!
-//! Every failure is a [`Failure`] whose partial solution holds the samples,
-//! step polynomials and counters up to `error.time()`.
+//! [`Radau5::step`] (and [`Radau5Implicit::step`]) runs the loop head
+//! shared with the explicit methods (`crate::driver`: budgets, minimum
+//! step, landing on `t_end` with RADAU5's `t + 1.0001 h >= t_end` and on
+//! output times), then trial steps of [`RadauCore`] in RADAU5's order until
+//! one is accepted:
+//!
+//! 1. **Iteration matrices** ([`RadauCore::iteration_matrix`]): `J`, `J'`
+//!    at the step start when a new Jacobian is due, and the factorisations
+//!    of `γ/h J' + J` and `(α + iβ)/h J' + J` when `h` or `J` changed.
+//! 2. **Starting values**: the last collocation polynomial extrapolated
+//!    (zero at the first step), with the error scale of the step.
+//! 3. **Newton iteration** ([`RadauCore::newton`]): simplified or full, with
+//!    RADAU5's convergence monitor.
+//! 4. **Error estimate and step-size control** ([`RadauCore::error_control`];
+//!    not with a fixed step): accept, or reject with the next trial size.
+//!
+//! Every rejection goes through [`RadauCore::reject`] (counted, retried
+//! from the same state, with a fresh Jacobian unless the current one was
+//! taken there). After the accepted step the driver calls `after_step`,
+//! then [`RadauCore`] evaluates `f` (or `F`) at the new state, the guard is
+//! watched and the next step size settled (keep `h` within `keep_step`,
+//! land on `t_end`).
+//!
+//! A budget ends the run with [`crate::StopReason::Budget`], a guard zero
+//! with [`crate::StopReason::Guard`], every other failure with
+//! [`crate::StopReason::Failed`]; from `solve` every failure is a
+//! [`Failure`] whose partial solution holds the samples, step polynomials
+//! and counters up to `error.time()`.
 //!
 //! - [`IntegrateError::InvalidInput`] (before any step): the checks of the
 //!   explicit methods, `newton_max_iter = 0`, `newton_tol` not positive,
@@ -278,615 +305,50 @@
 //! guard on the state it left (the contract stated on the traits).
 //!
 //! Workspaces (Jacobians, both factorisations, the full-Newton matrix, stage
-//! vectors) are allocated once per run; the step loop allocates only when it stores samples and
-//! step polynomials.
+//! vectors) are allocated once per run, by [`Radau5::new`] and
+//! [`Radau5Implicit::new`]; a step allocates only when it stores samples
+//! and step polynomials.
 
 mod linalg;
+mod newton;
 mod problem;
 mod tableau;
+mod work;
 
-use std::time::Instant;
-
-use crate::driver::{Record, StepFloor, atol_vector, fixed_step_count, guard_crossing, validate};
+use crate::driver::{Attempt, Core, Driver, Landing, Trial};
 use crate::explicit::control::{Tol, all_finite};
+use crate::record::Record;
+use crate::validate::{atol_vector, validate};
 use crate::{
-    Dense, Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton,
-    Solution, Stats, SystemError,
+    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton, Solution,
+    Stats, StopReason, SystemError,
 };
-use linalg::{ComplexLu, RealLu};
+use newton::{Newton, NewtonParams};
 use problem::{Dae, Ode, Problem, UROUND};
-use tableau::Tableau;
-
-pub(crate) fn solve_ode<S: OdeSystem + ?Sized>(
-    sys: &mut S,
-    t0: f64,
-    y0: &[f64],
-    t_end: f64,
-    opts: &Options,
-) -> Result<Solution, Failure> {
-    let mut p = Ode::new(sys);
-    run(&mut p, t0, y0, None, t_end, opts)
-}
-
-pub(crate) fn solve_implicit<S: ImplicitSystem + ?Sized>(
-    sys: &mut S,
-    t0: f64,
-    y0: &[f64],
-    yp0: &[f64],
-    t_end: f64,
-    opts: &Options,
-) -> Result<Solution, Failure> {
-    let mut p = Dae { sys, evals: 0 };
-    run(&mut p, t0, y0, Some(yp0), t_end, opts)
-}
+use work::Work;
 
 /// Number of coefficient vectors of the collocation polynomial in the
-/// nested form of [`Dense`].
+/// nested form of [`crate::Dense`].
 const NCOEF: usize = 4;
-
-/// Settings of the Newton iteration.
-#[derive(Debug, Clone, Copy)]
-struct NewtonParams {
-    /// `NIT`.
-    nit: usize,
-    /// `FNEWT`.
-    fnewt: f64,
-    /// `THET`.
-    thet: f64,
-    /// Fixed step: no step-size reduction is possible, so the prediction
-    /// "will not converge in time" (`DYTH >= 1`) does not stop the iteration.
-    fixed: bool,
-}
-
-/// Outcome of the Newton iteration of a trial step.
-enum Newton {
-    /// Converged after this many iterations.
-    Converged(usize),
-    /// Converging, but predicted not to reach `FNEWT` within `NIT`
-    /// iterations: RADAU5 retries with `h` times this factor.
-    Slow(f64),
-    /// Diverged (`θ >= 0.99`) or not converged after `NIT` iterations.
-    Failed,
-    /// `F` could not be evaluated at a stage.
-    Stage(SystemError),
-    /// A residual or a Newton correction is not finite (full Newton: also
-    /// a stage Jacobian).
-    NonFinite,
-    /// Full Newton: the `3n × 3n` matrix is singular.
-    Singular,
-}
-
-/// Workspaces of the full Newton iteration (`RadauNewton::Full`).
-struct FullNewton {
-    /// `∂G/∂Z`, `3n × 3n`, row block `k` = stage equation `k`, column
-    /// block `j` = `Z_j`; factored in place.
-    lu: RealLu,
-    /// `J_k`, `J'_k` at the current stage point (`J'_k` empty for explicit
-    /// ODEs, where `J' = I`).
-    jy: Vec<f64>,
-    jyp: Vec<f64>,
-    /// `−G(Z)`, then the correction `ΔZ` (stage-major, length `3n`).
-    rhs: Vec<f64>,
-}
-
-/// RADAU5's convergence monitor of one Newton iteration.
-struct Monitor {
-    /// Corrections computed so far.
-    newt: usize,
-    /// Norm of the previous correction.
-    dynold: f64,
-    /// Previous quotient of successive norms.
-    thqold: f64,
-}
-
-/// Workspaces and the per-run state of the core, allocated once per run.
-struct Work {
-    n: usize,
-    tab: Tableau,
-    /// `J = ∂F/∂y`, row-major.
-    jy: Vec<f64>,
-    /// `J' = ∂F/∂y'` (empty for explicit ODEs, where `J' = I`).
-    jyp: Vec<f64>,
-    /// `γ/h J' + J`, factored.
-    e1: RealLu,
-    /// `(α + iβ)/h J' + J`, factored.
-    e2: ComplexLu,
-    /// Transformed stage increments `W = (T⁻¹ ⊗ I) Z`.
-    w: [Vec<f64>; 3],
-    /// Stage increments `Z_i = Y_i − y_n`.
-    z: [Vec<f64>; 3],
-    /// Stage residuals, then the Newton corrections `ΔW`.
-    dw: [Vec<f64>; 3],
-    /// Stage state and derivative.
-    ys: Vec<f64>,
-    yps: Vec<f64>,
-    /// The three stage derivatives `Y'_k` of a simplified Newton iteration.
-    yp_stage: [Vec<f64>; 3],
-    /// Error scale of the current step (index-2/3 components divided by `h`, `h²`).
-    scal: Vec<f64>,
-    /// Error estimate and its right-hand side.
-    err: Vec<f64>,
-    err_rhs: Vec<f64>,
-    /// Collocation polynomial of the last converged step (nested form).
-    coef: Vec<f64>,
-    /// `y'` at the end of the last converged step: `h⁻¹ (A⁻¹ Z)_3`.
-    yp_new: Vec<f64>,
-    /// `FACCON`: `θ/(1 − θ)` of the last iteration (kept across steps).
-    faccon: f64,
-    /// `θ`, the contraction rate of the last Newton iteration.
-    theta: f64,
-    /// Full Newton workspaces (`None` in simplified mode).
-    full: Option<FullNewton>,
-}
-
-impl Work {
-    fn new(n: usize, identity_jp: bool, full: bool) -> Self {
-        let v = || vec![0.0; n];
-        Work {
-            n,
-            tab: Tableau::new(),
-            jy: vec![0.0; n * n],
-            jyp: if identity_jp {
-                Vec::new()
-            } else {
-                vec![0.0; n * n]
-            },
-            e1: RealLu::new(n),
-            e2: ComplexLu::new(n),
-            w: [v(), v(), v()],
-            z: [v(), v(), v()],
-            dw: [v(), v(), v()],
-            ys: v(),
-            yps: v(),
-            yp_stage: [v(), v(), v()],
-            scal: v(),
-            err: v(),
-            err_rhs: v(),
-            coef: vec![0.0; NCOEF * n],
-            yp_new: v(),
-            faccon: 1.0,
-            theta: 0.0,
-            full: full.then(|| FullNewton {
-                lu: RealLu::new(3 * n),
-                jy: vec![0.0; n * n],
-                jyp: if identity_jp {
-                    Vec::new()
-                } else {
-                    vec![0.0; n * n]
-                },
-                rhs: vec![0.0; 3 * n],
-            }),
-        }
-    }
-
-    /// Forms `γ/h J' + J` and `(α + iβ)/h J' + J` and factors them; in full
-    /// Newton mode only the first, which the error estimate needs.
-    fn factor(&mut self, h: f64) -> Result<(), usize> {
-        let n = self.n;
-        // `J' = I` (an explicit ODE) exactly when no `J'` is stored.
-        let identity_jp = self.jyp.is_empty();
-        let (g, a, b) = (self.tab.gamma / h, self.tab.alpha / h, self.tab.beta / h);
-        let complex = self.full.is_none();
-        self.e1.a.copy_from_slice(&self.jy);
-        if identity_jp {
-            for i in 0..n {
-                self.e1.a[i * n + i] += g;
-            }
-        } else {
-            for (k, &m) in self.jyp.iter().enumerate() {
-                self.e1.a[k] += g * m;
-            }
-        }
-        self.e1.factor()?;
-        if !complex {
-            return Ok(());
-        }
-        self.e2.re.copy_from_slice(&self.jy);
-        if identity_jp {
-            self.e2.im.fill(0.0);
-            for i in 0..n {
-                self.e2.re[i * n + i] += a;
-                self.e2.im[i * n + i] = b;
-            }
-        } else {
-            for (k, &m) in self.jyp.iter().enumerate() {
-                self.e2.re[k] += a * m;
-                self.e2.im[k] = b * m;
-            }
-        }
-        self.e2.factor()
-    }
-
-    /// Error scale of a step of size `h` from the base scale `sk`.
-    fn set_scale(&mut self, sk: &[f64], index: &[u8], h: f64) {
-        for ((s, &k), &ix) in self.scal.iter_mut().zip(sk).zip(index) {
-            *s = match ix {
-                1 => k,
-                2 => k / h,
-                _ => k / (h * h),
-            };
-        }
-    }
-
-    /// Starting values of the Newton iteration: zero, or the collocation
-    /// polynomial of the previous step (of size `hold`) extrapolated.
-    fn start(&mut self, h: f64, hold: Option<f64>) {
-        let n = self.n;
-        let Some(hold) = hold else {
-            for k in 0..3 {
-                self.w[k].fill(0.0);
-                self.z[k].fill(0.0);
-            }
-            return;
-        };
-        let ti = self.tab.ti;
-        let s = self.tab.c.map(|c| 1.0 + c * h / hold);
-        for i in 0..n {
-            let (b, c, d) = (self.coef[n + i], self.coef[2 * n + i], self.coef[3 * n + i]);
-            // p(s) − p(1) = (s − 1)(b − s(c + s d)) in the nested form.
-            let z: [f64; 3] = s.map(|s| (s - 1.0) * (b - s * (c + s * d)));
-            for k in 0..3 {
-                self.z[k][i] = z[k];
-                self.w[k][i] = ti[k][0] * z[0] + ti[k][1] * z[1] + ti[k][2] * z[2];
-            }
-        }
-    }
-
-    /// Starts a Newton iteration: RADAU5's `FACCON` for the first
-    /// correction, `θ` reset.
-    fn begin_newton(&mut self, np: NewtonParams) -> Monitor {
-        self.faccon = self.faccon.max(UROUND).powf(0.8);
-        self.theta = np.thet.abs();
-        Monitor {
-            newt: 0,
-            dynold: 1.0,
-            thqold: 1.0,
-        }
-    }
-
-    /// The scaled RMS norm of the correction `ΔW` in `dw` over the `3n`
-    /// components (RADAU5's `DYNO`).
-    fn correction_norm(&self) -> f64 {
-        let n = self.n;
-        let [d0, d1, d2] = &self.dw;
-        let mut dyno = 0.0;
-        for i in 0..n {
-            let s = self.scal[i];
-            dyno += (d0[i] / s).powi(2) + (d1[i] / s).powi(2) + (d2[i] / s).powi(2);
-        }
-        (dyno / (3 * n) as f64).sqrt()
-    }
-
-    /// RADAU5's monitor after correction number `m.newt` of norm `dyno`:
-    /// updates `θ` and `η = FACCON`; `Some` ends the iteration (divergence,
-    /// predicted too slow, not finite) before the correction is applied.
-    fn monitor(&mut self, m: &mut Monitor, dyno: f64, np: NewtonParams) -> Option<Newton> {
-        if !dyno.is_finite() {
-            return Some(Newton::NonFinite);
-        }
-        let newt = m.newt;
-        if newt > 1 && newt < np.nit {
-            let thq = dyno / m.dynold;
-            self.theta = if newt == 2 {
-                thq
-            } else {
-                (thq * m.thqold).sqrt()
-            };
-            m.thqold = thq;
-            if self.theta < 0.99 {
-                self.faccon = self.theta / (1.0 - self.theta);
-                let left = (np.nit - 1 - newt) as i32;
-                let dyth = self.faccon * dyno * self.theta.powi(left) / np.fnewt;
-                if dyth >= 1.0 && !np.fixed {
-                    let qnewt = dyth.clamp(1e-4, 20.0);
-                    return Some(Newton::Slow(
-                        0.8 * qnewt.powf(-1.0 / (4.0 + f64::from(left))),
-                    ));
-                }
-            } else {
-                return Some(Newton::Failed);
-            }
-        }
-        m.dynold = dyno.max(UROUND);
-        None
-    }
-
-    /// The simplified Newton iteration for the stage equations of the step
-    /// `[t, t_new]` of size `h` from `y` (starting values set by [`Work::start`]).
-    fn newton<P: Problem>(
-        &mut self,
-        p: &mut P,
-        t: f64,
-        y: &[f64],
-        h: f64,
-        t_new: f64,
-        np: NewtonParams,
-        stats: &mut Stats,
-    ) -> Newton {
-        let n = self.n;
-        let Tableau {
-            c,
-            gamma,
-            alpha,
-            beta,
-            t: tm,
-            ti,
-            ..
-        } = self.tab;
-        let mut m = self.begin_newton(np);
-        loop {
-            if m.newt >= np.nit {
-                return Newton::Failed;
-            }
-            // Stage derivatives Y'_k = h⁻¹ (T Λ W)_k, with Λ W formed once per
-            // component for the three stages.
-            for i in 0..n {
-                let (w1, w2, w3) = (self.w[0][i], self.w[1][i], self.w[2][i]);
-                let v = [gamma * w1, alpha * w2 - beta * w3, beta * w2 + alpha * w3];
-                for k in 0..3 {
-                    self.yp_stage[k][i] = (tm[k][0] * v[0] + tm[k][1] * v[1] + tm[k][2] * v[2]) / h;
-                }
-            }
-            // Residuals G_k = F(t + c_k h, y + Z_k, Y'_k).
-            for k in 0..3 {
-                let tk = if k == 2 { t_new } else { t + c[k] * h };
-                for i in 0..n {
-                    self.ys[i] = y[i] + self.z[k][i];
-                }
-                if let Err(e) = p.residual(tk, &self.ys, &self.yp_stage[k], &mut self.dw[k]) {
-                    return Newton::Stage(e);
-                }
-            }
-            // Right-hand sides −(T⁻¹ ⊗ I) G, then the two linear systems.
-            let [d0, d1, d2] = &mut self.dw;
-            for i in 0..n {
-                let (g1, g2, g3) = (d0[i], d1[i], d2[i]);
-                d0[i] = -(ti[0][0] * g1 + ti[0][1] * g2 + ti[0][2] * g3);
-                d1[i] = -(ti[1][0] * g1 + ti[1][1] * g2 + ti[1][2] * g3);
-                d2[i] = -(ti[2][0] * g1 + ti[2][1] * g2 + ti[2][2] * g3);
-            }
-            self.e1.solve(d0);
-            self.e2.solve(d1, d2);
-            m.newt += 1;
-            stats.newton_iterations += 1;
-            let dyno = self.correction_norm();
-            if let Some(out) = self.monitor(&mut m, dyno, np) {
-                return out;
-            }
-            for i in 0..n {
-                let w1 = self.w[0][i] + self.dw[0][i];
-                let w2 = self.w[1][i] + self.dw[1][i];
-                let w3 = self.w[2][i] + self.dw[2][i];
-                self.w[0][i] = w1;
-                self.w[1][i] = w2;
-                self.w[2][i] = w3;
-                for k in 0..3 {
-                    self.z[k][i] = tm[k][0] * w1 + tm[k][1] * w2 + tm[k][2] * w3;
-                }
-            }
-            if self.faccon * dyno <= np.fnewt {
-                // y' at the end of the step, h⁻¹ (A⁻¹ Z)_3 = h⁻¹ (T Λ W)_3.
-                for i in 0..n {
-                    let (w1, w2, w3) = (self.w[0][i], self.w[1][i], self.w[2][i]);
-                    let v = [gamma * w1, alpha * w2 - beta * w3, beta * w2 + alpha * w3];
-                    self.yp_new[i] = (tm[2][0] * v[0] + tm[2][1] * v[1] + tm[2][2] * v[2]) / h;
-                }
-                return Newton::Converged(m.newt);
-            }
-        }
-    }
-
-    /// The full Newton iteration for the stage equations of the step
-    /// `[t, t_new]` of size `h` from `y` (starting values set by
-    /// [`Work::start`]): each iteration evaluates `J_k`, `J'_k` at the three
-    /// stage points `(t + c_k h, y + Z_k, h⁻¹ (A⁻¹ Z)_k)`, forms
-    /// `∂G_k/∂Z_j = δ_kj J_k + h⁻¹ (A⁻¹)_kj J'_k`, factors it and solves
-    /// for `ΔZ`. The monitor sees `ΔW = (T⁻¹ ⊗ I) ΔZ` in the same norm as
-    /// the simplified iteration, so `newton_tol` means the same in both.
-    fn newton_full<P: Problem>(
-        &mut self,
-        p: &mut P,
-        t: f64,
-        y: &[f64],
-        h: f64,
-        t_new: f64,
-        np: NewtonParams,
-        stats: &mut Stats,
-    ) -> Newton {
-        let n = self.n;
-        let nn = 3 * n;
-        let Tableau { c, ti, ainv, .. } = self.tab;
-        let mut m = self.begin_newton(np);
-        loop {
-            if m.newt >= np.nit {
-                return Newton::Failed;
-            }
-            let full = self.full.as_mut().expect("full Newton workspace");
-            for k in 0..3 {
-                let tk = if k == 2 { t_new } else { t + c[k] * h };
-                for i in 0..n {
-                    let s = ainv[k][0] * self.z[0][i]
-                        + ainv[k][1] * self.z[1][i]
-                        + ainv[k][2] * self.z[2][i];
-                    self.yps[i] = s / h;
-                    self.ys[i] = y[i] + self.z[k][i];
-                }
-                let gk = &mut self.dw[k];
-                if let Err(e) = p.residual(tk, &self.ys, &self.yps, gk) {
-                    return Newton::Stage(e);
-                }
-                if !all_finite(gk) {
-                    return Newton::NonFinite;
-                }
-                stats.jacobian_evals += 1;
-                let res = p.jacobians(tk, &self.ys, &self.yps, gk, &mut full.jy, &mut full.jyp);
-                if let Err(e) = res {
-                    return Newton::Stage(e);
-                }
-                if !all_finite(&full.jy) || (!P::IDENTITY_JP && !all_finite(&full.jyp)) {
-                    return Newton::NonFinite;
-                }
-                // Row block k: [h⁻¹ (A⁻¹)_k1 J'_k, h⁻¹ (A⁻¹)_k2 J'_k, h⁻¹ (A⁻¹)_k3 J'_k] + J_k
-                // in column block k.
-                for i in 0..n {
-                    let r = k * n + i;
-                    let row = &mut full.lu.a[r * nn..(r + 1) * nn];
-                    for (j, blk) in row.chunks_exact_mut(n).enumerate() {
-                        let a = ainv[k][j] / h;
-                        if P::IDENTITY_JP {
-                            blk.fill(0.0);
-                            blk[i] = a;
-                        } else {
-                            for (b, &jp) in blk.iter_mut().zip(&full.jyp[i * n..(i + 1) * n]) {
-                                *b = a * jp;
-                            }
-                        }
-                        if j == k {
-                            for (b, &jv) in blk.iter_mut().zip(&full.jy[i * n..(i + 1) * n]) {
-                                *b += jv;
-                            }
-                        }
-                    }
-                    full.rhs[r] = -gk[i];
-                }
-            }
-            stats.lu_decompositions += 1;
-            if full.lu.factor().is_err() {
-                return Newton::Singular;
-            }
-            full.lu.solve(&mut full.rhs);
-            // ΔW = (T⁻¹ ⊗ I) ΔZ for the monitor.
-            let dz = &full.rhs;
-            for i in 0..n {
-                let (a, b, cc) = (dz[i], dz[n + i], dz[2 * n + i]);
-                for k in 0..3 {
-                    self.dw[k][i] = ti[k][0] * a + ti[k][1] * b + ti[k][2] * cc;
-                }
-            }
-            m.newt += 1;
-            stats.newton_iterations += 1;
-            let dyno = self.correction_norm();
-            if let Some(out) = self.monitor(&mut m, dyno, np) {
-                return out;
-            }
-            let dz = &self.full.as_ref().expect("full Newton workspace").rhs;
-            for k in 0..3 {
-                for i in 0..n {
-                    self.z[k][i] += dz[k * n + i];
-                    self.w[k][i] += self.dw[k][i];
-                }
-            }
-            if self.faccon * dyno <= np.fnewt {
-                // y' at the end of the step, h⁻¹ (A⁻¹ Z)_3.
-                for i in 0..n {
-                    let s = ainv[2][0] * self.z[0][i]
-                        + ainv[2][1] * self.z[1][i]
-                        + ainv[2][2] * self.z[2][i];
-                    self.yp_new[i] = s / h;
-                }
-                return Newton::Converged(m.newt);
-            }
-        }
-    }
-
-    /// Scaled RMS norm of `v`.
-    fn norm(&self, v: &[f64]) -> f64 {
-        let s: f64 = v
-            .iter()
-            .zip(&self.scal)
-            .map(|(x, s)| (x / s) * (x / s))
-            .sum();
-        (s / self.n as f64).sqrt()
-    }
-
-    /// The error estimate of the converged step (see the module documentation):
-    /// `err = (γ/h J' + J)⁻¹ (J' (y'_n + h⁻¹ Σ dd_i Z_i) − F(t_n, y_n, y'_n))`,
-    /// with `res = F(t_n, y_n, y'_n)`; when `second` and the first estimate
-    /// is `>= 1`, once more with `F(t_n, y_n + err, y'_n)` in place of `res`.
-    fn estimate<P: Problem>(
-        &mut self,
-        p: &mut P,
-        t: f64,
-        y: &[f64],
-        yp: &[f64],
-        res: &[f64],
-        h: f64,
-        second: bool,
-    ) -> f64 {
-        let n = self.n;
-        let dd = self.tab.dd;
-        // err_rhs = J'(y'_n + h⁻¹ Σ dd_i Z_i), err = err_rhs − F(t_n, y_n, y'_n).
-        for i in 0..n {
-            let s = dd[0] * self.z[0][i] + dd[1] * self.z[1][i] + dd[2] * self.z[2][i];
-            self.err[i] = yp[i] + s / h;
-        }
-        if P::IDENTITY_JP {
-            self.err_rhs.copy_from_slice(&self.err);
-        } else {
-            for i in 0..n {
-                let row = &self.jyp[i * n..(i + 1) * n];
-                self.err_rhs[i] = row.iter().zip(&self.err).map(|(a, b)| a * b).sum();
-            }
-        }
-        for i in 0..n {
-            self.err[i] = self.err_rhs[i] - res[i];
-        }
-        self.e1.solve(&mut self.err);
-        let e = self.norm(&self.err).max(1e-10);
-        if !(e >= 1.0 && second) {
-            return e;
-        }
-        for i in 0..n {
-            self.ys[i] = y[i] + self.err[i];
-        }
-        if p.residual(t, &self.ys, yp, &mut self.err).is_err() {
-            return e;
-        }
-        for i in 0..n {
-            self.err[i] = self.err_rhs[i] - self.err[i];
-        }
-        self.e1.solve(&mut self.err);
-        let e2 = self.norm(&self.err).max(1e-10);
-        if e2.is_finite() { e2 } else { e }
-    }
-
-    /// The collocation polynomial through `y`, `y + Z_1`, `y + Z_2`, `y + Z_3`
-    /// in the nested form `a + s(b + (1 − s)(c + s d))` of [`Dense`].
-    fn polynomial(&mut self, y: &[f64]) {
-        let n = self.n;
-        let [c1, c2, _] = self.tab.c;
-        let (w1, w2) = (c1 * (1.0 - c1), c2 * (1.0 - c2));
-        for i in 0..n {
-            let (z1, z2, z3) = (self.z[0][i], self.z[1][i], self.z[2][i]);
-            let q1 = (z1 - c1 * z3) / w1;
-            let q2 = (z2 - c2 * z3) / w2;
-            let d = (q2 - q1) / (c2 - c1);
-            self.coef[i] = y[i];
-            self.coef[n + i] = z3;
-            self.coef[2 * n + i] = q1 - c1 * d;
-            self.coef[3 * n + i] = d;
-        }
-    }
-}
 
 /// Checks the Radau-specific options and the implicit initial data.
 fn validate_radau(opts: &Options, yp0: Option<&[f64]>, index: &[u8]) -> Result<(), String> {
     let n = index.len();
-    if opts.newton_max_iter == 0 {
+    if opts.radau5.newton_max_iter == 0 {
         return Err("newton_max_iter must be at least 1".into());
     }
-    if let Some(f) = opts.newton_tol {
+    if let Some(f) = opts.radau5.newton_tol {
         if !(f > 0.0 && f.is_finite()) {
             return Err(format!("newton_tol = {f} must be positive and finite"));
         }
     }
-    if opts.jacobian_reuse.is_nan() || opts.jacobian_reuse >= 1.0 {
+    if opts.radau5.jacobian_reuse.is_nan() || opts.radau5.jacobian_reuse >= 1.0 {
         return Err(format!(
             "jacobian_reuse = {} must be < 1",
-            opts.jacobian_reuse
+            opts.radau5.jacobian_reuse
         ));
     }
-    let (lo, hi) = opts.keep_step;
+    let (lo, hi) = opts.radau5.keep_step;
     if !(lo > 0.0 && lo <= 1.0 && hi >= 1.0 && hi.is_finite()) {
         return Err(format!(
             "keep_step = ({lo}, {hi}) must satisfy 0 < lo <= 1 <= hi < ∞"
@@ -941,29 +403,145 @@ fn inconsistency(res: &[f64], y0: &[f64], atol: &[f64], rtol: f64) -> Option<Str
     })
 }
 
-/// The step loop (see the module documentation).
-fn run<P: Problem>(
-    p: &mut P,
+/// A Radau IIA (RADAU5) run on a stiff ODE `y' = f(t, y)` in progress,
+/// advanced one accepted step at a time.
+///
+/// Built from `(sys, t0, y0, t_end, opts)` like [`crate::solve`] with
+/// [`Method::Radau5`], which is `Radau5::new(..)?.solve()`. [`Radau5::step`]
+/// returns after every accepted step and tells why it stopped
+/// ([`StopReason`]); samples, continuous extension and counters accumulate
+/// as in [`crate::solve`] and [`Radau5::into_solution`] hands them over.
+/// Workspaces (Jacobians, factorisations, stage vectors) are allocated by
+/// [`Radau5::new`]; a step allocates only to store samples and step
+/// polynomials.
+pub struct Radau5<'a, S: OdeSystem + ?Sized> {
+    driver: Driver<Ode<'a, S>, RadauCore>,
+}
+
+impl<'a, S: OdeSystem + ?Sized> Radau5<'a, S> {
+    /// A run on `sys` from `(t0, y0)` to `t_end` with the settings and
+    /// checks of [`crate::solve`]; invalid input comes back as a
+    /// [`Failure`] at once. Nothing of `sys` is evaluated before the first
+    /// [`Radau5::step`].
+    pub fn new(
+        sys: &'a mut S,
+        t0: f64,
+        y0: &[f64],
+        t_end: f64,
+        opts: &Options,
+    ) -> Result<Self, Failure> {
+        let driver = driver(Ode::new(sys), t0, y0, None, t_end, opts)?;
+        Ok(Radau5 { driver })
+    }
+
+    /// Advances the run by one accepted step, or says why it cannot
+    /// ([`StopReason`]). The first call also evaluates the guard and `f` at
+    /// `t0` and chooses the first step size.
+    pub fn step(&mut self) -> StopReason {
+        self.driver.step()
+    }
+
+    /// Current time: `t0` before the first step, the end of the last
+    /// accepted step, or the time a terminal [`StopReason`] reports.
+    pub fn t(&self) -> f64 {
+        self.driver.t()
+    }
+
+    /// State at [`Radau5::t`] (after `after_step`).
+    pub fn y(&self) -> &[f64] {
+        self.driver.y()
+    }
+
+    /// Work counters so far.
+    pub fn stats(&self) -> Stats {
+        self.driver.stats()
+    }
+
+    /// Samples, continuous extension and counters up to [`Radau5::t`].
+    pub fn into_solution(self) -> Solution {
+        self.driver.into_solution()
+    }
+
+    /// Steps to the end (see [`crate::solve`], which this is for [`Method::Radau5`]).
+    pub fn solve(self) -> Result<Solution, Failure> {
+        self.driver.solve()
+    }
+}
+
+/// A Radau IIA run on an implicit system `F(t, y, y') = 0` (a DAE of index
+/// up to 3) in progress, advanced one accepted step at a time.
+///
+/// Built from `(sys, t0, y0, y'0, t_end, opts)` like
+/// [`crate::solve_implicit`], which is `Radau5Implicit::new(..)?.solve()`;
+/// otherwise as [`Radau5`].
+pub struct Radau5Implicit<'a, S: ImplicitSystem + ?Sized> {
+    driver: Driver<Dae<'a, S>, RadauCore>,
+}
+
+impl<'a, S: ImplicitSystem + ?Sized> Radau5Implicit<'a, S> {
+    /// A run on `sys` from the consistent initial values `(t0, y0, y'0)` to
+    /// `t_end` with the settings and checks of [`crate::solve_implicit`]:
+    /// invalid input, including inconsistent initial values (one
+    /// evaluation of `F`), comes back as a [`Failure`] at once.
+    pub fn new(
+        sys: &'a mut S,
+        t0: f64,
+        y0: &[f64],
+        yp0: &[f64],
+        t_end: f64,
+        opts: &Options,
+    ) -> Result<Self, Failure> {
+        let dae = Dae { sys, evals: 0 };
+        let driver = driver(dae, t0, y0, Some(yp0), t_end, opts)?;
+        Ok(Radau5Implicit { driver })
+    }
+
+    /// Advances the run by one accepted step, or says why it cannot
+    /// ([`StopReason`]). The first call also evaluates the guard at `t0`
+    /// and chooses the first step size.
+    pub fn step(&mut self) -> StopReason {
+        self.driver.step()
+    }
+
+    /// Current time: `t0` before the first step, the end of the last
+    /// accepted step, or the time a terminal [`StopReason`] reports.
+    pub fn t(&self) -> f64 {
+        self.driver.t()
+    }
+
+    /// State at [`Radau5Implicit::t`] (after `after_step`).
+    pub fn y(&self) -> &[f64] {
+        self.driver.y()
+    }
+
+    /// Work counters so far.
+    pub fn stats(&self) -> Stats {
+        self.driver.stats()
+    }
+
+    /// Samples, continuous extension and counters up to [`Radau5Implicit::t`].
+    pub fn into_solution(self) -> Solution {
+        self.driver.into_solution()
+    }
+
+    /// Steps to the end (see [`crate::solve_implicit`], which this is).
+    pub fn solve(self) -> Result<Solution, Failure> {
+        self.driver.solve()
+    }
+}
+
+/// Validates the input (for an implicit system also the consistency of
+/// `(y0, y'0)`) and sets up the driver.
+fn driver<P: Problem>(
+    mut p: P,
     t0: f64,
     y0: &[f64],
     yp0: Option<&[f64]>,
     t_end: f64,
     opts: &Options,
-) -> Result<Solution, Failure> {
-    let start = Instant::now();
+) -> Result<Driver<P, RadauCore>, Failure> {
     let n = p.dim();
-    let mut rec = Record {
-        method: Method::Radau5,
-        dim: n,
-        ncoef: NCOEF,
-        grid: Vec::new(),
-        next: 0,
-        t: Vec::new(),
-        y: Vec::new(),
-        dense: opts.dense.then(|| Dense::new(n, NCOEF)),
-        stats: Stats::default(),
-        start,
-    };
+    let rec = Record::new(Method::Radau5, n, NCOEF, opts, t_end);
     let mut index = vec![1u8; n];
     p.variable_index(&mut index);
     if let Err(msg) = validate(Method::Radau5.needs_fixed_step(), n, t0, y0, t_end, opts)
@@ -971,169 +549,161 @@ fn run<P: Problem>(
     {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
-    let mut y = y0.to_vec();
-    let mut yp = vec![0.0; n];
-    // F(t_n, y_n, y'_n) at the current state (zero for explicit ODEs).
-    let mut res = vec![0.0; n];
-    let mut buf = vec![0.0; n];
-    let atol_user = atol_vector(opts, n);
+    let mut core = RadauCore::new(index, opts, P::IDENTITY_JP);
     if let Some(yp0) = yp0 {
-        yp.copy_from_slice(yp0);
-        if let Err(source) = p.residual(t0, y0, yp0, &mut res) {
-            let e = IntegrateError::System { t: t0, source };
-            return Err(rec.fail(e, t0, y0, p.evals()));
-        }
-        if let Some(msg) = inconsistency(&res, y0, &atol_user, opts.rtol) {
-            return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, p.evals()));
+        if let Err(e) = core.consistent(&mut p, t0, y0, yp0, opts) {
+            let evals = p.evals();
+            return Err(rec.fail(e, t0, y0, evals));
         }
     }
-    rec.grid.extend_from_slice(&opts.output);
-    if rec.grid.last() != Some(&t_end) {
-        rec.grid.push(t_end);
-    }
+    Ok(Driver::new(p, core, rec, t0, y0, t_end, opts))
+}
 
-    rec.emit(t0, &y, None, &mut buf);
-    let mut g_prev = p.guard(t0, &y);
-    if g_prev.is_some_and(|g| g <= 0.0) {
-        let reason = p.guard_reason(t0, &y);
-        let ev = p.evals();
-        return Err(rec.fail(IntegrateError::Stopped { t: t0, reason }, t0, &y, ev));
-    }
-    if t_end == t0 {
-        let ev = p.evals();
-        return Ok(rec.finish(t0, &y, ev));
-    }
-    let mut t = t0;
-    if yp0.is_none() {
-        let error = match p.accepted_state(t, &y, &mut yp, &mut res) {
-            Err(source) => Some(IntegrateError::System { t, source }),
-            Ok(()) => yp.iter().position(|v| !v.is_finite()).map(|i| {
-                IntegrateError::InvalidInput(format!(
-                    "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
-                    yp[i]
-                ))
-            }),
+/// Step-size controller of RADAU5: `SAFE`, `FACL`, `FACR`.
+const SAFE: f64 = 0.9;
+const FACL: f64 = 5.0;
+const FACR: f64 = 1.0 / 8.0;
+
+/// Radau IIA in the step loop: the workspaces, `y'` and `F` at the current
+/// state, RADAU5's tolerances and the state it keeps between steps
+/// (Jacobian, factorisation, step-size history). Allocated once per run.
+struct RadauCore {
+    w: Work,
+    /// Index class (1, 2, 3) of every component.
+    index: Vec<u8>,
+    /// `y'_n`: `f(t_n, y_n)` for an ODE; for an implicit system `y'0`, then
+    /// the derivative of the last collocation polynomial at its end.
+    yp: Vec<f64>,
+    /// `F(t_n, y_n, y'_n)` (zero for an ODE).
+    res: Vec<f64>,
+    /// `y'0` was given (an implicit system): nothing to evaluate at `t0`.
+    yp_given: bool,
+    /// RADAU5's internal tolerances `rtol' = 0.1 rtol^(2/3)`,
+    /// `atol' = rtol'·atol/rtol` (component by component).
+    rtol: f64,
+    atol: Vec<f64>,
+    /// Base error scale `atol' + rtol'·|y_n|` of the current state.
+    sk: Vec<f64>,
+    np: NewtonParams,
+    /// `(QUOT1, QUOT2)`.
+    keep_step: (f64, f64),
+    /// `CFAC = SAFE·(1 + 2·NIT)`.
+    cfac: f64,
+    fixed: bool,
+    /// Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
+    full: bool,
+    /// A new Jacobian is needed before the next trial step.
+    need_jac: bool,
+    /// The Jacobian was evaluated at the current state (RADAU5's `CALJAC`).
+    caljac: bool,
+    /// Step size of the current factorisation (NaN: none).
+    h_lu: f64,
+    /// Singular iteration matrices in a row.
+    nsing: usize,
+    /// Size of the last accepted step (read only after one).
+    hold: f64,
+    /// `max(‖err‖, 1e-2)` of the last accepted step (Gustafsson).
+    erracc: f64,
+    /// The step size proposed after the last accepted step.
+    h_new: f64,
+}
+
+impl RadauCore {
+    fn new(index: Vec<u8>, opts: &Options, identity_jp: bool) -> Self {
+        let n = index.len();
+        let rtol = 0.1 * opts.rtol.powf(2.0 / 3.0);
+        let atol = atol_vector(opts, n)
+            .iter()
+            .map(|a| rtol * a / opts.rtol)
+            .collect();
+        let np = NewtonParams {
+            nit: opts.radau5.newton_max_iter,
+            fnewt: opts
+                .radau5
+                .newton_tol
+                .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
+            thet: opts.radau5.jacobian_reuse,
+            fixed: opts.fixed_step.is_some(),
         };
-        if let Some(e) = error {
-            let ev = p.evals();
-            return Err(rec.fail(e, t, &y, ev));
+        let full = opts.radau5.newton == RadauNewton::Full;
+        RadauCore {
+            w: Work::new(n, identity_jp, full),
+            index,
+            yp: vec![0.0; n],
+            res: vec![0.0; n],
+            yp_given: false,
+            rtol,
+            atol,
+            sk: vec![0.0; n],
+            np,
+            keep_step: opts.radau5.keep_step,
+            cfac: SAFE * (1 + 2 * np.nit) as f64,
+            fixed: opts.fixed_step.is_some(),
+            full,
+            need_jac: true,
+            caljac: false,
+            h_lu: f64::NAN,
+            nsing: 0,
+            hold: f64::NAN,
+            erracc: 1e-2,
+            h_new: f64::NAN,
         }
     }
 
-    // RADAU5's internal tolerances: rtol' = 0.1 rtol^(2/3), atol' = rtol'·atol/rtol
-    // (component by component).
-    let rtol = 0.1 * opts.rtol.powf(2.0 / 3.0);
-    let atol: Vec<f64> = atol_user.iter().map(|a| rtol * a / opts.rtol).collect();
-    let tol = Tol { rtol, atol: &atol };
-    let np = NewtonParams {
-        nit: opts.newton_max_iter,
-        fnewt: opts
-            .newton_tol
-            .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
-        thet: opts.jacobian_reuse,
-        fixed: opts.fixed_step.is_some(),
-    };
-    let (quot1, quot2) = opts.keep_step;
-    // Step-size controller of RADAU5: SAFE, FACL, FACR, CFAC.
-    let (safe, facl, facr) = (0.9, 5.0, 1.0 / 8.0);
-    let cfac = safe * (1 + 2 * np.nit) as f64;
-
-    let span = t_end - t0;
-    let hmax = opts.h_max.unwrap_or(span);
-    let fixed = opts.fixed_step.map(|h| (h, fixed_step_count(span, h)));
-    let mut w = Work::new(n, P::IDENTITY_JP, opts.radau_newton == RadauNewton::Full);
-    // Full Newton iteration (`RadauNewton::Full`) instead of the simplified one.
-    let full = w.full.is_some();
-    let mut h = match (fixed, opts.h_init) {
-        (Some((h, _)), _) => h,
-        (None, Some(h)) => h.min(hmax),
-        (None, None) => p.initial_step(t, &y, &yp, hmax, tol, &mut w.ys, &mut w.yps),
-    };
-    if !(h > 0.0 && h.is_finite()) {
-        // Only the initial-step choice can get here: its weighted norms of
-        // y'0 overflowed although y'0 is finite.
-        let ev = p.evals();
-        return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
-    }
-    let floor = StepFloor::new(span, h);
-    let h_min = |t: f64| floor.at(t);
-    // Base error scale atol' + rtol'·|y_n| of the current state.
-    let mut sk: Vec<f64> = (0..n).map(|i| tol.scale(i, y[i], 0.0)).collect();
-
-    let mut need_jac = true;
-    // The Jacobian was evaluated at the current state (RADAU5's CALJAC).
-    let mut caljac = false;
-    // Step size of the current factorisation (NaN: none).
-    let mut h_lu = f64::NAN;
-    let mut nsing = 0;
-    let mut reject = false;
-    // The last rejection was caused by a non-finite stage, correction or
-    // error estimate: a step-size collapse then is reported as `NonFinite`.
-    let mut nonfinite_reject = false;
-    let mut last = false;
-    // Size of the last accepted step (read only after one), and its error
-    // for Gustafsson's controller.
-    let mut hold = h;
-    let mut erracc = 1e-2;
-
-    // A rejected trial step: counted, retried from the same state with step
-    // size `$h` (`$nonfinite`: caused by a non-finite stage, correction or
-    // error estimate), with a fresh Jacobian unless the current one was taken
-    // at this state.
-    macro_rules! retry {
-        ($h:expr, $nonfinite:expr) => {{
-            rec.stats.rejected_steps += 1;
-            (h, reject, last) = ($h, true, false);
-            nonfinite_reject = $nonfinite;
-            need_jac = !caljac;
-            continue;
-        }};
-    }
-
-    loop {
-        if let Some(e) = rec.budget_exceeded(opts, t, h, None) {
-            let ev = p.evals();
-            return Err(rec.fail(e, t, &y, ev));
+    /// Takes the given `y'0` and checks `F(t0, y0, y'0) = 0` against the
+    /// user's tolerances (one evaluation of `F`).
+    fn consistent<P: Problem>(
+        &mut self,
+        p: &mut P,
+        t0: f64,
+        y0: &[f64],
+        yp0: &[f64],
+        opts: &Options,
+    ) -> Result<(), IntegrateError> {
+        self.yp.copy_from_slice(yp0);
+        self.yp_given = true;
+        if let Err(source) = p.residual(t0, y0, yp0, &mut self.res) {
+            return Err(IntegrateError::System { t: t0, source });
         }
-        let t_new = match fixed {
-            Some((hf, nsteps)) => {
-                let k = rec.stats.steps + 1;
-                last = k >= nsteps;
-                let t_new = if last { t_end } else { t0 + k as f64 * hf };
-                h = t_new - t;
-                t_new
-            }
-            None => {
-                if h.abs() < h_min(t) {
-                    let e = if nonfinite_reject {
-                        IntegrateError::NonFinite { t }
-                    } else {
-                        IntegrateError::StepSizeTooSmall { t, h }
-                    };
-                    let ev = p.evals();
-                    return Err(rec.fail(e, t, &y, ev));
-                }
-                if t + 1.0001 * h - t_end >= 0.0 {
-                    h = t_end - t;
-                    last = true;
-                }
-                match rec.next_time() {
-                    // Land on the next output time (`Options::hit_output`).
-                    Some(tau) if opts.hit_output && !last && tau > t && t + 1.0001 * h >= tau => {
-                        h = tau - t;
-                        tau
-                    }
-                    _ if last => t_end,
-                    _ => t + h,
-                }
-            }
-        };
+        let atol_user = atol_vector(opts, y0.len());
+        match inconsistency(&self.res, y0, &atol_user, opts.rtol) {
+            Some(msg) => Err(IntegrateError::InvalidInput(msg)),
+            None => Ok(()),
+        }
+    }
 
+    /// The Jacobian is kept for the next step: the last Newton iteration
+    /// contracted fast (`θ <= THET`; never with full Newton).
+    fn theta_ok(&self) -> bool {
+        !self.full && self.w.theta <= self.np.thet
+    }
+
+    /// A rejected trial step, retried from the same state with step size
+    /// `h`, with a fresh Jacobian unless the current one was taken at this
+    /// state.
+    fn reject(&mut self, h: f64, nonfinite: bool) -> Attempt {
+        self.need_jac = !self.caljac;
+        Attempt::Rejected { h, nonfinite }
+    }
+
+    /// Iteration matrices of the trial step: `J`, `J'` at the step start if
+    /// needed, and the factorisations for this `h` unless current. A
+    /// singular matrix rejects the step (`h/2`; ends the run the 5th time
+    /// in a row, or at once with a fixed step).
+    fn iteration_matrix<P: Problem>(
+        &mut self,
+        p: &mut P,
+        tr: Trial,
+        y: &[f64],
+        stats: &mut Stats,
+    ) -> Result<(), Attempt> {
+        let (t, h) = (tr.t, tr.h);
         // Full Newton with a fixed step needs neither: no error estimate.
-        let step_start_matrix = !(full && fixed.is_some());
-        if need_jac && step_start_matrix {
-            rec.stats.jacobian_evals += 1;
-            let jac = p.jacobians(t, &y, &yp, &res, &mut w.jy, &mut w.jyp);
+        let step_start_matrix = !(self.full && self.fixed);
+        if self.need_jac && step_start_matrix {
+            stats.jacobian_evals += 1;
+            let w = &mut self.w;
+            let jac = p.jacobians(t, y, &self.yp, &self.res, &mut w.jy, &mut w.jyp);
             let error = match jac {
                 Err(source) => Some(IntegrateError::System { t, source }),
                 Ok(()) if !all_finite(&w.jy) || !all_finite(&w.jyp) => {
@@ -1142,256 +712,280 @@ fn run<P: Problem>(
                 Ok(()) => None,
             };
             if let Some(e) = error {
-                let ev = p.evals();
-                return Err(rec.fail(e, t, &y, ev));
+                return Err(Attempt::Failed(e));
             }
-            caljac = true;
-            h_lu = f64::NAN;
+            self.caljac = true;
+            self.h_lu = f64::NAN;
         }
         // NaN (no factorisation) compares false: factor.
-        let factored = !step_start_matrix || (h - h_lu).abs() <= 1e-12 * h.abs();
-        if !factored {
-            rec.stats.lu_decompositions += 1;
-            if w.factor(h).is_err() {
-                nsing += 1;
-                if nsing >= 5 || fixed.is_some() {
-                    let source = SystemError::new(format!(
-                        "Radau5: the iteration matrix γ/h·∂F/∂y' + ∂F/∂y is singular \
-                         (h = {h:e}, {nsing} time(s) in a row)"
-                    ));
-                    let ev = p.evals();
-                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
-                }
-                h_lu = f64::NAN;
-                retry!(0.5 * h, false);
-            }
-            h_lu = h;
+        let factored = !step_start_matrix || (h - self.h_lu).abs() <= 1e-12 * h.abs();
+        if factored {
+            return Ok(());
         }
+        stats.lu_decompositions += 1;
+        if self.w.factor(h).is_ok() {
+            self.h_lu = h;
+            return Ok(());
+        }
+        self.nsing += 1;
+        if self.nsing >= 5 || self.fixed {
+            let source = SystemError::new(format!(
+                "Radau5: the iteration matrix γ/h·∂F/∂y' + ∂F/∂y is singular \
+                 (h = {h:e}, {} time(s) in a row)",
+                self.nsing
+            ));
+            return Err(Attempt::Failed(IntegrateError::System { t, source }));
+        }
+        self.h_lu = f64::NAN;
+        Err(self.reject(0.5 * h, false))
+    }
 
-        w.set_scale(&sk, &index, h);
-        // No step accepted yet: the first step (RADAU5's FIRST).
-        let first = rec.stats.steps == 0;
-        w.start(h, (!first).then_some(hold));
-        let outcome = if full {
-            w.newton_full(p, t, &y, h, t_new, np, &mut rec.stats)
+    /// The Newton iteration (simplified or full) from the starting values;
+    /// `Ok` with the number of iterations when it converged, else how the
+    /// trial step ends: a failing stage halves `h` (ends the run below
+    /// `h_min` or with a fixed step), so does a non-finite one; a failed
+    /// iteration halves `h` (fixed step: one retry with a fresh Jacobian),
+    /// a slow one takes RADAU5's reduction.
+    fn newton<P: Problem>(
+        &mut self,
+        p: &mut P,
+        tr: Trial,
+        y: &[f64],
+        stats: &mut Stats,
+    ) -> Result<usize, Attempt> {
+        let (t, h) = (tr.t, tr.h);
+        let outcome = if self.full {
+            self.w.newton_full(p, t, y, h, tr.t_new, self.np, stats)
         } else {
-            w.newton(p, t, &y, h, t_new, np, &mut rec.stats)
+            self.w.newton(p, t, y, h, tr.t_new, self.np, stats)
         };
-        let newt = match outcome {
-            Newton::Converged(newt) => newt,
+        let fail = |e| Err(Attempt::Failed(e));
+        match outcome {
+            Newton::Converged(newt) => Ok(newt),
             Newton::Stage(source) => {
-                if fixed.is_some() || 0.5 * h.abs() < h_min(t) {
-                    let ev = p.evals();
-                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+                if self.fixed || 0.5 * h.abs() < tr.h_min {
+                    return fail(IntegrateError::System { t, source });
                 }
-                retry!(0.5 * h, false);
+                Err(self.reject(0.5 * h, false))
             }
             Newton::NonFinite => {
-                if fixed.is_some() {
-                    let ev = p.evals();
-                    return Err(rec.fail(IntegrateError::NonFinite { t }, t, &y, ev));
+                if self.fixed {
+                    return fail(IntegrateError::NonFinite { t });
                 }
-                retry!(0.5 * h, true);
+                Err(self.reject(0.5 * h, true))
             }
             Newton::Singular => {
-                nsing += 1;
-                if nsing >= 5 || fixed.is_some() {
+                self.nsing += 1;
+                if self.nsing >= 5 || self.fixed {
                     let source = SystemError::new(format!(
                         "Radau5: the full Newton matrix ∂G/∂Z of the stage equations is \
-                         singular (h = {h:e}, {nsing} time(s) in a row)"
+                         singular (h = {h:e}, {} time(s) in a row)",
+                        self.nsing
                     ));
-                    let ev = p.evals();
-                    return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
+                    return fail(IntegrateError::System { t, source });
                 }
-                retry!(0.5 * h, false);
+                Err(self.reject(0.5 * h, false))
             }
             Newton::Failed => {
-                rec.stats.newton_failures += 1;
-                if fixed.is_some() {
-                    // A fresh Jacobian cannot change a full Newton iteration.
-                    if caljac || full {
-                        let kind = if full { "full" } else { "simplified" };
-                        let source = SystemError::new(format!(
-                            "Radau5: the {kind} Newton iteration does not converge \
-                             with the fixed step h = {h:e}"
-                        ));
-                        let ev = p.evals();
-                        return Err(rec.fail(IntegrateError::System { t, source }, t, &y, ev));
-                    }
-                    // Retry the same step with a fresh Jacobian.
-                    need_jac = true;
-                    continue;
+                stats.newton_failures += 1;
+                if !self.fixed {
+                    return Err(self.reject(0.5 * h, false));
                 }
-                retry!(0.5 * h, false);
+                // A fresh Jacobian cannot change a full Newton iteration.
+                if self.caljac || self.full {
+                    let kind = if self.full { "full" } else { "simplified" };
+                    let source = SystemError::new(format!(
+                        "Radau5: the {kind} Newton iteration does not converge \
+                         with the fixed step h = {h:e}"
+                    ));
+                    return fail(IntegrateError::System { t, source });
+                }
+                // Retry the same step with a fresh Jacobian.
+                self.need_jac = true;
+                Err(Attempt::Repeat)
             }
             Newton::Slow(fac) => {
-                rec.stats.newton_failures += 1;
-                retry!(fac * h, false);
+                stats.newton_failures += 1;
+                Err(self.reject(fac * h, false))
             }
-        };
+        }
+    }
 
-        // Error estimate and the next step size (adaptive only).
-        let mut h_new = h;
-        if fixed.is_none() {
-            let err = w.estimate(p, t, &y, &yp, &res, h, first || reject);
-            if !err.is_finite() {
-                retry!(0.5 * h, true);
-            }
-            // The safety factor decreases with the number of Newton iterations.
-            let fac = safe.min(cfac / (newt + 2 * np.nit) as f64);
-            let mut quot = (err.powf(0.25) / fac).clamp(facr, facl);
+    /// Error estimate and step-size control of a converged step (adaptive
+    /// only): rejects when the estimate is not finite (`h/2`) or `>= 1`
+    /// (`h_new`, `h/10` at the first step); else proposes `h_new`, with
+    /// Gustafsson's predictive controller from the second accepted step on.
+    fn error_control<P: Problem>(
+        &mut self,
+        p: &mut P,
+        tr: Trial,
+        y: &[f64],
+        newt: usize,
+    ) -> Attempt {
+        let h = tr.h;
+        let second = tr.first || tr.after_reject;
+        let err = self.w.estimate(p, tr.t, y, &self.yp, &self.res, h, second);
+        if !err.is_finite() {
+            return self.reject(0.5 * h, true);
+        }
+        // The safety factor decreases with the number of Newton iterations.
+        let fac = SAFE.min(self.cfac / (newt + 2 * self.np.nit) as f64);
+        let mut quot = (err.powf(0.25) / fac).clamp(FACR, FACL);
+        let mut h_new = h / quot;
+        if err >= 1.0 {
+            return self.reject(if tr.first { 0.1 * h } else { h_new }, false);
+        }
+        // Gustafsson's predictive controller.
+        if !tr.first {
+            let facgus =
+                ((self.hold / h) * (err * err / self.erracc).powf(0.25) / SAFE).clamp(FACR, FACL);
+            quot = quot.max(facgus);
             h_new = h / quot;
-            if err >= 1.0 {
-                retry!(if first { 0.1 * h } else { h_new }, false);
-            }
-            // Gustafsson's predictive controller.
-            if rec.stats.steps >= 1 {
-                let facgus =
-                    ((hold / h) * (err * err / erracc).powf(0.25) / safe).clamp(facr, facl);
-                quot = quot.max(facgus);
-                h_new = h / quot;
-            }
-            erracc = err.max(1e-2);
         }
-
-        // The step is accepted.
-        rec.stats.steps += 1;
-        nonfinite_reject = false;
-        nsing = 0;
-        w.polynomial(&y);
-        if let Some(d) = rec.dense.as_mut() {
-            d.push(t, h, &w.coef);
-        }
-        let t_old = t;
-        t = t_new;
-        hold = h;
-        for (yi, zi) in y.iter_mut().zip(&w.z[2]) {
-            *yi += zi;
-        }
-        // y'_{n+1} = Y'_3 for implicit systems; an ODE gets f(t, y) below.
-        if !P::IDENTITY_JP {
-            yp.copy_from_slice(&w.yp_new);
-        }
-        let poly = Some((&w.coef[..], t_old, h));
-
-        let error = match p.after_step(t, &mut y) {
-            Err(source) => Some(IntegrateError::System { t, source }),
-            Ok(_) if !all_finite(&y) => Some(IntegrateError::NonFinite { t }),
-            Ok(_) if last => None,
-            Ok(_) => match p.accepted_state(t, &y, &mut yp, &mut res) {
-                Err(source) => Some(IntegrateError::System { t, source }),
-                Ok(()) if !all_finite(&yp) || !all_finite(&res) => {
-                    Some(IntegrateError::NonFinite { t })
-                }
-                Ok(()) => None,
-            },
-        };
-        if let Some(e) = error {
-            rec.emit(t, &y, poly, &mut buf);
-            let ev = p.evals();
-            return Err(rec.fail(e, t, &y, ev));
-        }
-        caljac = false;
-        for (i, (s, &v)) in sk.iter_mut().zip(&y).enumerate() {
-            *s = tol.scale(i, v, 0.0);
-        }
-
-        let crossing = guard_crossing(
-            |tg, yg| p.guard(tg, yg),
-            &mut g_prev,
-            &w.coef,
-            NCOEF,
-            t_old,
-            t,
-            h,
-            &y,
-            &mut w.ys,
-            &mut buf,
-        );
-        if let Some(t_root) = crossing {
-            let y_root = &w.ys;
-            let reason = p.guard_reason(t_root, y_root);
-            rec.emit(t_root, y_root, poly, &mut buf);
-            let e = IntegrateError::Stopped { t: t_root, reason };
-            let ev = p.evals();
-            return Err(rec.fail(e, t_root, y_root, ev));
-        }
-
-        rec.emit(t, &y, poly, &mut buf);
-        if last {
-            let ev = p.evals();
-            return Ok(rec.finish(t, &y, ev));
-        }
-        // Full Newton: a new step-start Jacobian for the error estimate after
-        // every accepted step, and no step keeping (nothing to save).
-        let theta_ok = !full && w.theta <= np.thet;
-        if fixed.is_none() {
-            h_new = h_new.min(hmax);
-            if reject {
-                h_new = h_new.min(h);
-            }
-            reject = false;
-            let qt = h_new / h;
-            if t + h_new / quot1 - t_end >= 0.0 {
-                h = t_end - t;
-                last = true;
-            } else if !(theta_ok && qt >= quot1 && qt <= quot2) {
-                h = h_new;
-            }
-        }
-        need_jac = !theta_ok;
+        self.erracc = err.max(1e-2);
+        self.h_new = h_new;
+        Attempt::Accepted
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::dense::eval_nested;
+impl<P: Problem> Core<P> for RadauCore {
+    const NCOEF: usize = NCOEF;
+    const LANDING: Landing = Landing {
+        stretch: 1.0001,
+        inclusive: true,
+    };
 
-    /// RADAU5's `CONTR5`: the collocation polynomial in Newton form around
-    /// the end of the step, `s = (t − t_{n+1})/h`, from the coefficients its
-    /// `RADCOR` stores after an accepted step.
-    fn contr5(y_new: f64, z: [f64; 3], c: [f64; 3], s: f64) -> f64 {
-        let (c1m1, c2m1, c1mc2) = (c[0] - 1.0, c[1] - 1.0, c[0] - c[1]);
-        let cont1 = (z[1] - z[2]) / c2m1;
-        let ak = (z[0] - z[1]) / c1mc2;
-        let acont3 = (ak - z[0] / c[0]) / c[1];
-        let cont2 = (ak - cont1) / c1m1;
-        let cont3 = cont2 - acont3;
-        y_new + s * (cont1 + (s - c2m1) * (cont2 + (s - c1m1) * cont3))
+    /// For an ODE `y'0 = f(t0, y0)`, which must be finite; the base error scale.
+    fn start(&mut self, p: &mut P, t0: f64, y0: &[f64]) -> Result<(), IntegrateError> {
+        if !self.yp_given {
+            match p.accepted_state(t0, y0, &mut self.yp, &mut self.res) {
+                Err(source) => return Err(IntegrateError::System { t: t0, source }),
+                Ok(()) => {
+                    if let Some(i) = self.yp.iter().position(|v| !v.is_finite()) {
+                        return Err(IntegrateError::InvalidInput(format!(
+                            "f(t0, y0) is not finite: component {i} is {} at t0 = {t0}",
+                            self.yp[i]
+                        )));
+                    }
+                }
+            }
+        }
+        let tol = Tol {
+            rtol: self.rtol,
+            atol: &self.atol,
+        };
+        for (i, s) in self.sk.iter_mut().enumerate() {
+            *s = tol.scale(i, y0[i], 0.0);
+        }
+        Ok(())
     }
 
-    #[test]
-    fn nested_form_is_radau5_collocation_polynomial() {
-        let mut w = Work::new(1, true, false);
-        let c = w.tab.c;
-        let y = [0.7];
-        w.z = [vec![0.31], vec![-0.42], vec![0.125]];
-        w.polynomial(&y);
-        let z = [w.z[0][0], w.z[1][0], w.z[2][0]];
-        let mut out = [0.0];
-        // Through y_n and the stage values, and equal to CONTR5 everywhere
-        // (also outside the step, where it extrapolates).
-        for (s, want) in [(0.0, y[0]), (c[0], y[0] + z[0]), (c[1], y[0] + z[1])] {
-            eval_nested(&w.coef, 1, NCOEF, s, &mut out);
-            assert!((out[0] - want).abs() < 1e-15, "s = {s}");
+    /// `HINIT` with the exponent 4 of the error estimate (ODE), or its
+    /// first guess `0.01‖y0‖/‖y'0‖` (implicit system).
+    fn initial_step(&mut self, p: &mut P, t0: f64, y0: &[f64], h_max: f64) -> f64 {
+        let tol = Tol {
+            rtol: self.rtol,
+            atol: &self.atol,
+        };
+        let w = &mut self.w;
+        p.initial_step(t0, y0, &self.yp, h_max, tol, &mut w.ys, &mut w.yps)
+    }
+
+    /// One trial step in RADAU5's order: iteration matrices, starting
+    /// values, Newton iteration, error estimate and step-size control.
+    fn attempt(&mut self, p: &mut P, tr: Trial, y: &[f64], stats: &mut Stats) -> Attempt {
+        // Iteration matrices (Jacobian at the step start, LU for this h).
+        if let Err(end) = self.iteration_matrix(p, tr, y, stats) {
+            return end;
         }
-        for k in 0..=30 {
-            let s = -0.5 + 0.1 * f64::from(k);
-            eval_nested(&w.coef, 1, NCOEF, s, &mut out);
-            let r5 = contr5(y[0] + z[2], z, c, s - 1.0);
-            let tol = 1e-14 * r5.abs().max(1.0);
-            assert!((out[0] - r5).abs() < tol, "s = {s}: {} vs {r5}", out[0]);
+        // Starting values: the last collocation polynomial, extrapolated.
+        self.w.set_scale(&self.sk, &self.index, tr.h);
+        self.w.start(tr.h, (!tr.first).then_some(self.hold));
+        // Newton iteration on the stage equations.
+        let newt = match self.newton(p, tr, y, stats) {
+            Ok(newt) => newt,
+            Err(end) => return end,
+        };
+        // Error estimate and step-size control (a fixed step has neither).
+        if self.fixed {
+            return Attempt::Accepted;
         }
-        // Newton starting values of a step of size 1.5 h: p(1 + c_i·1.5) − p(1).
-        w.start(1.5, Some(1.0));
-        for i in 0..3 {
-            let s = 1.0 + c[i] * 1.5;
-            let want = contr5(y[0] + z[2], z, c, s - 1.0) - (y[0] + z[2]);
-            let tol = 1e-14 * want.abs().max(1.0);
-            assert!((w.z[i][0] - want).abs() < tol, "{} vs {want}", w.z[i][0]);
-            let back: f64 = (0..3).map(|k| w.tab.t[i][k] * w.w[k][0]).sum();
-            assert!((back - w.z[i][0]).abs() < tol, "W = T⁻¹ Z");
+        self.error_control(p, tr, y, newt)
+    }
+
+    /// `y_{n+1} = y_n + Z_3` and, for implicit systems, `y'_{n+1} = Y'_3`;
+    /// the collocation polynomial is the step polynomial.
+    fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, _stats: &mut Stats) -> bool {
+        self.nsing = 0;
+        self.w.polynomial(y);
+        self.hold = tr.h;
+        for (yi, zi) in y.iter_mut().zip(&self.w.z[2]) {
+            *yi += zi;
+        }
+        // An ODE gets y' = f(t, y) in `new_state`.
+        if !P::IDENTITY_JP {
+            self.yp.copy_from_slice(&self.w.yp_new);
+        }
+        true
+    }
+
+    /// What the next error estimate needs at the new (possibly projected)
+    /// state: `f` (ODE) or `F` (implicit), except at `t_end`; the error
+    /// scale; whether to keep the Jacobian.
+    fn new_state(
+        &mut self,
+        p: &mut P,
+        t: f64,
+        y: &[f64],
+        _projected: bool,
+        last: bool,
+    ) -> Result<(), IntegrateError> {
+        if !all_finite(y) {
+            return Err(IntegrateError::NonFinite { t });
+        }
+        if !last {
+            match p.accepted_state(t, y, &mut self.yp, &mut self.res) {
+                Err(source) => return Err(IntegrateError::System { t, source }),
+                Ok(()) if !all_finite(&self.yp) || !all_finite(&self.res) => {
+                    return Err(IntegrateError::NonFinite { t });
+                }
+                Ok(()) => {}
+            }
+        }
+        self.caljac = false;
+        let tol = Tol {
+            rtol: self.rtol,
+            atol: &self.atol,
+        };
+        for (i, (s, &v)) in self.sk.iter_mut().zip(y).enumerate() {
+            *s = tol.scale(i, v, 0.0);
+        }
+        // Full Newton: a new step-start Jacobian for the error estimate after
+        // every accepted step.
+        self.need_jac = !self.theta_ok();
+        Ok(())
+    }
+
+    fn coef(&self) -> &[f64] {
+        &self.w.coef
+    }
+
+    fn proposal(&self) -> Option<f64> {
+        (!self.fixed).then_some(self.h_new)
+    }
+
+    /// Lands on `t_end` when `t + h_new/QUOT1` reaches it; keeps `h` (and
+    /// so the factorisations) when the Jacobian is kept and `h_new/h` lies
+    /// in `keep_step` (full Newton: never, nothing to save).
+    fn settle(&mut self, t: f64, h: f64, h_new: f64, t_end: f64) -> (f64, bool) {
+        let (quot1, quot2) = self.keep_step;
+        let qt = h_new / h;
+        if t + h_new / quot1 - t_end >= 0.0 {
+            (t_end - t, true)
+        } else if !(self.theta_ok() && qt >= quot1 && qt <= quot2) {
+            (h_new, false)
+        } else {
+            (h, false)
         }
     }
 }

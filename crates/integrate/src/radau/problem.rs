@@ -6,23 +6,22 @@
 //! - [`Dae`] wraps an [`ImplicitSystem`] as it is.
 //!
 //! Both count their evaluations of `F` (for [`Ode`], of `f`, including
-//! those of the finite-difference Jacobian and of `HINIT`; [`Problem::evals`]).
+//! those of the finite-difference Jacobian and of `HINIT`; [`Hooks::evals`]).
 
+use crate::driver::Hooks;
 use crate::explicit::control::{Rhs, Tol, hinit, hinit_guess};
 use crate::{ImplicitSystem, OdeSystem, SystemError};
 
 /// The rounding unit of RADAU5 (`WORK(1)` default `1e-16`).
 pub(super) const UROUND: f64 = 1e-16;
 
-/// What the Radau core needs from a problem.
-pub(super) trait Problem {
+/// What the Radau core needs from a problem (besides the hooks of the step
+/// loop, [`Hooks`], whose `evals` counts the evaluations of `F` or `f`).
+pub(super) trait Problem: Hooks {
     /// `J' = I` (an explicit ODE): `jyp` is never filled nor read.
     const IDENTITY_JP: bool;
 
     fn dim(&self) -> usize;
-
-    /// Evaluations of `F` (or `f`) so far.
-    fn evals(&self) -> usize;
 
     /// Writes `F(t, y, y')` into `res`.
     fn residual(
@@ -77,10 +76,6 @@ pub(super) trait Problem {
 
     /// The index class (1, 2, 3) of every component.
     fn variable_index(&self, index: &mut [u8]);
-
-    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError>;
-    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64>;
-    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String;
 }
 
 /// An [`OdeSystem`] as `F(t, y, y') = y' − f(t, y)`.
@@ -109,15 +104,29 @@ impl<'a, S: OdeSystem + ?Sized> Ode<'a, S> {
     }
 }
 
+impl<S: OdeSystem + ?Sized> Hooks for Ode<'_, S> {
+    fn evals(&self) -> usize {
+        self.rhs.evals
+    }
+
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.rhs.after_step(t, y)
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        self.rhs.guard(t, y)
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        self.rhs.guard_reason(t, y)
+    }
+}
+
 impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
     const IDENTITY_JP: bool = true;
 
     fn dim(&self) -> usize {
         self.rhs.sys.dim()
-    }
-
-    fn evals(&self) -> usize {
-        self.rhs.evals
     }
 
     fn residual(
@@ -202,18 +211,6 @@ impl<S: OdeSystem + ?Sized> Problem for Ode<'_, S> {
     fn variable_index(&self, index: &mut [u8]) {
         index.fill(1);
     }
-
-    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        self.rhs.sys.after_step(t, y)
-    }
-
-    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        self.rhs.sys.guard(t, y)
-    }
-
-    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        self.rhs.sys.guard_reason(t, y)
-    }
 }
 
 /// An [`ImplicitSystem`] `F(t, y, y') = 0`.
@@ -222,15 +219,29 @@ pub(super) struct Dae<'a, S: ?Sized> {
     pub evals: usize,
 }
 
+impl<S: ImplicitSystem + ?Sized> Hooks for Dae<'_, S> {
+    fn evals(&self) -> usize {
+        self.evals
+    }
+
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.sys.after_step(t, y)
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        self.sys.guard(t, y)
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        self.sys.guard_reason(t, y)
+    }
+}
+
 impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
     const IDENTITY_JP: bool = false;
 
     fn dim(&self) -> usize {
         self.sys.dim()
-    }
-
-    fn evals(&self) -> usize {
-        self.evals
     }
 
     fn residual(
@@ -285,17 +296,5 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
 
     fn variable_index(&self, index: &mut [u8]) {
         self.sys.variable_index(index);
-    }
-
-    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        self.sys.after_step(t, y)
-    }
-
-    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        self.sys.guard(t, y)
-    }
-
-    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
-        self.sys.guard_reason(t, y)
     }
 }

@@ -1,6 +1,6 @@
 //! Sweep points and their resolution into run specifications.
 
-use nonholo_core::integrate::{Method, Options, RadauNewton};
+use nonholo_core::integrate::{Method, Options, Radau5Options, RadauNewton};
 
 use super::spec::{CLOSED_FORM, Experiment, FormulationSpec, SweepMode, apply};
 use crate::simulate::{RunSpec, output_grid};
@@ -152,12 +152,15 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                         fixed_step: s.step,
                         max_steps: s.max_steps,
                         max_wall_time_s: s.max_wall_time,
-                        radau_newton: RadauNewton::from_name(&s.radau_newton).ok_or_else(|| {
-                            format!(
-                                "{}: unknown radau_newton `{}`; valid: auto, simplified, full",
-                                f.label, s.radau_newton
-                            )
-                        })?,
+                        radau5: Radau5Options {
+                            newton: RadauNewton::from_name(&s.radau_newton).ok_or_else(|| {
+                                format!(
+                                    "{}: unknown radau_newton `{}`; valid: auto, simplified, full",
+                                    f.label, s.radau_newton
+                                )
+                            })?,
+                            ..Radau5Options::default()
+                        },
                         output: grid.clone(),
                         dense: false,
                         ..Options::default()

@@ -241,7 +241,7 @@ fn measure(
     row.wall_time_min_s = walls.iter().copied().reduce(f64::min);
     row.wall_time_median_s = median(walls);
     if run.config.method.is_implicit() {
-        row.radau_newton = Some(run.config.options.radau_newton.name().into());
+        row.radau_newton = Some(run.config.options.radau5.newton.name().into());
     }
     let st = &run.solution.stats;
     row.steps = st.steps;

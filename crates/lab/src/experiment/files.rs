@@ -37,15 +37,15 @@ pub struct StoredPoint<B> {
     pub index: usize,
     /// The swept values of the point, as text.
     pub values: Vec<String>,
-    /// Hash of the resolved configuration: a stored result is reused only
-    /// if the experiment still asks for the same computation.
+    /// The point's resume key ([`super::key`]): a stored result is reused
+    /// only if the experiment still asks for the same computation.
     pub hash: String,
     #[serde(flatten)]
     pub body: B,
 }
 
 /// The stored result of point `index` in `dir` if it is of `schema` and
-/// holds the computation hashed as `key`.
+/// holds the computation `key` names.
 pub(crate) fn stored<B: DeserializeOwned>(
     dir: &Path,
     index: usize,

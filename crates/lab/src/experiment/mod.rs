@@ -16,18 +16,20 @@
 //! | `plots/*.png`, `plots/*.svg`, `index.html` | the figures and a page showing them with the tables |
 //!
 //! Every file is written atomically. A point whose result file exists with
-//! the same configuration hash is not run again (unless `--force`), so a
-//! sweep killed half-way finishes with every point exactly once.
+//! the same resume key ([`key`]: a hash of everything the point's results
+//! depend on) is not run again (unless `--force`), so a sweep killed
+//! half-way finishes with every point exactly once.
 //!
 //! Both kinds of experiment (comparisons here, work-precision in [`wp`])
 //! share one results pipeline: point files and atomic writes ([`files`]),
-//! typed CSV records ([`crate::table`]), the page
+//! the resume key ([`key`]), typed CSV records ([`crate::table`]), the page
 //! ([`page`]) and the manifest ([`manifest`]). What is particular to a
 //! comparison: [`point`] (running one point), [`output`] (its tables,
 //! trajectories and summary), [`plots`].
 
 pub mod cli;
 pub mod files;
+pub mod key;
 pub mod manifest;
 pub mod output;
 pub mod page;
@@ -190,9 +192,8 @@ fn clean_temporaries(dir: &Path) {
 
 /// The stored result of `p`, if it is complete and for the same computation.
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
-    let runs = sweep::resolve(exp, p).ok()?;
-    let hash = point::point_hash(exp, &runs);
-    let r: PointResult = files::stored(dir, p.index, point::POINT_SCHEMA, &hash)?;
+    let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
+    let r: PointResult = files::stored(dir, p.index, point::POINT_SCHEMA, &key)?;
     if needs_traj {
         let all_there = r
             .body

@@ -7,9 +7,9 @@ use nonholo_core::monitor::state_measures;
 use nonholo_core::{Observation, Run, Scene};
 use nonholo_scenes::SceneVisitor;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 use super::files::StoredPoint;
+use super::key::point_key;
 use super::spec::{CLOSED_FORM, Experiment};
 use super::sweep::{Point, PointRun, resolve};
 use crate::record::Counters;
@@ -110,16 +110,6 @@ pub struct Samples {
     pub obs: Vec<Observation>,
     /// `(residual, energy)` per sample.
     pub physics: Vec<(f64, f64)>,
-}
-
-/// Hash of the resolved runs of a point and the measures' settings.
-pub fn point_hash(exp: &Experiment, runs: &[PointRun]) -> String {
-    let mut h = Sha256::new();
-    h.update(POINT_SCHEMA.as_bytes());
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(format!("{runs:?}|{:?}", exp.threshold).as_bytes());
-    let digest = h.finalize();
-    digest.iter().take(8).map(|b| format!("{b:02x}")).collect()
 }
 
 /// Checks that every formulation of `point` can be set up (names, ranges,
@@ -289,7 +279,7 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
             );
         }
     };
-    let hash = point_hash(exp, &runs);
+    let hash = point_key(exp, point, POINT_SCHEMA).unwrap_or_default();
     let mut results = Vec::new();
     let mut samples = Vec::new();
     for r in &runs {

@@ -31,16 +31,16 @@ use std::path::{Path, PathBuf};
 
 use nonholo_core::RunStatus;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
 pub use self::output::{MIN_COST_SPREAD, Slopes, log_slope, slopes};
 pub use self::plots::{caption, draw};
 use super::files::{StoredPoint, load_points, point_path, write_json};
+use super::key::point_key;
 use super::manifest::write_manifest;
 use super::output::median;
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
 use super::spec::{Experiment, Ladder, RefSpec, compact};
-use super::sweep::{Point, PointRun, resolve};
+use super::sweep::{Point, resolve};
 use super::{Outcome, RunOptions};
 use crate::record::Counters;
 use crate::simulate::{RunSpec, execute};
@@ -107,25 +107,10 @@ pub struct RefRecord {
     pub info: Option<ReferenceInfo>,
 }
 
-/// Hash of a point's resolved runs, ladders and repeats: a stored point is
-/// reused only if the experiment still asks for the same computation.
-fn hash(exp: &Experiment, runs: &[PointRun]) -> String {
-    let ladders: Vec<_> = exp.formulations.iter().map(|f| &f.work_precision).collect();
-    let mut h = Sha256::new();
-    h.update(WP_SCHEMA.as_bytes());
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(format!("{runs:?}|{ladders:?}|{}", exp.repeats).as_bytes());
-    h.finalize()
-        .iter()
-        .take(8)
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 /// The stored result of `point`, if it is complete and for the same computation.
 fn stored(dir: &Path, exp: &Experiment, point: &Point) -> Option<WpPoint> {
-    let hash = hash(exp, &resolve(exp, point).ok()?);
-    let r: WpPoint = super::files::stored(dir, point.index, WP_SCHEMA, &hash)?;
+    let key = point_key(exp, point, WP_SCHEMA).ok()?;
+    let r: WpPoint = super::files::stored(dir, point.index, WP_SCHEMA, &key)?;
     let complete = r.body.references.iter().all(|f| {
         f.file
             .as_ref()
@@ -372,7 +357,7 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
         schema: WP_SCHEMA.into(),
         index: point.index,
         values: point.values.clone(),
-        hash: hash(exp, &runs),
+        hash: point_key(exp, point, WP_SCHEMA)?,
         body: Ladders { references, rows },
     })
 }

@@ -22,6 +22,10 @@
 //! | `references.csv`, `references/<i>-<label>.csv` | what each reference is, its estimated error, its trajectory |
 //! | `summary.json` | fitted slopes per line: error against evaluations (the observed order), time, tolerance; the cost spread (no order where evaluations vary by less than 2×: a line held by stability) |
 //! | `plots/wp-<i>-*.png/svg`, `index.html`, `manifest.json` | figures, page, provenance |
+//!
+//! This module runs the ladders; `wp/output.rs` writes the tables, fits the
+//! slopes and writes the summary and the page, `wp/plots.rs` draws the
+//! figures (through the pipeline both kinds share, see [`super`]).
 
 mod output;
 mod plots;

@@ -8,6 +8,7 @@ pub mod matching;
 pub mod plot;
 pub mod record;
 pub mod simulate;
+pub mod table;
 
 use thiserror::Error;
 

@@ -4,10 +4,12 @@
 use std::io::Write;
 use std::path::Path;
 
-use nonholo_core::integrate::Radau5Options;
+use nonholo_core::integrate::{Radau5Options, Stats};
 use nonholo_core::{Params, Run, RunStatus, Value};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value as Json};
+
+use crate::table::{StateRow, Table, state_header};
 
 /// Identifier of the run schema; bumped only for incompatible changes.
 pub const RUN_SCHEMA: &str = "nonholo.run/1";
@@ -79,14 +81,35 @@ pub struct DiagnosticsRecord {
     pub states_checked: usize,
 }
 
-#[derive(Debug, Clone, Serialize)]
-pub struct StatsRecord {
+/// The work counters of one integration, as every result file reports them
+/// (in this order).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Counters {
     pub steps: usize,
     pub rejected_steps: usize,
     pub rhs_evals: usize,
     pub jacobian_evals: usize,
     pub lu_decompositions: usize,
     pub newton_failures: usize,
+}
+
+impl From<&Stats> for Counters {
+    fn from(st: &Stats) -> Self {
+        Counters {
+            steps: st.steps,
+            rejected_steps: st.rejected_steps,
+            rhs_evals: st.rhs_evals,
+            jacobian_evals: st.jacobian_evals,
+            lu_decompositions: st.lu_decompositions,
+            newton_failures: st.newton_failures,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct StatsRecord {
+    #[serde(flatten)]
+    pub counters: Counters,
     pub wall_time_s: f64,
     /// `[t, h·|λ|]` where the stiffness test of an explicit method fired.
     pub stiffness_detected: Option<[f64; 2]>,
@@ -322,12 +345,7 @@ impl RunRecord {
                 states_checked: d.states_checked,
             },
             stats: StatsRecord {
-                steps: st.steps,
-                rejected_steps: st.rejected_steps,
-                rhs_evals: st.rhs_evals,
-                jacobian_evals: st.jacobian_evals,
-                lu_decompositions: st.lu_decompositions,
-                newton_failures: st.newton_failures,
+                counters: Counters::from(st),
                 wall_time_s: st.wall_time_s,
                 stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
             },
@@ -359,25 +377,22 @@ impl RunRecord {
 
     /// CSV: `t,<q names>,<q names>_dot,<multiplier names>`, one row per output time.
     pub fn to_csv(&self, multiplier_names: &[String]) -> Result<Vec<u8>, String> {
-        let mut w = csv::Writer::from_writer(Vec::new());
-        let mut header = vec!["t".to_string()];
-        header.extend(self.coordinates.iter().cloned());
-        header.extend(self.coordinates.iter().map(|c| format!("{c}_dot")));
-        header.extend(multiplier_names.iter().cloned());
-        w.write_record(&header).map_err(|e| e.to_string())?;
-        for i in 0..self.t.len() {
-            let mut row = vec![self.t[i].to_string()];
-            row.extend(self.q[i].iter().map(|v| v.to_string()));
-            row.extend(self.q_dot[i].iter().map(|v| v.to_string()));
-            if let Some(l) = &self.lambda {
-                row.extend(l[i].iter().map(|v| v.to_string()));
-            }
-            if let Some(l) = &self.nu {
-                row.extend(l[i].iter().map(|v| v.to_string()));
-            }
-            w.write_record(&row).map_err(|e| e.to_string())?;
+        let mut table = Table::new(state_header(
+            self.coordinates.iter().map(String::as_str),
+            multiplier_names.iter().cloned(),
+        ))?;
+        fn at(m: &Option<Vec<Vec<f64>>>, i: usize) -> &[f64] {
+            m.as_ref().map_or(&[], |m| &m[i])
         }
-        w.into_inner().map_err(|e| e.to_string())
+        for i in 0..self.t.len() {
+            table.push(&StateRow {
+                t: self.t[i],
+                q: &self.q[i],
+                q_dot: &self.q_dot[i],
+                more: &[at(&self.lambda, i), at(&self.nu, i)],
+            })?;
+        }
+        table.into_bytes()
     }
 }
 

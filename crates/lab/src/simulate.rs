@@ -399,7 +399,7 @@ pub fn summary(run: &Run, r: &RunRecord) -> String {
     let _ = writeln!(
         s,
         "{} steps ({} rejected), {} right-hand sides, {:.4} s",
-        st.steps, st.rejected_steps, st.rhs_evals, st.wall_time_s
+        st.counters.steps, st.counters.rejected_steps, st.counters.rhs_evals, st.wall_time_s
     );
     if let Some([t, hl]) = st.stiffness_detected {
         let _ = writeln!(

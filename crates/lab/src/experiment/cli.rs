@@ -204,7 +204,7 @@ pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
         );
         return Ok(());
     }
-    let results = super::output::load_points(&exp, &dir).map_err(CliError::Run)?;
+    let results = super::files::load_points(&exp, &dir).map_err(CliError::Run)?;
     let plots = super::plots::draw(&exp, &dir, &results).map_err(CliError::Run)?;
     super::output::write_html(&exp, &dir, &results, &plots).map_err(CliError::Run)?;
     eprintln!(

@@ -16,11 +16,23 @@
 //! | `plots/*.png`, `plots/*.svg`, `index.html` | the figures and a page showing them with the tables |
 //!
 //! Every file is written atomically. A point whose result file exists with
-//! the same configuration hash is not run again (unless `--force`), so a
-//! sweep killed half-way finishes with every point exactly once.
+//! the same resume key ([`key`]: a hash of everything the point's results
+//! depend on) is not run again (unless `--force`), so a sweep killed
+//! half-way finishes with every point exactly once.
+//!
+//! Both kinds of experiment (comparisons here, work-precision in [`wp`])
+//! share one results pipeline: point files and atomic writes ([`files`]),
+//! the resume key ([`key`]), typed CSV records ([`crate::table`]), the page
+//! ([`page`]) and the manifest ([`manifest`]). What is particular to a
+//! comparison: [`point`] (running one point), [`output`] (its tables,
+//! trajectories and summary), [`plots`].
 
 pub mod cli;
+pub mod files;
+pub mod key;
+pub mod manifest;
 pub mod output;
+pub mod page;
 pub mod plots;
 pub mod point;
 pub mod reference;
@@ -35,7 +47,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-pub use point::{FormResult, PairResult, PointResult};
+pub use point::{Comparison, FormResult, PairResult, PointResult};
 pub use spec::{Experiment, SpecError};
 
 impl Experiment {
@@ -178,16 +190,13 @@ fn clean_temporaries(dir: &Path) {
     }
 }
 
-/// The stored result of `p`, if it is complete and for the same configuration.
+/// The stored result of `p`, if it is complete and for the same computation.
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
-    let text = std::fs::read_to_string(output::point_path(dir, p.index)).ok()?;
-    let r: PointResult = serde_json::from_str(&text).ok()?;
-    let runs = sweep::resolve(exp, p).ok()?;
-    if r.schema != point::POINT_SCHEMA || r.hash != point::point_hash(exp, &runs) {
-        return None;
-    }
+    let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
+    let r: PointResult = files::stored(dir, p.index, point::POINT_SCHEMA, &key)?;
     if needs_traj {
         let all_there = r
+            .body
             .formulations
             .iter()
             .filter(|f| f.t_last.is_some())
@@ -232,6 +241,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
                     {
                         reused.fetch_add(1, Ordering::SeqCst);
                         let failed = r
+                            .body
                             .formulations
                             .iter()
                             .filter(|f| f.status == "failed")
@@ -246,8 +256,9 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
                         output::write_trajectory(dir, p.index, s)?;
                     }
                 }
-                output::write_json(&output::point_path(dir, p.index), &r)?;
+                files::write_json(&files::point_path(dir, p.index), &r)?;
                 let failed = r
+                    .body
                     .formulations
                     .iter()
                     .filter(|f| f.status == "failed")
@@ -264,13 +275,13 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
     let plots = plots::draw(exp, dir, &results)?;
     output::write_summary(exp, dir, &results, &plots)?;
     output::write_html(exp, dir, &results, &plots)?;
-    output::write_manifest(exp, dir, started, threads)?;
+    manifest::write_manifest(exp, dir, started, threads)?;
 
-    let runs = results.iter().map(|r| r.formulations.len()).sum();
+    let runs = results.iter().map(|r| r.body.formulations.len()).sum();
     let count = |status: &str| {
         results
             .iter()
-            .flat_map(|r| &r.formulations)
+            .flat_map(|r| &r.body.formulations)
             .filter(|f| f.status == status)
             .count()
     };

@@ -1,51 +1,19 @@
-//! Result files of an experiment: tables, trajectories, summary, manifest,
-//! and the HTML page. Every file is written atomically.
+//! Result files of a comparison: tables, trajectories, summary and the
+//! page's content (the files and page code both kinds share are in
+//! [`super::files`], [`crate::table`], [`super::page`] and
+//! [`super::manifest`]). Every file is written atomically.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use serde::Serialize;
 use serde_json::{Value as Json, json};
-use sha2::{Digest, Sha256};
 
-use super::point::{PointResult, Samples};
+use super::files::write_json;
+use super::page::Page;
+use super::point::{FormResult, PairResult, PointResult, Samples};
 use super::spec::Experiment;
-use crate::record::write_atomic;
-
-pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    write_atomic(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
-}
-
-pub(crate) fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), String> {
-    let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;
-    bytes.push(b'\n');
-    write(path, &bytes)
-}
-
-/// `points/<index>.json`: one point's stored result (either kind).
-pub(crate) fn point_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join("points").join(format!("{index}.json"))
-}
-
-/// The stored results of every point of `exp` in `dir` (for redrawing).
-pub(crate) fn load_points<T: serde::de::DeserializeOwned>(
-    exp: &Experiment,
-    dir: &Path,
-) -> Result<Vec<T>, String> {
-    exp.points()
-        .iter()
-        .map(|p| {
-            let path = point_path(dir, p.index);
-            let text = std::fs::read_to_string(&path)
-                .map_err(|e| format!("{}: {e} (run the experiment first)", path.display()))?;
-            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
-        })
-        .collect()
-}
-
-/// Shortest round-trip text of a number; empty for none.
-pub(crate) fn num(v: Option<f64>) -> String {
-    v.map(|x| x.to_string()).unwrap_or_default()
-}
+use crate::record::Counters;
+use crate::table::{self, StateRow, Table, escape, plain, plain_opt, state_header};
 
 /// `trajectories/<index>-<label>.csv`.
 pub fn trajectory_path(dir: &Path, index: usize, label: &str) -> PathBuf {
@@ -55,28 +23,25 @@ pub fn trajectory_path(dir: &Path, index: usize, label: &str) -> PathBuf {
 
 /// Writes one formulation's samples: `t, q…, q_dot…, multipliers…, residual, energy`.
 pub fn write_trajectory(dir: &Path, index: usize, s: &Samples) -> Result<(), String> {
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let mut header = vec!["t".to_string()];
-    header.extend(s.coordinates.iter().map(|(c, _)| c.clone()));
-    header.extend(s.coordinates.iter().map(|(c, _)| format!("{c}_dot")));
-    header.extend(s.multipliers.iter().cloned());
-    header.extend(["residual".into(), "energy".into()]);
-    w.write_record(&header).map_err(|e| e.to_string())?;
+    let more = s
+        .multipliers
+        .iter()
+        .cloned()
+        .chain(["residual".into(), "energy".into()]);
+    let mut table = Table::new(state_header(
+        s.coordinates.iter().map(|(c, _)| c.as_str()),
+        more,
+    ))?;
     for (i, o) in s.obs.iter().enumerate() {
-        let mut row = vec![s.t[i].to_string()];
-        row.extend(
-            o.q.iter()
-                .chain(&o.qd)
-                .chain(&o.multipliers)
-                .map(|v| v.to_string()),
-        );
-        let (r, e) = s.physics.get(i).copied().unwrap_or((f64::NAN, f64::NAN));
-        row.push(r.to_string());
-        row.push(e.to_string());
-        w.write_record(&row).map_err(|e| e.to_string())?;
+        let (residual, energy) = s.physics.get(i).copied().unwrap_or((f64::NAN, f64::NAN));
+        table.push(&StateRow {
+            t: s.t[i],
+            q: &o.q,
+            q_dot: &o.qd,
+            more: &[&o.multipliers, &[residual, energy]],
+        })?;
     }
-    let bytes = w.into_inner().map_err(|e| e.to_string())?;
-    write(&trajectory_path(dir, index, &s.label), &bytes)
+    table.write(&trajectory_path(dir, index, &s.label))
 }
 
 /// A trajectory file read back: column names and rows.
@@ -109,152 +74,144 @@ impl Trajectory {
 }
 
 /// The divergence of formulation `label` from the reference at one point.
-fn vs_reference<'a>(
-    r: &'a PointResult,
-    label: &str,
-    reference: &str,
-) -> Option<&'a super::PairResult> {
-    r.pairs
+fn vs_reference<'a>(r: &'a PointResult, label: &str, reference: &str) -> Option<&'a PairResult> {
+    r.body
+        .pairs
         .iter()
         .find(|p| (p.a == reference && p.b == label) || (p.b == reference && p.a == label))
 }
 
+/// The divergence measures of a pair, as `runs.csv` and `pairs.csv` give them.
+#[derive(Default, Serialize)]
+struct Divergence {
+    #[serde(serialize_with = "plain_opt")]
+    div_xy_end: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    div_xy_max: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    div_q_end: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    div_q_max: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    t_exceed: Option<f64>,
+}
+
+impl From<&PairResult> for Divergence {
+    fn from(p: &PairResult) -> Self {
+        Divergence {
+            div_xy_end: p.div_xy_end,
+            div_xy_max: p.div_xy_max,
+            div_q_end: p.div_q_end,
+            div_q_max: p.div_q_max,
+            t_exceed: p.t_exceed,
+        }
+    }
+}
+
+/// A row of `runs.csv` (after the point and its swept values): one
+/// formulation at one point, and its divergence from the reference
+/// formulation (empty for the reference itself).
+#[derive(Default, Serialize)]
+struct RunRow<'a> {
+    label: &'a str,
+    formulation: &'a str,
+    integrator: &'a str,
+    #[serde(serialize_with = "plain")]
+    rtol: f64,
+    #[serde(serialize_with = "plain")]
+    atol: f64,
+    status: &'a str,
+    #[serde(serialize_with = "plain_opt")]
+    t_last: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    error_t: Option<f64>,
+    error: Option<&'a str>,
+    counters: Counters,
+    #[serde(serialize_with = "plain_opt")]
+    constraint_residual_max: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    energy_initial: Option<f64>,
+    #[serde(serialize_with = "plain_opt")]
+    energy_drift_max: Option<f64>,
+    reference: Option<&'a str>,
+    divergence: Divergence,
+}
+
+impl<'a> RunRow<'a> {
+    fn new(f: &'a FormResult, vs_reference: Option<(&'a str, &PairResult)>) -> Self {
+        RunRow {
+            label: &f.label,
+            formulation: &f.formulation,
+            integrator: &f.integrator,
+            rtol: f.rtol,
+            atol: f.atol,
+            status: &f.status,
+            t_last: f.t_last,
+            error_t: f.error_t,
+            error: f.error.as_deref(),
+            counters: f.counters,
+            constraint_residual_max: f.constraint_residual_max,
+            energy_initial: f.energy_initial,
+            energy_drift_max: f.energy_drift_max,
+            reference: vs_reference.map(|(r, _)| r),
+            divergence: vs_reference
+                .map(|(_, p)| Divergence::from(p))
+                .unwrap_or_default(),
+        }
+    }
+}
+
+/// A row of `pairs.csv` (after the point and its swept values).
+#[derive(Default, Serialize)]
+struct PairRow<'a> {
+    a: &'a str,
+    b: &'a str,
+    #[serde(serialize_with = "plain_opt")]
+    span_end: Option<f64>,
+    divergence: Divergence,
+}
+
+/// A row of `timing.csv`.
+#[derive(Default, Serialize)]
+struct TimingRow<'a> {
+    point: usize,
+    label: &'a str,
+    #[serde(serialize_with = "plain")]
+    wall_time_s: f64,
+}
+
 /// `runs.csv`, `pairs.csv`, `timing.csv` and `config.json`.
 pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<(), String> {
-    let axes: Vec<String> = exp.axes.iter().map(|a| a.name.clone()).collect();
+    let axes = || exp.axes.iter().map(|a| a.name.as_str());
 
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let mut header: Vec<String> = vec!["point".into()];
-    header.extend(axes.iter().cloned());
-    header.extend(
-        [
-            "label",
-            "formulation",
-            "integrator",
-            "rtol",
-            "atol",
-            "status",
-            "t_last",
-            "error_t",
-            "error",
-            "steps",
-            "rejected_steps",
-            "rhs_evals",
-            "jacobian_evals",
-            "lu_decompositions",
-            "newton_failures",
-            "constraint_residual_max",
-            "energy_initial",
-            "energy_drift_max",
-            "reference",
-            "div_xy_end",
-            "div_xy_max",
-            "div_q_end",
-            "div_q_max",
-            "t_exceed",
-        ]
-        .map(String::from),
-    );
-    w.write_record(&header).map_err(|e| e.to_string())?;
+    let mut runs = Table::per_point::<RunRow>(axes())?;
+    let mut pairs = Table::per_point::<PairRow>(axes())?;
+    let mut timing = Table::new(table::columns::<TimingRow>()?)?;
     for r in results {
-        for f in &r.formulations {
-            let mut row = vec![r.index.to_string()];
-            row.extend(r.values.iter().cloned());
-            row.extend([
-                f.label.clone(),
-                f.formulation.clone(),
-                f.integrator.clone(),
-                f.rtol.to_string(),
-                f.atol.to_string(),
-                f.status.clone(),
-                num(f.t_last),
-                num(f.error_t),
-                f.error.clone().unwrap_or_default(),
-                f.steps.to_string(),
-                f.rejected_steps.to_string(),
-                f.rhs_evals.to_string(),
-                f.jacobian_evals.to_string(),
-                f.lu_decompositions.to_string(),
-                f.newton_failures.to_string(),
-                num(f.constraint_residual_max),
-                num(f.energy_initial),
-                num(f.energy_drift_max),
-            ]);
-            match vs_reference(r, &f.label, &exp.reference) {
-                Some(p) if f.label != exp.reference => row.extend([
-                    exp.reference.clone(),
-                    num(p.div_xy_end),
-                    num(p.div_xy_max),
-                    num(p.div_q_end),
-                    num(p.div_q_max),
-                    num(p.t_exceed),
-                ]),
-                _ => row.extend(std::iter::repeat_n(String::new(), 6)),
-            }
-            w.write_record(&row).map_err(|e| e.to_string())?;
+        for f in &r.body.formulations {
+            let vs = vs_reference(r, &f.label, &exp.reference)
+                .filter(|_| f.label != exp.reference)
+                .map(|p| (exp.reference.as_str(), p));
+            runs.at_point(r.index, &r.values, &RunRow::new(f, vs))?;
+            timing.push(&TimingRow {
+                point: r.index,
+                label: &f.label,
+                wall_time_s: f.wall_time_s,
+            })?;
+        }
+        for p in &r.body.pairs {
+            let row = PairRow {
+                a: &p.a,
+                b: &p.b,
+                span_end: p.span_end,
+                divergence: Divergence::from(p),
+            };
+            pairs.at_point(r.index, &r.values, &row)?;
         }
     }
-    write(
-        &dir.join("runs.csv"),
-        &w.into_inner().map_err(|e| e.to_string())?,
-    )?;
-
-    let mut w = csv::Writer::from_writer(Vec::new());
-    let mut header: Vec<String> = vec!["point".into()];
-    header.extend(axes.iter().cloned());
-    header.extend(
-        [
-            "a",
-            "b",
-            "span_end",
-            "div_xy_end",
-            "div_xy_max",
-            "div_q_end",
-            "div_q_max",
-            "t_exceed",
-        ]
-        .map(String::from),
-    );
-    w.write_record(&header).map_err(|e| e.to_string())?;
-    for r in results {
-        for p in &r.pairs {
-            let mut row = vec![r.index.to_string()];
-            row.extend(r.values.iter().cloned());
-            row.extend([
-                p.a.clone(),
-                p.b.clone(),
-                num(p.span_end),
-                num(p.div_xy_end),
-                num(p.div_xy_max),
-                num(p.div_q_end),
-                num(p.div_q_max),
-                num(p.t_exceed),
-            ]);
-            w.write_record(&row).map_err(|e| e.to_string())?;
-        }
-    }
-    write(
-        &dir.join("pairs.csv"),
-        &w.into_inner().map_err(|e| e.to_string())?,
-    )?;
-
-    let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record(["point", "label", "wall_time_s"])
-        .map_err(|e| e.to_string())?;
-    for r in results {
-        for f in &r.formulations {
-            w.write_record([
-                r.index.to_string(),
-                f.label.clone(),
-                f.wall_time_s.to_string(),
-            ])
-            .map_err(|e| e.to_string())?;
-        }
-    }
-    write(
-        &dir.join("timing.csv"),
-        &w.into_inner().map_err(|e| e.to_string())?,
-    )?;
+    runs.write(&dir.join("runs.csv"))?;
+    pairs.write(&dir.join("pairs.csv"))?;
+    timing.write(&dir.join("timing.csv"))?;
 
     let config = json!({
         "name": exp.name,
@@ -315,7 +272,7 @@ pub fn write_summary(
         .map(|l| {
             let rows: Vec<_> = results
                 .iter()
-                .flat_map(|r| &r.formulations)
+                .flat_map(|r| &r.body.formulations)
                 .filter(|f| f.label == *l)
                 .collect();
             json!({
@@ -331,7 +288,7 @@ pub fn write_summary(
         for b in &labels[i + 1..] {
             let ends: Vec<f64> = results
                 .iter()
-                .flat_map(|r| &r.pairs)
+                .flat_map(|r| &r.body.pairs)
                 .filter(|p| p.a == *a && p.b == *b)
                 .filter_map(|p| p.div_xy_end)
                 .collect();
@@ -345,15 +302,15 @@ pub fn write_summary(
             }));
         }
     }
-    let runs: usize = results.iter().map(|r| r.formulations.len()).sum();
+    let runs: usize = results.iter().map(|r| r.body.formulations.len()).sum();
     let failed = results
         .iter()
-        .flat_map(|r| &r.formulations)
+        .flat_map(|r| &r.body.formulations)
         .filter(|f| f.status == "failed")
         .count();
     let stopped = results
         .iter()
-        .flat_map(|r| &r.formulations)
+        .flat_map(|r| &r.body.formulations)
         .filter(|f| f.status == "stopped")
         .count();
     write_json(
@@ -374,188 +331,46 @@ pub fn write_summary(
     )
 }
 
-fn command_output(cmd: &str, args: &[&str], cwd: &Path) -> Option<String> {
-    let out = std::process::Command::new(cmd)
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .ok()?;
-    out.status
-        .success()
-        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
-}
-
-/// Versions of the crates that compute results, read from `Cargo.lock` when
-/// the experiment lives in a checkout.
-fn dependency_versions(root: &Path) -> Json {
-    let wanted = [
-        "nalgebra",
-        "num-dual",
-        "faer",
-        "plotters",
-        "rayon",
-        "serde_json",
-        "toml",
-    ];
-    let mut map = serde_json::Map::new();
-    map.insert("nonholo".into(), Json::from(env!("CARGO_PKG_VERSION")));
-    if let Ok(lock) = std::fs::read_to_string(root.join("Cargo.lock")) {
-        let mut name = None;
-        for line in lock.lines() {
-            if let Some(n) = line.strip_prefix("name = ") {
-                name = Some(n.trim_matches('"').to_string());
-            } else if let (Some(v), Some(n)) = (line.strip_prefix("version = "), &name)
-                && wanted.contains(&n.as_str())
-            {
-                map.insert(n.clone(), Json::from(v.trim_matches('"')));
-            }
-        }
-    }
-    Json::Object(map)
-}
-
-/// `manifest.json`: how the results were made.
-pub fn write_manifest(
-    exp: &Experiment,
-    dir: &Path,
-    started: std::time::SystemTime,
-    threads: usize,
-) -> Result<(), String> {
-    let root = exp
-        .path
-        .parent()
-        .and_then(|p| {
-            if p.as_os_str().is_empty() {
-                None
-            } else {
-                Some(p)
-            }
-        })
-        .unwrap_or(Path::new("."));
-    let hash: String = Sha256::digest(exp.source.as_bytes())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    let rev = command_output("git", &["rev-parse", "HEAD"], root);
-    let dirty = command_output(
-        "git",
-        &["status", "--porcelain", "--untracked-files=no"],
-        root,
-    )
-    .map(|s| !s.is_empty());
-    let top = command_output("git", &["rev-parse", "--show-toplevel"], root).map(PathBuf::from);
-    let hostname = std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|s| s.trim().to_string())
-        .or_else(|_| std::env::var("HOSTNAME"))
-        .unwrap_or_default();
-    write_json(
-        &dir.join("manifest.json"),
-        &json!({
-            "schema": "nonholo.manifest/1",
-            "command": std::env::args().collect::<Vec<_>>().join(" "),
-            "experiment_file": exp.path.display().to_string(),
-            "experiment_sha256": hash,
-            "git_revision": rev,
-            "git_dirty": dirty,
-            "versions": dependency_versions(top.as_deref().unwrap_or(root)),
-            "machine": {
-                "hostname": hostname,
-                "os": std::env::consts::OS,
-                "arch": std::env::consts::ARCH,
-                "cores": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
-                "threads": threads,
-            },
-            "started": humantime::format_rfc3339_seconds(started).to_string(),
-            "finished": humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-        }),
-    )
-}
-
-pub(crate) fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// `index.html`: every plot with its caption, then the tables.
+/// `index.html`: every plot with its caption, then the table of runs.
 pub fn write_html(
     exp: &Experiment,
     dir: &Path,
     results: &[PointResult],
     plots: &[PathBuf],
 ) -> Result<(), String> {
-    let mut h = String::new();
-    let _ = write!(
-        h,
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\n\
-         <style>body{{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}}\
-         table{{border-collapse:collapse;font-size:0.85em}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}\
-         figure{{margin:1.5em 0}}img{{max-width:100%}}figcaption{{color:#333}}</style></head><body>\n",
-        escape(&exp.title)
-    );
-    let _ = writeln!(
-        h,
-        "<h1>{}</h1>\n<p><b>Claim tested:</b> {}</p>",
-        escape(&exp.title),
-        escape(&exp.claim)
-    );
-    if !exp.description.is_empty() {
-        let _ = writeln!(h, "<p>{}</p>", escape(&exp.description));
-    }
-    let _ = writeln!(
-        h,
-        "<p>Scene <code>{}</code>; {} point(s); formulations: {}. Files: \
-         <a href=\"runs.csv\">runs.csv</a>, <a href=\"pairs.csv\">pairs.csv</a>, \
-         <a href=\"summary.json\">summary.json</a>, <a href=\"config.json\">config.json</a>, \
-         <a href=\"manifest.json\">manifest.json</a>.</p>",
-        escape(&exp.scene),
-        results.len(),
-        exp.formulations
-            .iter()
-            .map(|f| format!(
+    let formulations: Vec<String> = exp
+        .formulations
+        .iter()
+        .map(|f| {
+            format!(
                 "{} = {} ({})",
                 escape(&f.label),
                 escape(&f.formulation),
                 escape(&f.settings.integrator)
-            ))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    for p in plots
-        .iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "png"))
-    {
-        let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
-        let stem = p
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_default();
-        let _ = writeln!(
-            h,
-            "<figure><img src=\"{rel}\" alt=\"{stem}\"><figcaption>{}</figcaption></figure>",
-            escape(&super::plots::caption(exp, &stem))
-        );
+            )
+        })
+        .collect();
+    Page {
+        exp,
+        overview: format!(
+            "Scene <code>{}</code>; {} point(s); formulations: {}.",
+            escape(&exp.scene),
+            results.len(),
+            formulations.join(", ")
+        ),
+        files: &[
+            "runs.csv",
+            "pairs.csv",
+            "summary.json",
+            "config.json",
+            "manifest.json",
+        ],
+        before: Vec::new(),
+        plots,
+        caption: &|stem| super::plots::caption(exp, stem),
+        after: vec![("Runs".into(), table::html_from_csv(&dir.join("runs.csv")))],
     }
-    let _ = writeln!(h, "<h2>Runs</h2>\n<table>");
-    if let Ok(text) = std::fs::read_to_string(dir.join("runs.csv")) {
-        for (i, line) in csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(text.as_bytes())
-            .records()
-            .flatten()
-            .enumerate()
-        {
-            let tag = if i == 0 { "th" } else { "td" };
-            let cells: String = line
-                .iter()
-                .map(|c| format!("<{tag}>{}</{tag}>", escape(c)))
-                .collect();
-            let _ = writeln!(h, "<tr>{cells}</tr>");
-        }
-    }
-    let _ = writeln!(h, "</table>\n</body></html>");
-    write(&dir.join("index.html"), h.as_bytes())
+    .write(dir)
 }
 
 #[cfg(test)]

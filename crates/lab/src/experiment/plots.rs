@@ -308,14 +308,16 @@ fn log_axis(x: &[f64], numeric: bool) -> bool {
 /// value would not be comparable with the other points').
 fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> {
     let failed = |l: &str| {
-        r.formulations
+        r.body
+            .formulations
             .iter()
             .any(|f| f.label == l && f.status == "failed")
     };
     if failed(reference) || failed(label) {
         return None;
     }
-    r.pairs
+    r.body
+        .pairs
         .iter()
         .find(|p| (p.a == reference && p.b == label) || (p.b == reference && p.a == label))
         .and_then(|p| p.div_xy_end)
@@ -396,6 +398,7 @@ fn sweep_plots(
                         .iter()
                         .filter_map(|&i| {
                             let r = results[i]
+                                .body
                                 .formulations
                                 .iter()
                                 .find(|g| g.label == f.label)?;

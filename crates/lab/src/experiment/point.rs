@@ -7,10 +7,12 @@ use nonholo_core::monitor::state_measures;
 use nonholo_core::{Observation, Run, Scene};
 use nonholo_scenes::SceneVisitor;
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
+use super::files::StoredPoint;
+use super::key::point_key;
 use super::spec::{CLOSED_FORM, Experiment};
 use super::sweep::{Point, PointRun, resolve};
+use crate::record::Counters;
 use crate::simulate::{ResolveInit, execute};
 
 /// Schema of a point's result file.
@@ -31,12 +33,8 @@ pub struct FormResult {
     pub error: Option<String>,
     /// Last time reached.
     pub t_last: Option<f64>,
-    pub steps: usize,
-    pub rejected_steps: usize,
-    pub rhs_evals: usize,
-    pub jacobian_evals: usize,
-    pub lu_decompositions: usize,
-    pub newton_failures: usize,
+    #[serde(flatten)]
+    pub counters: Counters,
     pub wall_time_s: f64,
     pub constraint_residual_max: Option<f64>,
     pub energy_initial: Option<f64>,
@@ -65,12 +63,7 @@ impl FormResult {
             error_t,
             error: Some(error),
             t_last: None,
-            steps: 0,
-            rejected_steps: 0,
-            rhs_evals: 0,
-            jacobian_evals: 0,
-            lu_decompositions: 0,
-            newton_failures: 0,
+            counters: Counters::default(),
             wall_time_s: 0.0,
             constraint_residual_max: None,
             energy_initial: None,
@@ -97,18 +90,16 @@ pub struct PairResult {
     pub t_exceed: Option<f64>,
 }
 
-/// The result of one point, as stored in `points/<index>.json`.
+/// What a point of a comparison stores: every formulation's result and
+/// every pair's divergence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PointResult {
-    pub schema: String,
-    pub index: usize,
-    pub values: Vec<String>,
-    /// Hash of the resolved configuration: a stored result is reused only
-    /// if the experiment still asks for the same computation.
-    pub hash: String,
+pub struct Comparison {
     pub formulations: Vec<FormResult>,
     pub pairs: Vec<PairResult>,
 }
+
+/// The result of one point, as stored in `points/<index>.json`.
+pub type PointResult = StoredPoint<Comparison>;
 
 /// A formulation's samples on the grid (for measures and trajectory files).
 pub struct Samples {
@@ -119,16 +110,6 @@ pub struct Samples {
     pub obs: Vec<Observation>,
     /// `(residual, energy)` per sample.
     pub physics: Vec<(f64, f64)>,
-}
-
-/// Hash of the resolved runs of a point and the measures' settings.
-pub fn point_hash(exp: &Experiment, runs: &[PointRun]) -> String {
-    let mut h = Sha256::new();
-    h.update(POINT_SCHEMA.as_bytes());
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(format!("{runs:?}|{:?}", exp.threshold).as_bytes());
-    let digest = h.finalize();
-    digest.iter().take(8).map(|b| format!("{b:02x}")).collect()
 }
 
 /// Checks that every formulation of `point` can be set up (names, ranges,
@@ -235,7 +216,6 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 fn from_run(r: &PointRun, run: &Run) -> FormResult {
-    let st = &run.solution.stats;
     let d = &run.diagnostics;
     FormResult {
         label: r.label.clone(),
@@ -247,13 +227,8 @@ fn from_run(r: &PointRun, run: &Run) -> FormResult {
         error_t: run.failure.as_ref().and_then(|e| e.time()),
         error: run.failure.as_ref().map(|e| e.to_string()),
         t_last: finite(run.solution.t_last),
-        steps: st.steps,
-        rejected_steps: st.rejected_steps,
-        rhs_evals: st.rhs_evals,
-        jacobian_evals: st.jacobian_evals,
-        lu_decompositions: st.lu_decompositions,
-        newton_failures: st.newton_failures,
-        wall_time_s: st.wall_time_s,
+        counters: Counters::from(&run.solution.stats),
+        wall_time_s: run.solution.stats.wall_time_s,
         constraint_residual_max: finite(d.constraint_residual_max),
         energy_initial: finite(d.energy_initial),
         energy_drift_max: finite(d.energy_drift_max),
@@ -295,14 +270,16 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
                     index: point.index,
                     values: point.values.clone(),
                     hash: String::new(),
-                    formulations,
-                    pairs: Vec::new(),
+                    body: Comparison {
+                        formulations,
+                        pairs: Vec::new(),
+                    },
                 },
                 Vec::new(),
             );
         }
     };
-    let hash = point_hash(exp, &runs);
+    let hash = point_key(exp, point, POINT_SCHEMA).unwrap_or_default();
     let mut results = Vec::new();
     let mut samples = Vec::new();
     for r in &runs {
@@ -333,8 +310,10 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
             index: point.index,
             values: point.values.clone(),
             hash,
-            formulations: results,
-            pairs,
+            body: Comparison {
+                formulations: results,
+                pairs,
+            },
         },
         samples,
     )

@@ -94,15 +94,38 @@ pub struct PointRun {
     pub spec: RunSpec,
 }
 
-/// Resolves every formulation at `point` into a [`RunSpec`] (a closed-form
-/// reference keeps formulation `closed-form`).
-pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String> {
+/// The experiment at one point: its scene parameters, initial data and
+/// formulations with the point's swept values applied.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Applied {
+    pub params: Vec<(String, String)>,
+    pub init: Vec<(String, String)>,
+    pub forms: Vec<FormulationSpec>,
+}
+
+/// Applies the swept values of `point` to `exp`.
+pub fn apply_point(exp: &Experiment, point: &Point) -> Result<Applied, String> {
     let mut params = exp.params.clone();
     let mut init = exp.init.clone();
     let mut forms: Vec<FormulationSpec> = exp.formulations.clone();
     for (axis, value) in exp.axes.iter().zip(&point.values) {
         apply(&axis.target, value, &mut params, &mut forms, &mut init)?;
     }
+    Ok(Applied {
+        params,
+        init,
+        forms,
+    })
+}
+
+/// Resolves every formulation at `point` into a [`RunSpec`] (a closed-form
+/// reference keeps formulation `closed-form`).
+pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String> {
+    let Applied {
+        params,
+        init,
+        forms,
+    } = apply_point(exp, point)?;
     let grid = output_grid(exp.t_end, exp.output_every).map_err(|e| e.to_string())?;
     forms
         .iter()

@@ -1,0 +1,74 @@
+//! Files every experiment writes the same way, whatever its kind: atomic
+//! writes, JSON, and the stored point files (`points/<i>.json`) that let a
+//! sweep resume.
+
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+
+use super::spec::Experiment;
+use crate::record::write_atomic;
+
+/// Writes `bytes` to `path` atomically.
+pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    write_atomic(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// Writes `value` as pretty JSON with a final newline.
+pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), String> {
+    let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;
+    bytes.push(b'\n');
+    write(path, &bytes)
+}
+
+/// `points/<index>.json`: one point's stored result (either kind).
+pub(crate) fn point_path(dir: &Path, index: usize) -> PathBuf {
+    dir.join("points").join(format!("{index}.json"))
+}
+
+/// One point's stored result, either kind: which point it is, the key of
+/// the computation it holds, and what the kind stores (`B`, whose fields
+/// follow at the top level of the file).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StoredPoint<B> {
+    /// The kind's schema (`nonholo.point/1`, `nonholo.wp-point/1`).
+    pub schema: String,
+    pub index: usize,
+    /// The swept values of the point, as text.
+    pub values: Vec<String>,
+    /// The point's resume key ([`super::key`]): a stored result is reused
+    /// only if the experiment still asks for the same computation.
+    pub hash: String,
+    #[serde(flatten)]
+    pub body: B,
+}
+
+/// The stored result of point `index` in `dir` if it is of `schema` and
+/// holds the computation `key` names.
+pub(crate) fn stored<B: DeserializeOwned>(
+    dir: &Path,
+    index: usize,
+    schema: &str,
+    key: &str,
+) -> Option<StoredPoint<B>> {
+    let text = std::fs::read_to_string(point_path(dir, index)).ok()?;
+    let r: StoredPoint<B> = serde_json::from_str(&text).ok()?;
+    (r.schema == schema && r.hash == key).then_some(r)
+}
+
+/// The stored results of every point of `exp` in `dir` (for redrawing).
+pub(crate) fn load_points<T: DeserializeOwned>(
+    exp: &Experiment,
+    dir: &Path,
+) -> Result<Vec<T>, String> {
+    exp.points()
+        .iter()
+        .map(|p| {
+            let path = point_path(dir, p.index);
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| format!("{}: {e} (run the experiment first)", path.display()))?;
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+        })
+        .collect()
+}

@@ -1,0 +1,296 @@
+//! The resume key of a sweep point: which stored point file holds the
+//! computation a point asks for.
+//!
+//! The key is the first 16 hex digits of the SHA-256 of a canonical
+//! serialisation of the resolved point ([`canonical`]): compact JSON of
+//! structs with a fixed field order, holding everything the point's results
+//! depend on —
+//! - the point file's schema and the version of nonholo;
+//! - for every formulation, in the experiment's order: its label, scene,
+//!   formulation, resolved scene parameters, initial data and options (the
+//!   text they are given as, in their order), every integration setting,
+//!   the time span and output spacing, and for a work-precision line its
+//!   ladder and reference;
+//! - the kind's measures: the divergence threshold of a comparison, the
+//!   timed repeats of a work-precision experiment.
+//!
+//! Floats are written as their IEEE-754 bits in hex, so values one ulp
+//! apart (or `0` and `−0`) give different keys and nothing depends on how a
+//! float prints; there are no maps, so no key order to settle. What does
+//! not change the computation (title, claim, plots, other points) is not in
+//! the key. Every [`Settings`], [`RefSpec`] field is destructured by name:
+//! a new setting does not compile until the key holds it.
+
+use serde::{Serialize, Serializer};
+use sha2::{Digest, Sha256};
+
+use super::spec::{Experiment, FormulationSpec, Kind, Ladder, RefSpec, Settings};
+use super::sweep::{Point, apply_point, resolve};
+
+/// A float by its exact bits.
+struct Bits(f64);
+
+impl Serialize for Bits {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(&format_args!("{:016x}", self.0.to_bits()))
+    }
+}
+
+#[derive(Serialize)]
+struct PointKey<'a> {
+    schema: &'a str,
+    version: &'a str,
+    runs: Vec<RunKey<'a>>,
+    measures: Measures,
+}
+
+#[derive(Serialize)]
+enum Measures {
+    Compare { threshold: Bits },
+    WorkPrecision { repeats: usize },
+}
+
+#[derive(Serialize)]
+struct RunKey<'a> {
+    label: &'a str,
+    scene: &'a str,
+    formulation: &'a str,
+    params: &'a [(String, String)],
+    init: &'a [(String, String)],
+    options: &'a [(String, String)],
+    t_end: Bits,
+    output_every: Bits,
+    settings: SettingsKey<'a>,
+    work_precision: Option<(LadderKey, RefKey<'a>)>,
+}
+
+#[derive(Serialize)]
+struct SettingsKey<'a> {
+    integrator: &'a str,
+    rtol: Bits,
+    atol: Bits,
+    step: Option<Bits>,
+    max_steps: usize,
+    max_wall_time: Option<Bits>,
+    project_init: bool,
+    radau_newton: &'a str,
+}
+
+impl<'a> From<&'a Settings> for SettingsKey<'a> {
+    fn from(s: &'a Settings) -> Self {
+        let Settings {
+            integrator,
+            rtol,
+            atol,
+            step,
+            max_steps,
+            max_wall_time,
+            project_init,
+            radau_newton,
+        } = s;
+        SettingsKey {
+            integrator,
+            rtol: Bits(*rtol),
+            atol: Bits(*atol),
+            step: step.map(Bits),
+            max_steps: *max_steps,
+            max_wall_time: max_wall_time.map(Bits),
+            project_init: *project_init,
+            radau_newton,
+        }
+    }
+}
+
+#[derive(Serialize)]
+enum LadderKey {
+    Tolerances(Vec<Bits>),
+    Steps(Vec<usize>),
+}
+
+impl From<&Ladder> for LadderKey {
+    fn from(l: &Ladder) -> Self {
+        match l {
+            Ladder::Tolerances(t) => LadderKey::Tolerances(t.iter().map(|v| Bits(*v)).collect()),
+            Ladder::Steps(n) => LadderKey::Steps(n.clone()),
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct RefKey<'a> {
+    closed_form: bool,
+    integrator: &'a str,
+    rtol: Bits,
+    check_integrator: &'a str,
+    check_rtol: Bits,
+    max_wall_time: Option<Bits>,
+}
+
+impl<'a> From<&'a RefSpec> for RefKey<'a> {
+    fn from(r: &'a RefSpec) -> Self {
+        let RefSpec {
+            closed_form,
+            integrator,
+            rtol,
+            check_integrator,
+            check_rtol,
+            max_wall_time,
+        } = r;
+        RefKey {
+            closed_form: *closed_form,
+            integrator,
+            rtol: Bits(*rtol),
+            check_integrator,
+            check_rtol: Bits(*check_rtol),
+            max_wall_time: max_wall_time.map(Bits),
+        }
+    }
+}
+
+/// The canonical serialisation of `point` of `exp` for point files of
+/// `schema` (see the module documentation).
+pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String, String> {
+    let runs = resolve(exp, point)?;
+    let forms: Vec<FormulationSpec> = apply_point(exp, point)?.forms;
+    let runs = runs
+        .iter()
+        .zip(&forms)
+        .map(|(r, f)| RunKey {
+            label: &r.label,
+            scene: &r.spec.scene,
+            formulation: &r.spec.formulation,
+            params: &r.spec.params,
+            init: &r.spec.init,
+            options: &r.spec.options,
+            t_end: Bits(exp.t_end),
+            output_every: Bits(exp.output_every),
+            settings: SettingsKey::from(&f.settings),
+            work_precision: f
+                .work_precision
+                .as_ref()
+                .map(|(l, r)| (LadderKey::from(l), RefKey::from(r))),
+        })
+        .collect();
+    let measures = match exp.kind {
+        Kind::Compare => Measures::Compare {
+            threshold: Bits(exp.threshold),
+        },
+        Kind::WorkPrecision => Measures::WorkPrecision {
+            repeats: exp.repeats,
+        },
+    };
+    serde_json::to_string(&PointKey {
+        schema,
+        version: env!("CARGO_PKG_VERSION"),
+        runs,
+        measures,
+    })
+    .map_err(|e| e.to_string())
+}
+
+/// The resume key of `point` of `exp` for point files of `schema`: the
+/// first 16 hex digits of the SHA-256 of [`canonical`].
+pub fn point_key(exp: &Experiment, point: &Point, schema: &str) -> Result<String, String> {
+    let digest = Sha256::digest(canonical(exp, point, schema)?.as_bytes());
+    Ok(digest.iter().take(8).map(|b| format!("{b:02x}")).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn experiment(rtol: &str, threshold: &str, title: &str) -> Experiment {
+        let text = format!(
+            r#"[experiment]
+name = "key"
+title = "{title}"
+claim = "none"
+scene = "rolling-disk"
+
+[init]
+omega_theta = 0.5
+omega_psi = 1.0
+
+[time]
+t_end = 1.0
+output_every = 0.1
+
+[[formulation]]
+label = "B"
+formulation = "chetaev"
+rtol = {rtol}
+atol = 1e-12
+
+[[formulation]]
+label = "C"
+formulation = "vakonomic"
+
+[sweep]
+mode = "grid"
+values = {{ "C.init.lambda1" = [0.5, 1.0] }}
+
+[measures]
+threshold = {threshold}
+"#
+        );
+        Experiment::parse(Path::new("experiments/key.toml"), &text).unwrap()
+    }
+
+    fn keys(exp: &Experiment) -> Vec<String> {
+        exp.points()
+            .iter()
+            .map(|p| point_key(exp, p, "nonholo.point/1").unwrap())
+            .collect()
+    }
+
+    /// The key of a fixed point, pinned: it must not change between runs,
+    /// machines or builds (a change here invalidates every stored point and
+    /// must be deliberate).
+    #[test]
+    fn the_key_is_stable() {
+        let exp = experiment("1e-10", "1e-6", "t");
+        let k = keys(&exp);
+        assert_eq!(k, keys(&experiment("1e-10", "1e-6", "t")));
+        assert_eq!(k, ["cee2eded190f3606", "9b6e16a4525cdf30"]);
+    }
+
+    /// Points that differ in one swept value, settings one ulp apart, or a
+    /// threshold one ulp apart have different keys; the title changes
+    /// nothing.
+    #[test]
+    fn the_key_tells_points_apart() {
+        let base = keys(&experiment("1e-10", "1e-6", "t"));
+        assert_ne!(base[0], base[1]);
+        let up = 1e-10f64.next_up();
+        assert_ne!(format!("{up:e}"), "1e-10");
+        let ulp = keys(&experiment(&format!("{up:e}"), "1e-6", "t"));
+        assert_ne!(ulp[0], base[0]);
+        assert_ne!(ulp[1], base[1]);
+        let threshold = keys(&experiment(
+            "1e-10",
+            &format!("{:e}", 1e-6f64.next_down()),
+            "t",
+        ));
+        assert_ne!(threshold[0], base[0]);
+        assert_eq!(keys(&experiment("1e-10", "1e-6", "another title")), base);
+        let exp = experiment("1e-10", "1e-6", "t");
+        let p = &exp.points()[0];
+        assert_ne!(
+            point_key(&exp, p, "nonholo.point/1").unwrap(),
+            point_key(&exp, p, "nonholo.wp-point/1").unwrap()
+        );
+    }
+
+    #[test]
+    fn floats_are_written_by_their_bits() {
+        let exp = experiment("1e-10", "1e-6", "t");
+        let text = canonical(&exp, &exp.points()[0], "s").unwrap();
+        assert!(
+            text.contains(&format!("\"rtol\":\"{:016x}\"", 1e-10f64.to_bits())),
+            "{text}"
+        );
+        assert!(text.contains(r#"["lambda1","0.5"]"#), "{text}");
+    }
+}

@@ -1,0 +1,416 @@
+//! Line plots: curves on shared (linear or logarithmic) axes, with a
+//! legend placed where it covers no curve.
+
+use std::path::{Path, PathBuf};
+
+use plotters::coord::Shift;
+use plotters::element::{DashedPathElement, MultiLineText};
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::axis::{Axis, Chart, build_chart, draw_axes, draw_note, label_areas, to_plot};
+use super::style::{
+    LEGEND_MARGIN_PX, LEGEND_PX, LEGEND_SAMPLE_PX, LINE_PX, MARKER_MAX_POINTS, MARKER_PX, SIZE,
+    TICK_PX, draw_err, series_colour, series_dashed, text, title_text,
+};
+use super::write_outputs;
+
+/// One curve of a [`LinePlot`]: the points `(x[i], y[i])` joined in order.
+///
+/// Points that cannot be drawn (NaN, ±inf, or non-positive on a log axis)
+/// break the curve into separate pieces; the legend then says how many
+/// points were left out. Series with at most 40 points, and isolated points
+/// between gaps, are also drawn as dots.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Legend text.
+    pub label: String,
+    /// Abscissae, same length as `y`.
+    pub x: Vec<f64>,
+    /// Ordinates, same length as `x`.
+    pub y: Vec<f64>,
+}
+
+/// A line plot: one or more [`Series`] on shared axes, with a legend.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LinePlot {
+    /// Text above the plot.
+    pub title: String,
+    /// Quantity and unit of the horizontal axis, e.g. `"t [s]"`.
+    pub x_label: String,
+    /// Quantity and unit of the vertical axis.
+    pub y_label: String,
+    /// Logarithmic horizontal axis.
+    pub log_x: bool,
+    /// Logarithmic vertical axis.
+    pub log_y: bool,
+    /// One data unit has the same length on both axes (for trajectories in
+    /// the plane). Ignored when either axis is logarithmic.
+    pub equal_aspect: bool,
+    /// The curves, drawn in order; colours follow the Okabe–Ito palette, and
+    /// from the eighth series on the colours repeat with dashed lines.
+    pub series: Vec<Series>,
+}
+
+/// Draws `p` and writes `<stem>.png` and `<stem>.svg`; returns both paths
+/// (PNG first).
+///
+/// The extensions are appended to `stem` (a stem `out/h=0.1` gives
+/// `out/h=0.1.png`). Empty or undrawable data gives a frame with a note, not
+/// an error; see the module documentation.
+pub fn line_plot(p: &LinePlot, stem: &Path) -> Result<Vec<PathBuf>, String> {
+    let data = LineData::new(p)?;
+    write_outputs(
+        stem,
+        SIZE,
+        |root| draw_line_plot(&root, p, &data),
+        |root| draw_line_plot(&root, p, &data),
+    )
+}
+
+struct SeriesData {
+    /// Legend text, with a note on points left out.
+    label: String,
+    /// Maximal runs of drawable points, in plot coordinates (see [`Axis`]).
+    runs: Vec<Vec<(f64, f64)>>,
+    markers: bool,
+}
+
+struct LineData {
+    series: Vec<SeriesData>,
+    x: Axis,
+    y: Axis,
+    /// Why nothing is drawn, if nothing is.
+    empty_note: Option<String>,
+}
+
+impl LineData {
+    fn new(p: &LinePlot) -> Result<LineData, String> {
+        let mut series = Vec::new();
+        for s in &p.series {
+            if s.x.len() != s.y.len() {
+                return Err(format!(
+                    "series '{}': x has {} values but y has {}",
+                    s.label,
+                    s.x.len(),
+                    s.y.len()
+                ));
+            }
+            let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
+            let mut run = Vec::new();
+            for (&x, &y) in s.x.iter().zip(&s.y) {
+                match (to_plot(x, p.log_x), to_plot(y, p.log_y)) {
+                    (Some(px), Some(py)) => run.push((px, py)),
+                    _ => {
+                        if !run.is_empty() {
+                            runs.push(std::mem::take(&mut run));
+                        }
+                    }
+                }
+            }
+            if !run.is_empty() {
+                runs.push(run);
+            }
+            let drawn: usize = runs.iter().map(Vec::len).sum();
+            let hidden = s.x.len() - drawn;
+            let label = match (hidden, drawn) {
+                (0, _) => s.label.clone(),
+                (_, 0) => format!("{} (no drawable point)", s.label),
+                (1, _) => format!("{} (1 point not shown)", s.label),
+                (n, _) => format!("{} ({n} points not shown)", s.label),
+            };
+            series.push(SeriesData {
+                label,
+                runs,
+                markers: s.x.len() <= MARKER_MAX_POINTS,
+            });
+        }
+        let points = || series.iter().flat_map(|s| s.runs.iter().flatten());
+        let x = Axis::fit(points().map(|p| p.0), p.log_x, 0.03);
+        let y = Axis::fit(points().map(|p| p.1), p.log_y, 0.05);
+        let empty_note = if points().next().is_some() {
+            None
+        } else if series.is_empty() {
+            Some("nothing to draw: no series".to_string())
+        } else if p.log_x || p.log_y {
+            Some("nothing to draw: no finite positive values for the log axis".to_string())
+        } else {
+            Some("nothing to draw: no finite values".to_string())
+        };
+        Ok(LineData {
+            series,
+            x,
+            y,
+            empty_note,
+        })
+    }
+}
+
+fn draw_line_plot<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    p: &LinePlot,
+    data: &LineData,
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(draw_err)?;
+    let area = root
+        .margin(8, 8, 8, 8)
+        .titled(&p.title, title_text())
+        .map_err(draw_err)?;
+    let right = 40;
+    let (mut xa, mut ya) = (data.x, data.y);
+    let mut areas = label_areas(&area, &xa, &ya)?;
+    if p.equal_aspect && !p.log_x && !p.log_y {
+        // Thrice: the tick labels (hence the plotting area) depend on the ranges.
+        for _ in 0..3 {
+            let chart = build_chart(&area, &data.x, &data.y, areas, right)?;
+            let (pw, ph) = chart.plotting_area().dim_in_pixel();
+            let per_px = (data.x.span() / pw.max(1) as f64).max(data.y.span() / ph.max(1) as f64);
+            (xa, ya) = (data.x, data.y);
+            xa.widen_to(per_px * pw as f64);
+            ya.widen_to(per_px * ph as f64);
+            areas = label_areas(&area, &xa, &ya)?;
+        }
+    }
+    // A legend that would cover curves wherever it sits inside the plot goes
+    // beside it (a column to the right) or under it instead.
+    let mut legend_at = None;
+    let mut outside = None;
+    if !data.series.is_empty() {
+        let chart = build_chart(&area, &xa, &ya, areas, right)?;
+        let spot = legend_position(&chart, &xa, &ya, data)?;
+        legend_at = Some(spot.at);
+        if spot.covered > 0 {
+            legend_at = None;
+            let (aw, ah) = area.dim_in_pixel();
+            let w = spot.size.0;
+            outside = Some(if (w as f64) <= 0.4 * aw as f64 {
+                // A column to the right of the plot.
+                let (plot, legend) = area.split_horizontally(aw as i32 - w - 16);
+                (plot, legend, 1)
+            } else {
+                // Under the plot: two columns (in the smaller tick font) if
+                // the longest entry fits in half the width, else one.
+                let half = (w as f64 * TICK_PX / LEGEND_PX) <= aw as f64 / 2.0 - 8.0;
+                let columns = if half { 2 } else { 1 };
+                let rows = data.series.len().div_ceil(columns) as i32;
+                let h = rows * legend_row_px() + 16;
+                let (plot, legend) = area.split_vertically(ah as i32 - h);
+                (plot, legend, columns)
+            });
+        }
+    }
+    let plot_area = outside.as_ref().map(|(p, _, _)| p).unwrap_or(&area);
+    let margin = if outside.is_some() { 24 } else { right };
+    let mut chart = build_chart(plot_area, &xa, &ya, areas, margin)?;
+    if let Some((_, legend_area, columns)) = &outside {
+        draw_outside_legend(legend_area, data, *columns)?;
+    }
+    draw_axes(&mut chart, &xa, &ya, &p.x_label, &p.y_label, true)?;
+
+    for (k, s) in data.series.iter().enumerate() {
+        let colour = series_colour(k);
+        let style = colour.stroke_width(LINE_PX);
+        for run in &s.runs {
+            let run: Vec<(f64, f64)> = run
+                .iter()
+                .map(|&(x, y)| (xa.value(x), ya.value(y)))
+                .collect();
+            if run.len() >= 2 {
+                if series_dashed(k) {
+                    chart
+                        .draw_series(DashedLineSeries::new(run.iter().copied(), 14, 8, style))
+                        .map_err(draw_err)?;
+                } else {
+                    chart
+                        .draw_series(LineSeries::new(run.iter().copied(), style))
+                        .map_err(draw_err)?;
+                }
+            }
+            if s.markers || run.len() == 1 {
+                chart
+                    .draw_series(
+                        run.iter()
+                            .map(|&q| Circle::new(q, MARKER_PX, colour.filled())),
+                    )
+                    .map_err(draw_err)?;
+            }
+        }
+    }
+    // Legend entries, one per series even if nothing of it could be drawn.
+    for (k, s) in data.series.iter().enumerate() {
+        let colour = series_colour(k);
+        let style = colour.stroke_width(LINE_PX);
+        let r = if s.markers { MARKER_PX } else { 0 };
+        let len = LEGEND_SAMPLE_PX as i32 - 14;
+        let anno = chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(draw_err)?;
+        anno.label(s.label.clone());
+        if series_dashed(k) {
+            anno.legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + DashedPathElement::new(vec![(0, 0), (len, 0)], 9, 5, style)
+                    + Circle::new((len / 2, 0), r, colour.filled())
+            });
+        } else {
+            anno.legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (len, 0)], style)
+                    + Circle::new((len / 2, 0), r, colour.filled())
+            });
+        }
+    }
+    if let Some((lx, ly)) = legend_at {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::Coordinate(lx, ly))
+            .margin(LEGEND_MARGIN_PX)
+            .legend_area_size(LEGEND_SAMPLE_PX)
+            .label_font(text(LEGEND_PX))
+            .background_style(WHITE.mix(0.88).filled())
+            .border_style(BLACK.mix(0.45))
+            .draw()
+            .map_err(draw_err)?;
+    }
+    if let Some(note) = &data.empty_note {
+        draw_note(&chart.plotting_area().strip_coord_spec(), note)?;
+    }
+    root.present().map_err(draw_err)
+}
+
+fn legend_row_px() -> i32 {
+    (LEGEND_PX * 1.25) as i32
+}
+
+/// The legend as entries (sample line, dot, text) in `columns` columns
+/// filled top to bottom, in `area` outside the plot, for plots with too
+/// many series to keep it inside.
+fn draw_outside_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    data: &LineData,
+    columns: usize,
+) -> Result<(), String> {
+    let style = text(if columns > 1 { TICK_PX } else { LEGEND_PX });
+    let len = LEGEND_SAMPLE_PX as i32 - 14;
+    let row = legend_row_px();
+    let top = 12 + row / 2;
+    let per_column = data.series.len().div_ceil(columns.max(1));
+    let (aw, _) = area.dim_in_pixel();
+    let col_w = aw as i32 / columns.max(1) as i32;
+    for (k, s) in data.series.iter().enumerate() {
+        let y = top + (k % per_column) as i32 * row;
+        let x0 = 4 + (k / per_column) as i32 * col_w;
+        let colour = series_colour(k);
+        let line = colour.stroke_width(LINE_PX);
+        if series_dashed(k) {
+            area.draw(&DashedPathElement::new(
+                vec![(x0, y), (x0 + len, y)],
+                9,
+                5,
+                line,
+            ))
+            .map_err(draw_err)?;
+        } else {
+            area.draw(&PathElement::new(vec![(x0, y), (x0 + len, y)], line))
+                .map_err(draw_err)?;
+        }
+        if s.markers {
+            area.draw(&Circle::new((x0 + len / 2, y), MARKER_PX, colour.filled()))
+                .map_err(draw_err)?;
+        }
+        area.draw(&Text::new(
+            s.label.clone(),
+            (x0 + len + 10, y),
+            style.pos(Pos::new(HPos::Left, VPos::Center)),
+        ))
+        .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Where a legend box goes inside the plotting area: its top-left corner,
+/// how many curve points it covers there, its size in pixels.
+struct LegendSpot {
+    covered: usize,
+    at: (i32, i32),
+    size: (i32, i32),
+}
+
+/// Top-left corner (pixels within the plotting area) of the legend box: the
+/// first of the corners (upper right, upper left, lower right, lower left)
+/// and edge middles that covers the fewest points sampled along the curves;
+/// with the number of points it covers there and the box's size.
+fn legend_position<DB: DrawingBackend>(
+    chart: &Chart<'_, DB>,
+    xa: &Axis,
+    ya: &Axis,
+    data: &LineData,
+) -> Result<LegendSpot, String> {
+    let area = chart.plotting_area().strip_coord_spec();
+    let (pw, ph) = area.dim_in_pixel();
+    let (pw, ph) = (pw as f64, ph as f64);
+    let style = text(LEGEND_PX);
+    let mut lines = MultiLineText::<_, &str>::new((0, 0), &style);
+    for s in &data.series {
+        lines.push_line(s.label.as_str());
+    }
+    let (w, h) = lines.estimate_dimension().map_err(draw_err)?;
+    let w = w + (LEGEND_SAMPLE_PX + 2 * LEGEND_MARGIN_PX) as i32;
+    let h = h + 2 * LEGEND_MARGIN_PX as i32;
+
+    let to_px = |(x, y): (f64, f64)| ((x - xa.lo) / xa.span() * pw, (ya.hi - y) / ya.span() * ph);
+    let mut samples = Vec::new();
+    for s in &data.series {
+        for run in &s.runs {
+            let mut prev: Option<(f64, f64)> = None;
+            for &q in run {
+                let b = to_px(q);
+                if let Some(a) = prev {
+                    let n = ((b.0 - a.0).hypot(b.1 - a.1) / 4.0)
+                        .ceil()
+                        .clamp(1.0, 2000.0) as usize;
+                    for i in 1..n {
+                        let f = i as f64 / n as f64;
+                        samples.push((a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1)));
+                    }
+                }
+                samples.push(b);
+                prev = Some(b);
+            }
+        }
+    }
+    let inset = 10;
+    let (aw, ah) = (pw as i32, ph as i32);
+    let (left, right) = (inset, aw - w - inset);
+    let (top, bottom) = (inset, ah - h - inset);
+    let (mid_x, mid_y) = ((aw - w) / 2, (ah - h) / 2);
+    let candidates = [
+        (right, top),
+        (left, top),
+        (right, bottom),
+        (left, bottom),
+        (right, mid_y),
+        (left, mid_y),
+        (mid_x, top),
+        (mid_x, bottom),
+    ];
+    let pad = 6.0;
+    let best = candidates
+        .iter()
+        .map(|&(x, y)| {
+            let (x0, y0) = (x as f64 - pad, y as f64 - pad);
+            let (x1, y1) = ((x + w) as f64 + pad, (y + h) as f64 + pad);
+            let covered = samples
+                .iter()
+                .filter(|s| s.0 >= x0 && s.0 <= x1 && s.1 >= y0 && s.1 <= y1)
+                .count();
+            (covered, (x, y))
+        })
+        .min_by_key(|c| c.0)
+        .unwrap_or((0, (left, top)));
+    Ok(LegendSpot {
+        covered: best.0,
+        at: best.1,
+        size: (w, h),
+    })
+}

@@ -1,0 +1,78 @@
+//! The look shared by every figure: size, fonts, text sizes, line widths,
+//! the series palette.
+
+use std::sync::OnceLock;
+
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+pub(super) const SIZE: (u32, u32) = (1200, 800);
+pub(super) const FONT: &str = "sans-serif";
+pub(super) const TITLE_PX: f64 = 33.0;
+pub(super) const LABEL_PX: f64 = 28.0;
+pub(super) const LEGEND_PX: f64 = 26.0;
+pub(super) const TICK_PX: f64 = 24.0;
+pub(super) const NOTE_PX: f64 = 26.0;
+pub(super) const LINE_PX: u32 = 3;
+pub(super) const MARKER_PX: i32 = 5;
+/// Series with at most this many points also get a dot per point.
+pub(super) const MARKER_MAX_POINTS: usize = 40;
+pub(super) const TICK_MARK_PX: i32 = 6;
+/// Width of the legend's line sample, including the gap before the text.
+pub(super) const LEGEND_SAMPLE_PX: u32 = 56;
+pub(super) const LEGEND_MARGIN_PX: u32 = 10;
+/// Width of the heatmap's colour bar.
+pub(super) const COLOUR_BAR_PX: u32 = 50;
+/// Side of the grey square explaining missing heatmap cells.
+pub(super) const SWATCH_PX: u32 = 26;
+
+/// Okabe & Ito's colour-blind-safe palette, without its yellow (too pale on
+/// white): blue, vermillion, bluish green, reddish purple, orange, sky blue,
+/// black.
+pub(super) const PALETTE: [RGBColor; 7] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
+    RGBColor(0, 0, 0),
+];
+
+/// Fill of heatmap cells without a drawable value.
+pub(super) const MISSING_FILL: RGBColor = RGBColor(170, 170, 170);
+/// Cross drawn over heatmap cells without a drawable value.
+pub(super) const MISSING_CROSS: RGBColor = RGBColor(90, 90, 90);
+
+pub(super) fn series_colour(k: usize) -> RGBColor {
+    PALETTE[k % PALETTE.len()]
+}
+
+pub(super) fn series_dashed(k: usize) -> bool {
+    (k / PALETTE.len()) % 2 == 1
+}
+
+pub(super) fn text(px: f64) -> TextStyle<'static> {
+    (FONT, px).into_font().into()
+}
+
+pub(super) fn title_text() -> TextStyle<'static> {
+    (FONT, TITLE_PX, FontStyle::Bold).into_font().into()
+}
+
+/// Registers DejaVu Sans (regular and bold) as `sans-serif`, once per
+/// process.
+pub(super) fn ensure_font() -> Result<(), String> {
+    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+                .and_then(|_| register_font(FONT, FontStyle::Bold, dejavu::sans::bold()))
+                .map_err(|_| "cannot load the bundled DejaVu Sans font".to_string())
+        })
+        .clone()
+}
+
+pub(super) fn draw_err(e: impl std::fmt::Display) -> String {
+    format!("drawing the plot failed: {e}")
+}

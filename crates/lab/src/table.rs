@@ -1,0 +1,312 @@
+//! Result tables: typed records (`#[derive(Serialize)]`) written as CSV by
+//! the `csv` crate, and the same tables as HTML.
+//!
+//! The columns of a record type are its field names in order, a nested
+//! struct contributing its own fields in its place ([`columns`]), so a
+//! header cannot disagree with its rows. An experiment's tables lead every
+//! row with the point's index and swept values:
+//! `point, <axis>…, <fields of the record>…` ([`Table::per_point`]). Tables
+//! of sampled states (trajectories, references, `nonholo simulate --out
+//! FILE.csv`) have as many columns as the scene has coordinates; their
+//! header is built by [`state_header`].
+//!
+//! Numbers are written as the tables have always had them, which scripts
+//! rely on: a float as Rust's `Display` prints it, the shortest digits that
+//! round-trip in fixed notation (`0.00000000001`, never `1e-11`; `NaN`,
+//! `inf`), through [`plain`], [`plain_opt`] and [`plain_seq`] (the csv
+//! crate's own float format is exponential); integers as digits; `None` as
+//! an empty field.
+
+use std::path::Path;
+
+use serde::{Serialize, Serializer};
+use serde_json::Value as Json;
+
+use crate::record::write_atomic;
+
+/// A float written as `Display` prints it (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plain(pub f64);
+
+impl Serialize for Plain {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(&self.0)
+    }
+}
+
+/// `serialize_with` for an `f64` field: [`Plain`].
+pub fn plain<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    Plain(*v).serialize(s)
+}
+
+/// `serialize_with` for an `Option<f64>` field: [`Plain`], or an empty field.
+pub fn plain_opt<S: Serializer>(v: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+    v.map(Plain).serialize(s)
+}
+
+/// `serialize_with` for a sequence of floats: one [`Plain`] field each (a
+/// variable number of columns: the table's header must be written by hand,
+/// see [`Table::new`]).
+pub fn plain_seq<S: Serializer, V: AsRef<[f64]>>(v: &V, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(v.as_ref().iter().map(|x| Plain(*x)))
+}
+
+/// The column names of record type `R`: its field names in order, a nested
+/// struct's fields in its place. `R` has no sequence and no optional
+/// struct (their width would depend on the value).
+pub fn columns<R: Serialize + Default>() -> Result<Vec<String>, String> {
+    fn leaves(v: &Json, out: &mut Vec<String>) -> Result<(), String> {
+        let Json::Object(fields) = v else {
+            return Err("a table record must be a struct".into());
+        };
+        for (name, value) in fields {
+            match value {
+                Json::Object(_) => leaves(value, out)?,
+                Json::Array(_) => {
+                    return Err(format!(
+                        "table record field `{name}` is a sequence: its width is not fixed"
+                    ));
+                }
+                _ => out.push(name.clone()),
+            }
+        }
+        Ok(())
+    }
+    let value = serde_json::to_value(R::default()).map_err(|e| e.to_string())?;
+    let mut out = Vec::new();
+    leaves(&value, &mut out)?;
+    Ok(out)
+}
+
+/// A CSV table being built in memory.
+pub struct Table {
+    w: csv::Writer<Vec<u8>>,
+}
+
+impl Table {
+    /// A table with the columns `header`; rows are added with [`Table::push`].
+    pub fn new<I, T>(header: I) -> Result<Table, String>
+    where
+        I: IntoIterator<Item = T>,
+        T: AsRef<[u8]>,
+    {
+        // Headers are written here, not derived by csv from the first row:
+        // a row starts with the point and its swept values, which are not
+        // struct fields.
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(Vec::new());
+        w.write_record(header).map_err(|e| e.to_string())?;
+        Ok(Table { w })
+    }
+
+    /// A table whose rows are records `R` at sweep points:
+    /// `point, <axis>…, <columns of R>…`; rows are added with [`Table::at_point`].
+    pub fn per_point<'a, R: Serialize + Default>(
+        axes: impl IntoIterator<Item = &'a str>,
+    ) -> Result<Table, String> {
+        let header = ["point".to_string()]
+            .into_iter()
+            .chain(axes.into_iter().map(String::from))
+            .chain(columns::<R>()?);
+        Table::new(header)
+    }
+
+    /// Appends one row: the fields of `row` in order.
+    pub fn push(&mut self, row: &impl Serialize) -> Result<(), String> {
+        self.w.serialize(row).map_err(|e| e.to_string())
+    }
+
+    /// Appends `record` at the point `index` with swept `values`.
+    pub fn at_point(
+        &mut self,
+        index: usize,
+        values: &[String],
+        record: &impl Serialize,
+    ) -> Result<(), String> {
+        self.push(&(index, values, record))
+    }
+
+    /// The CSV text.
+    pub fn into_bytes(self) -> Result<Vec<u8>, String> {
+        self.w.into_inner().map_err(|e| e.to_string())
+    }
+
+    /// Writes the table to `path` (atomically).
+    pub fn write(self, path: &Path) -> Result<(), String> {
+        write_atomic(path, &self.into_bytes()?)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+}
+
+/// One sampled state: `t`, `q…`, `q̇…`, then the values of every slice of
+/// `more` (multipliers, residual, energy, …). Its header: [`state_header`].
+#[derive(Serialize)]
+pub struct StateRow<'a> {
+    #[serde(serialize_with = "plain")]
+    pub t: f64,
+    #[serde(serialize_with = "plain_seq")]
+    pub q: &'a [f64],
+    #[serde(serialize_with = "plain_seq")]
+    pub q_dot: &'a [f64],
+    #[serde(serialize_with = "plain_seqs")]
+    pub more: &'a [&'a [f64]],
+}
+
+fn plain_seqs<S: Serializer>(v: &&[&[f64]], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(v.iter().flat_map(|x| x.iter()).map(|x| Plain(*x)))
+}
+
+/// The header of a table of sampled states: `t`, the coordinates, their
+/// velocities `<q>_dot`, then `more`.
+pub fn state_header<'a>(
+    coordinates: impl Iterator<Item = &'a str> + Clone,
+    more: impl IntoIterator<Item = String>,
+) -> Vec<String> {
+    ["t".to_string()]
+        .into_iter()
+        .chain(coordinates.clone().map(String::from))
+        .chain(coordinates.map(|c| format!("{c}_dot")))
+        .chain(more)
+        .collect()
+}
+
+/// `s` with the characters that mean something in HTML escaped.
+pub fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// An HTML table: the first row as header cells, the others as data cells;
+/// cell text is escaped.
+pub fn html<R, C>(rows: impl IntoIterator<Item = R>) -> String
+where
+    R: IntoIterator<Item = C>,
+    C: AsRef<str>,
+{
+    let mut h = String::from("<table>\n");
+    for (i, row) in rows.into_iter().enumerate() {
+        let tag = if i == 0 { "th" } else { "td" };
+        h.push_str("<tr>");
+        for c in row {
+            h.push_str(&format!("<{tag}>{}</{tag}>", escape(c.as_ref())));
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
+    h
+}
+
+/// The CSV file `path` as an HTML table (an empty table if it cannot be read).
+pub fn html_from_csv(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let records = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(text.as_bytes())
+        .into_records()
+        .flatten();
+    html(records.map(|r| r.iter().map(String::from).collect::<Vec<_>>()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Default, Serialize)]
+    struct Inner {
+        steps: usize,
+        #[serde(serialize_with = "plain")]
+        h: f64,
+    }
+
+    #[derive(Default, Serialize)]
+    struct Record<'a> {
+        label: &'a str,
+        #[serde(serialize_with = "plain")]
+        rtol: f64,
+        inner: Inner,
+        #[serde(serialize_with = "plain_opt")]
+        t_last: Option<f64>,
+        error: Option<&'a str>,
+    }
+
+    #[test]
+    fn columns_follow_the_fields_with_nested_structs_in_place() {
+        assert_eq!(
+            columns::<Record>().unwrap(),
+            ["label", "rtol", "steps", "h", "t_last", "error"]
+        );
+    }
+
+    /// Floats as `Display` prints them (fixed notation, shortest digits),
+    /// `None` empty, text quoted only where CSV needs it: the rows the
+    /// positional `Vec<String>` code wrote.
+    #[test]
+    fn rows_have_the_text_of_display() {
+        let mut t = Table::per_point::<Record>(["param.alpha"]).unwrap();
+        let values = vec!["0.3".to_string()];
+        let r = Record {
+            label: "B",
+            rtol: 1e-11,
+            inner: Inner { steps: 12, h: 1e21 },
+            t_last: Some(0.1 + 0.2),
+            error: Some("stopped, at t = 1"),
+        };
+        t.at_point(7, &values, &r).unwrap();
+        let empty = Record {
+            rtol: f64::NAN,
+            ..Record::default()
+        };
+        t.at_point(8, &values, &empty).unwrap();
+        let text = String::from_utf8(t.into_bytes().unwrap()).unwrap();
+        let by_hand = [
+            "point,param.alpha,label,rtol,steps,h,t_last,error".to_string(),
+            [
+                7.to_string(),
+                "0.3".into(),
+                "B".into(),
+                1e-11.to_string(),
+                12.to_string(),
+                1e21.to_string(),
+                (0.1 + 0.2).to_string(),
+                "\"stopped, at t = 1\"".into(),
+            ]
+            .join(","),
+            "8,0.3,,NaN,0,0,,".to_string(),
+        ];
+        assert_eq!(text, by_hand.join("\n") + "\n");
+        assert!(text.contains(",0.00000000001,12,1000000000000000000000,0.30000000000000004,"));
+    }
+
+    #[test]
+    fn states_give_one_field_per_value() {
+        let mut t = Table::new(state_header(
+            ["x", "y"].into_iter(),
+            ["lambda", "residual", "energy"].map(String::from),
+        ))
+        .unwrap();
+        t.push(&StateRow {
+            t: 0.5,
+            q: &[1.0, -2e-7],
+            q_dot: &[0.0, 1e-3],
+            more: &[&[], &[4.0], &[5.5, f64::NAN]],
+        })
+        .unwrap();
+        let text = String::from_utf8(t.into_bytes().unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "t,x,y,x_dot,y_dot,lambda,residual,energy\n0.5,1,-0.0000002,0,0.001,4,5.5,NaN\n"
+        );
+    }
+
+    #[test]
+    fn html_tables_escape_their_cells() {
+        let h = html([vec!["a", "b<c"], vec!["1", "x & y"]]);
+        assert_eq!(
+            h,
+            "<table>\n<tr><th>a</th><th>b&lt;c</th></tr>\n<tr><td>1</td><td>x &amp; y</td></tr>\n</table>\n"
+        );
+    }
+}

@@ -264,12 +264,14 @@ pub struct ResidualCase {
 
 impl ResidualCase {
     pub fn dim(&self) -> usize {
-        ImplicitSystem::dim(&self.sys)
+        self.y.len()
     }
 
     /// One residual `F(t, y, y')` into `res`.
     pub fn eval(&mut self, res: &mut [f64]) -> Result<(), SystemError> {
-        self.sys.residual(self.t, &self.y, &self.yp, res)
+        self.sys
+            .implicit_form()
+            .residual(self.t, &self.y, &self.yp, res)
     }
 }
 
@@ -321,7 +323,7 @@ pub fn embedding_explicit() -> Result<RhsCase, Error> {
         "A explicit",
         "A's explicit form: derivative array solved for q⁗",
         Box::new(Unremembered {
-            inner: sys,
+            inner: sys.into_explicit(),
             flip: false,
         }),
         y,

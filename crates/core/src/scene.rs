@@ -84,6 +84,12 @@ pub struct EmbeddingInfo {
     pub formula: &'static str,
     /// Where the map is singular.
     pub singular_set: &'static str,
+    /// What it means in this scene when given dependent coordinates are on
+    /// another branch of the map than its value (for messages).
+    pub branch_note: &'static str,
+    /// Where the third derivatives of the independent coordinates are not
+    /// fixed by the lower ones, and what is free there (for messages).
+    pub undetermined_note: &'static str,
 }
 
 /// A closed-form solution the scene knows.

@@ -1,7 +1,8 @@
 //! Formulation A as an explicit ODE: index reduction by the derivative array.
 //!
 //! The state is the same `z = (q_I, q̇_I, q̈_I, q⃛_I)` as in the implicit form
-//! ([`crate::model`]); the right-hand side is
+//! ([`crate::implicit`]); the right-hand side of the explicit form
+//! ([`crate::explicit`]) is
 //!
 //! ```text
 //! ż = (z₁, z₂, z₃, w(z)),   w = q_I⁗
@@ -21,9 +22,8 @@
 //! time derivatives enter; on A's constraint manifold (`z` consistent) the
 //! solution `D = 0` is exact and its `q⁗` is the one of the consistent
 //! completion ([`crate::analysis::complete`], used for the implicit form's
-//! `y'0`). Along vakonomic motions it is C's `q⁗` (worst 4e-11 relative over
-//! 108 states of C's motions, `tests/ode_form.rs`), although C is never
-//! consulted.
+//! `y'0`). Along vakonomic motions it is C's `q⁗` although C is never
+//! consulted (`tests/ode_form.rs`).
 //!
 //! **Off the manifold** (the stages of an explicit Runge–Kutta step lie off
 //! it by the stage error), `D = 0` has no solution: the combinations of `D`
@@ -35,7 +35,7 @@
 //! the Jacobian taken at the current `z` converges to the same `q⁗` whatever
 //! the `u` its `u`-dependent block was taken at (the warm start): `w` is a
 //! smooth function of `z` alone (checked in this module's tests), and
-//! explicit methods keep their order (RK4 3.99, DOPRI5 4.90 measured).
+//! explicit methods keep their order.
 //!
 //! **Cost.** `D` is affine in `q⁽⁵⁾, q⁽⁶⁾` and the identities of derivative
 //! arrays (`∂E⁽ˡ⁾/∂q⁽ᵏ⁾ = Σᵢ C(l, i) dˡ⁻ⁱ/dtˡ⁻ⁱ ∂E/∂q⁽ᵏ⁻ⁱ⁾`) give
@@ -52,44 +52,34 @@
 //! `3m` order-4 passes. Only `V` depends on `u` (through `q⁗`), so the
 //! iteration is a chord iteration: one Jacobian at the warm start per call,
 //! then plain evaluations of `D` (order-4 jet over `f64`), with a Newton
-//! restart if it contracts slowly. No allocation per call.
+//! restart if it contracts slowly. No allocation per call: the SVD of the
+//! equilibrated `∂D/∂u` is a one-sided Jacobi SVD in preallocated buffers
+//! (nalgebra's SVD allocates per call and measured 22 % slower per
+//! right-hand side, `docs/embedding.md` section 4).
 //!
-//! **Accuracy.** The terms of `[E; Ė; Ë]` grow like powers of the turning
-//! rate `|q̈|/|v|` and cancel in `D`, so the round-off of `w` grows towards
-//! the singular set: ≤ 1e-12 relative for most of the default sleigh
-//! motion, 4e-11 at `|v| = 0.4 m/s`, 1e-8 at 0.15 m/s (against C's `q⁗`).
-//! Steps that no longer contract even with a fresh Jacobian are accepted
-//! as that round-off when they are below 1e-7 relative; beyond that the
-//! solve fails (at `|v| ≈ 0.03–0.05 m/s` on the sleigh's motions). The map's
-//! own derivatives must be accurate to order 4: num-dual differentiates
-//! `atan2(y, x)` through `y/x`, which loses accuracy like `(|v|/ẋ)ᵏ` as the
-//! sleigh's heading passes π/2 and ended the explicit form there (default
-//! motion: t = 0.884, ẋ = 0.002 m/s); the sleigh now evaluates its map with
-//! the quadrant-switching [`nonholo_core::scene::atan2`].
+//! **Accuracy.** The terms of `[E; Ė; Ë]` grow towards the map's singular
+//! set (for the sleigh like powers of the turning rate `|q̈|/|v|`) and
+//! cancel in `D`, so the round-off of `w` grows there. Steps that no longer
+//! contract even with a fresh Jacobian are accepted as that round-off when
+//! they are below [`STAGNATION`]; beyond that the solve fails. The map's own
+//! derivatives must be accurate to order 4 (the sleigh evaluates its
+//! arctangent with [`nonholo_core::scene::atan2`] for that).
 //!
 //! **Where it stops** ([`Reduction::resolution`]). So that the explicit form
 //! ends by design (`IntegrateError::Stopped`) rather than by a failing
-//! solve, its guard ([`crate::model`]) stops the run where the estimated
-//! relative round-off `ρ` of `q⁗` reaches [`ODE_RESOLUTION`] = 1e-8. `ρ` is
-//! the larger of `NOISE_FACTOR · ε · κ`, with `κ` the condition number of
-//! the equilibrated `∂D/∂u` of the solve (free: its singular values are
-//! computed for the pseudo-inverse), and, only where that is within two
-//! orders of the limit, an observed round-off: `D` at `z` and at four copies
-//! of `z` changed by ~1e-15 relative, the differences mapped to `q⁗` by the
-//! solve's pseudo-inverse (five evaluations of `D`, once per state). At an
-//! accepted state the guard uses the solve the right-hand side made there
-//! (a solve at the `(t, z)` of the previous one returns it), so away from
-//! the limit the guard costs nothing. Measured along C's motions (four
-//! motions, 780 states with `εκ` between 1e-12 and 1e-5), the error of `w`
-//! against C's `q⁗` is at most 0.3 `εκ` on the default motions (λ0 = 0, −1,
-//! both potentials; `εκ` > 1e-10) and at most 1.7 `εκ` (median 0.5–1) on the
-//! sleigh launched up the slope (`εκ` from 1e-10 to 1e-8; up to 4 beyond),
-//! hence `NOISE_FACTOR = 2`; the observed part is 0.07–0.2 `εκ` (median)
-//! on the default motions and 0.5–1.8 up the slope. The limit is reached at
-//! `|v| ≈ 0.30 m/s` on the default motion (t = 0.906451, 17 ms before the
-//! implicit form's stop) and at 0.074 m/s up the slope (25 ms before it:
-//! that sleigh decelerates slowly); the solve would fail only at
-//! `|v| ≈ 0.03–0.05 m/s`.
+//! solve, its guard ([`crate::explicit`]) stops the run where the estimated
+//! relative round-off `ρ` of `q⁗` reaches [`ODE_RESOLUTION`]. `ρ` is the
+//! larger of `NOISE_FACTOR · ε · κ`, with `κ` the condition number of the
+//! equilibrated `∂D/∂u` of the solve (free: its singular values are
+//! computed for the pseudo-inverse), and, only where that is within
+//! [`PROBE_FROM`] of the limit, an observed round-off: `D` at `z` and at
+//! four copies of `z` changed by ~1e-15 relative, the differences mapped to
+//! `q⁗` by the solve's pseudo-inverse (five evaluations of `D`, once per
+//! state). At an accepted state the guard uses the solve the right-hand
+//! side made there (a solve at the `(t, z)` of the previous one returns
+//! it), so away from the limit the guard costs nothing. The calibration of
+//! `NOISE_FACTOR` against C's `q⁗` and the measured stops are in
+//! `docs/embedding.md`, section 4.
 //!
 //! **Projection** ([`Reduction::project`]). An explicit integrator keeps `D`'s
 //! solvable part exactly but lets `h(z)` drift. After each accepted step the
@@ -140,7 +130,7 @@ pub const ODE_RESOLUTION: f64 = 1e-8;
 /// The round-off of `q⁗` estimated from the conditioning is
 /// `NOISE_FACTOR · ε · κ`, `κ = σ₁/σ_r` of the equilibrated `∂D/∂u`: the
 /// upper end of the error of `w` measured against C's `q⁗` along C's
-/// motions, 0.02–1.7 `εκ` (module documentation).
+/// motions, 0.02–1.7 `εκ` (`docs/embedding.md`, section 4).
 pub const NOISE_FACTOR: f64 = 2.0;
 
 /// The observed round-off ([`Resolution::observed`], five evaluations of

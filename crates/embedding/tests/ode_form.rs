@@ -126,9 +126,12 @@ fn fourth_derivative_equals_vakonomic_along_its_motion() {
                 let init = matched(&mut c, t, y);
                 let z = a.initial_state(&init).unwrap();
                 let yp0 = a.initial_slope().unwrap();
-                let at_c = rel(a.fourth_derivative(t, &zc).unwrap(), &fourth);
+                let at_c = rel(
+                    a.explicit_form().fourth_derivative(t, &zc).unwrap(),
+                    &fourth,
+                );
                 // At A's completion (z moved onto A's hidden constraints).
-                let w = a.fourth_derivative(t, &z).unwrap().to_vec();
+                let w = a.explicit_form().fourth_derivative(t, &z).unwrap().to_vec();
                 let at_a = rel(&w, &fourth);
                 let vs_slope = rel(&w, &[yp0[6], yp0[7]]);
                 assert!(
@@ -209,7 +212,9 @@ fn final_state(method: Method, opts: Options) -> Vec<f64> {
         dense: false,
         ..opts
     };
-    solve(method, &mut a, 0.0, &z0, 0.5, &opts).unwrap().y_last
+    solve(method, a.explicit_form(), 0.0, &z0, 0.5, &opts)
+        .unwrap()
+        .y_last
 }
 
 fn fixed(n: usize) -> Options {
@@ -271,14 +276,14 @@ fn hidden_constraints_drift_without_projection() {
     for stab in ["none", "projection"] {
         let mut a = embedding(s.clone(), &[("stab", stab)]);
         let z0 = a.initial_state(&init).unwrap();
-        a.record_hidden(true);
+        a.explicit_form().record_hidden(true);
         let opts = Options {
             rtol: 1e-8,
             atol: 1e-8,
             ..Options::default()
         };
-        let sol = solve(Method::Dop853, &mut a, 0.0, &z0, 0.8, &opts).unwrap();
-        let log = a.hidden_log().to_vec();
+        let sol = solve(Method::Dop853, a.explicit_form(), 0.0, &z0, 0.8, &opts).unwrap();
+        let log = a.explicit_form().hidden_log().to_vec();
         assert_eq!(log.len(), sol.stats.steps);
         let at = |t: f64| {
             log.iter()
@@ -288,7 +293,7 @@ fn hidden_constraints_drift_without_projection() {
         };
         let before = log.iter().fold(0.0f64, |m, r| m.max(r[1]));
         let after = log.iter().fold(0.0f64, |m, r| m.max(r[2]));
-        let stats = a.reduction_stats();
+        let stats = a.explicit_form().reduction_stats();
         eprintln!(
             "stab = {stab}: hidden residual before/after each step at t ≈ 0.2 {:.1e}/{:.1e}, \
              0.4 {:.1e}/{:.1e}, 0.6 {:.1e}/{:.1e}, 0.8 {:.1e}/{:.1e}; max {before:.1e}/{after:.1e}; \
@@ -388,12 +393,12 @@ fn guard_and_stage_check_as_in_the_implicit_form() {
     let mut a = embedding(s.clone(), &[]);
     let z0 = a.initial_state(&init).unwrap();
     let yp0 = a.initial_slope().unwrap();
-    let singular = ImplicitSystem::guard(&mut a, 0.0, &z0).unwrap();
-    let rho = a.resolution(0.0, &z0).unwrap();
+    let singular = ImplicitSystem::guard(a.implicit_form(), 0.0, &z0).unwrap();
+    let rho = a.explicit_form().resolution(0.0, &z0).unwrap();
     assert!(rho.rho < 1e-12 && rho.observed.is_none(), "{rho:?}");
     let margin = 1e-3 * (ODE_RESOLUTION / rho.rho).ln();
     assert_eq!(
-        OdeSystem::guard(&mut a, 0.0, &z0),
+        OdeSystem::guard(a.explicit_form(), 0.0, &z0),
         Some(singular.min(margin))
     );
 
@@ -403,8 +408,11 @@ fn guard_and_stage_check_as_in_the_implicit_form() {
     back[2] = -z0[2];
     back[3] = -z0[3];
     let mut dy = vec![0.0; 8];
-    let ode_err: SystemError = OdeSystem::rhs(&mut a, 0.0, &back, &mut dy).unwrap_err();
-    let dae_err = a.residual(0.0, &back, &yp0, &mut dy).unwrap_err();
+    let ode_err: SystemError = OdeSystem::rhs(a.explicit_form(), 0.0, &back, &mut dy).unwrap_err();
+    let dae_err = a
+        .implicit_form()
+        .residual(0.0, &back, &yp0, &mut dy)
+        .unwrap_err();
     assert!(
         ode_err.message.contains("crossed the singular set"),
         "{ode_err}"

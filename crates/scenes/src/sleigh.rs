@@ -102,6 +102,10 @@ pub const INFO: SceneInfo = SceneInfo {
         dependent: &[2],
         formula: "φ = atan2(ẏ, ẋ) (eq. 21, in the form regular for ẋ < 0)",
         singular_set: "zero speed ẋ² + ẏ² = 0, where the heading is undefined",
+        branch_note: "for the sleigh this is backward motion, where the map turns the heading by π",
+        undetermined_note: "for the sleigh this is zero turning rate ω = 0, where the first hidden \
+                            constraint g sin α cos φ − u̇ − J ω φ̈/u = 0 no longer involves q⃛ (it \
+                            fixes u̇) and φ̈ — the vakonomic λ(0) — is free",
     }),
     velocity_chart: &[
         Named::new(

@@ -1,0 +1,245 @@
+//! A's explicit form `ż = (z₁, z₂, z₃, w(z))`, `w = q_I⁗` from the
+//! derivative array (the solve is [`crate::ode::Reduction`]), for RK4,
+//! DOPRI5 and DOP853 (Radau integrates the implicit form).
+//!
+//! Option `stab = projection` moves `q⃛` back onto A's hidden constraints
+//! after every accepted step. The guard stops the run at the embedding
+//! map's singular set, as in the implicit form, or earlier, where `q⁗` is
+//! no longer resolved to [`ODE_RESOLUTION`] (the derivative array's
+//! round-off grows towards the singular set), before its solve would fail.
+
+use nonholo_core::Scene;
+use nonholo_core::integrate::{OdeSystem, SystemError};
+
+use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
+use crate::shared::Shared;
+
+/// A's explicit form bound to a scene.
+pub struct Explicit<S: Scene> {
+    pub shared: Shared<S>,
+    /// The solve for `q⁗` and its warm start.
+    reduction: Reduction,
+    /// `stab = projection`.
+    project_hidden: bool,
+    /// `(t, before, after)` hidden-constraint residuals per accepted step,
+    /// if asked for ([`Explicit::record_hidden`]).
+    hidden_log: Option<Vec<[f64; 3]>>,
+    /// What the last guard evaluation that was `<= 0` measured: the
+    /// integrator asks for the reason at that very state (a contract of
+    /// `OdeSystem::guard_reason`), and the solve behind it, warm-started,
+    /// could not be repeated bitwise.
+    stop_record: Option<Result<Resolution, String>>,
+}
+
+/// The error of a failed solve for `q⁗`.
+fn unsolved(msg: String) -> SystemError {
+    SystemError::new(format!(
+        "the derivative array of (19) could not be solved for q⁗: {msg}"
+    ))
+}
+
+impl<S: Scene> Explicit<S> {
+    pub fn new(shared: Shared<S>, project_hidden: bool) -> Self {
+        Explicit {
+            reduction: Reduction::new(shared.m),
+            shared,
+            project_hidden,
+            hidden_log: None,
+            stop_record: None,
+        }
+    }
+
+    /// Starts from a consistent completion `d = (q_I⁽⁰⁾ … q_I⁽⁶⁾)`: its `u`
+    /// is the first warm start, and the rank of `∂D/∂u` is fixed here.
+    pub fn reset(&mut self, t0: f64, d: &[f64]) -> Result<(), String> {
+        let sh = &self.shared;
+        self.reduction.reset(&*sh.scene, &sh.e, t0, d)?;
+        if let Some(log) = self.hidden_log.as_mut() {
+            log.clear();
+        }
+        self.stop_record = None;
+        Ok(())
+    }
+
+    /// `q_I⁗ = w(z)` at `(t, z)` (see [`crate::ode`]): the derivative array
+    /// `[E; Ė; Ë] = 0` solved for `(q⁗, q⁽⁵⁾, q⁽⁶⁾)`, warm-started from the
+    /// previous solve.
+    pub fn fourth_derivative(&mut self, t: f64, z: &[f64]) -> Result<&[f64], SystemError> {
+        let sh = &self.shared;
+        self.reduction
+            .fourth(&*sh.scene, &sh.e, t, z)
+            .map_err(unsolved)
+    }
+
+    /// How well `q⁗ = w(z)` is resolved at `(t, z)` (see [`Resolution`]);
+    /// the explicit form stops where `rho` reaches [`ODE_RESOLUTION`].
+    pub fn resolution(&mut self, t: f64, z: &[f64]) -> Result<Resolution, SystemError> {
+        let sh = &self.shared;
+        self.reduction
+            .resolution(&*sh.scene, &sh.e, t, z)
+            .map_err(unsolved)
+    }
+
+    /// How far `z` is from A's hidden constraints: the derivative array's
+    /// residual left by the least-squares solve, relative to the terms that
+    /// cancel in each row ([`Reduction::hidden_residual`]). Round-off level
+    /// on the constraint manifold. A diagnostic, not for hot paths.
+    pub fn hidden_residual(&mut self, t: f64, z: &[f64]) -> Result<f64, SystemError> {
+        let sh = &self.shared;
+        self.reduction
+            .hidden_residual(&*sh.scene, &sh.e, t, z)
+            .map_err(SystemError::new)
+    }
+
+    /// Work counters since the last [`Explicit::reset`].
+    pub fn reduction_stats(&self) -> ReductionStats {
+        self.reduction.stats()
+    }
+
+    /// Whether to record, after every accepted step, the hidden-constraint
+    /// residual before and after the projection (see
+    /// [`Explicit::hidden_log`]). Costs a full derivative-array Jacobian per
+    /// step; for studies of the drift, off by default. Clears the log.
+    pub fn record_hidden(&mut self, on: bool) {
+        self.hidden_log = on.then(Vec::new);
+    }
+
+    /// `(t, before, after)` per accepted step, where `before` is
+    /// [`Explicit::hidden_residual`] of the state the integrator produced and
+    /// `after` that of the state it continues from (after the projection if
+    /// `stab = projection`, else the same).
+    pub fn hidden_log(&self) -> &[[f64; 3]] {
+        self.hidden_log.as_deref().unwrap_or(&[])
+    }
+
+    /// The guard from its two parts: the singular set's signed distance (if
+    /// the scene has one) and the resolution margin
+    /// `singular_tol · ln(ODE_RESOLUTION / ρ)` (`−singular_tol` where the
+    /// solve fails), in the units of the first. The smaller counts; NaN
+    /// stops the run.
+    fn combined_guard(
+        &self,
+        singular: Option<f64>,
+        resolution: &Result<Resolution, String>,
+    ) -> f64 {
+        let tol = self.shared.guard.tol;
+        let margin = match resolution {
+            Ok(r) => tol * (ODE_RESOLUTION / r.rho).ln(),
+            Err(_) => -tol,
+        };
+        match singular {
+            Some(g) if g.is_nan() || g < margin => g,
+            _ => margin,
+        }
+    }
+}
+
+impl<S: Scene> OdeSystem for Explicit<S> {
+    fn dim(&self) -> usize {
+        4 * self.shared.m
+    }
+
+    /// Stages beyond the singular set are refused as in the implicit form;
+    /// so is a state where the derivative array cannot be solved.
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        let m = self.shared.m;
+        self.shared.check_stage(t, y)?;
+        if !y.iter().all(|v| v.is_finite()) {
+            return Err(self.shared.not_finite(t, y));
+        }
+        dy[..3 * m].copy_from_slice(&y[m..4 * m]);
+        let w = self.fourth_derivative(t, y)?;
+        dy[3 * m..].copy_from_slice(w);
+        if dy.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.shared.not_finite(t, y))
+        }
+    }
+
+    /// With `stab = projection`, moves `q⃛` back onto the hidden constraints
+    /// (`q, q̇, q̈` fixed) and says so; then records the diagnostics and
+    /// promotes the guard's reference direction, as the implicit form does.
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        let before = match self.hidden_log {
+            Some(_) => Some(self.hidden_residual(t, y)?),
+            None => None,
+        };
+        let mut moved = false;
+        if self.project_hidden {
+            let sh = &self.shared;
+            let change = self
+                .reduction
+                .project(&*sh.scene, &sh.e, t, y)
+                .map_err(SystemError::new)?;
+            moved = change > 0.0;
+        }
+        if let Some(before) = before {
+            let after = if moved {
+                self.hidden_residual(t, y)?
+            } else {
+                before
+            };
+            if let Some(log) = self.hidden_log.as_mut() {
+                log.push([t, before, after]);
+            }
+        }
+        self.shared.accept_state(t, y);
+        Ok(moved)
+    }
+
+    /// The singular set's guard and the resolution of `q⁗`
+    /// ([`Explicit::resolution`]): the run stops where the first of them
+    /// reaches zero, so that it ends by design before the round-off of the
+    /// derivative array keeps `q⁗` from being solved for. At an accepted
+    /// state the solve is the one the right-hand side made there (after a
+    /// projection) or makes next (RK4's first stage), and is not repeated.
+    /// No allocation unless the solve fails.
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        let sh = &self.shared;
+        let resolution = self.reduction.resolution(&*sh.scene, &sh.e, t, y);
+        let singular = self.shared.guard_value(t, y);
+        let g = self.combined_guard(singular, &resolution);
+        if g.is_nan() || g <= 0.0 {
+            self.stop_record = Some(resolution);
+        }
+        Some(g)
+    }
+
+    /// Names the guard that fired at the stop: the singular set (as in the
+    /// implicit form), or the resolution of `q⁗`, with `ρ` and its two
+    /// parts, `|r|`, the limit and the extrapolated zero of the guard.
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        let resolution = match self.stop_record.take() {
+            Some(r) => r,
+            None => {
+                let sh = &self.shared;
+                self.reduction.resolution(&*sh.scene, &sh.e, t, y)
+            }
+        };
+        let singular = self.shared.guard_value(t, y);
+        if singular.is_some_and(|g| g <= self.combined_guard(None, &resolution)) {
+            return self.shared.guard_text(t, y);
+        }
+        let measured = match resolution {
+            Ok(r) => format!(
+                "to {:.2e} relative (conditioning {:.2e}, observed {})",
+                r.rho,
+                r.conditioning,
+                r.observed
+                    .map_or_else(|| "not measured".to_string(), |o| format!("{o:.2e}"))
+            ),
+            Err(msg) => format!("no longer ({msg})"),
+        };
+        let (size, crossing) = self.shared.approach(t, y);
+        let sh = &self.shared;
+        format!(
+            "the explicit form reached its resolution limit: the derivative array [E; Ė; Ë] \
+             determines q⁗ only {measured} here, limit {ODE_RESOLUTION:.0e}; its terms grow like \
+             powers of the turning rate and cancel towards the singular set of the embedding map \
+             {} — {} (|r| = {size:.3e}, singular_tol = {:.1e}{crossing}); the implicit form \
+             (radau5) runs on to singular_tol",
+            sh.e.formula, sh.e.singular_set, sh.guard.tol
+        )
+    }
+}

@@ -1,0 +1,180 @@
+//! What both forms of A share: the scene and its embedding map, the
+//! physical reading of a state `z = (q_I, q̇_I, q̈_I, q⃛_I)`, the
+//! diagnostics, and the guard at the map's singular set.
+
+use std::sync::Arc;
+
+use nonholo_core::guard::{SingularGuard, magnitude};
+use nonholo_core::integrate::SystemError;
+use nonholo_core::monitor::{Diagnostics, Monitor};
+use nonholo_core::scene::{EmbeddingInfo, MAX_SINGULAR, Scene};
+
+use crate::elo::reconstruct;
+
+/// The scene, its map, and the per-run state every form of A keeps.
+pub struct Shared<S: Scene> {
+    pub scene: Arc<S>,
+    pub e: EmbeddingInfo,
+    /// Number of coordinates `n` and of independent ones `m`.
+    pub n: usize,
+    pub m: usize,
+    pub guard: SingularGuard,
+    r: [f64; MAX_SINGULAR],
+    monitor: Monitor,
+    /// Physical `(q, q̇)` of the last reading.
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    /// Last reported dependent coordinates, for unwrapping angles.
+    last_dep: Vec<f64>,
+}
+
+impl<S: Scene> Shared<S> {
+    /// For `scene` (which has an embedding map), stopping `singular_tol`
+    /// from the map's singular set.
+    pub fn new(scene: Arc<S>, singular_tol: f64) -> Self {
+        let info = scene.info();
+        let e = info.embedding.expect("checked by applicable");
+        let (n, m) = (info.n(), e.independent.len());
+        Shared {
+            e,
+            n,
+            m,
+            guard: SingularGuard::new(singular_tol),
+            r: [0.0; MAX_SINGULAR],
+            monitor: Monitor::new(&*scene),
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            last_dep: vec![0.0; e.dependent.len()],
+            scene,
+        }
+    }
+
+    /// Starts a run at `(t0, z0)`: dependent angles are unwrapped from the
+    /// given `q0`, the diagnostics and the guard start here.
+    pub fn start(&mut self, t0: f64, z0: &[f64], q0: &[f64]) {
+        self.last_dep = self.e.dependent.iter().map(|&i| q0[i]).collect();
+        self.physical(t0, z0);
+        self.monitor = Monitor::new(&*self.scene);
+        self.monitor.record(&*self.scene, t0, &self.q, &self.qd);
+        let p = self.singular_vector(t0, z0);
+        self.guard.start(&self.r, p);
+    }
+
+    /// Physical `(q, q̇)` from `z` into [`Shared::q`], [`Shared::qd`],
+    /// dependent angles unwrapped to the branch nearest the last reported
+    /// value.
+    pub fn physical(&mut self, t: f64, z: &[f64]) {
+        let m = self.m;
+        reconstruct(
+            &*self.scene,
+            &self.e,
+            t,
+            &z[..m],
+            &z[m..2 * m],
+            &z[2 * m..3 * m],
+            &mut self.q,
+            &mut self.qd,
+        );
+        let coords = self.scene.info().coordinates;
+        for (j, &i) in self.e.dependent.iter().enumerate() {
+            if coords[i].unit == "rad" {
+                let two_pi = std::f64::consts::TAU;
+                let k = ((self.last_dep[j] - self.q[i]) / two_pi).round();
+                self.q[i] += k * two_pi;
+            }
+            self.last_dep[j] = self.q[i];
+        }
+    }
+
+    /// The embedding map's singular-set vector at `(q_I, q̇_I)` into `r`.
+    fn singular_vector(&mut self, t: f64, z: &[f64]) -> usize {
+        let m = self.m;
+        self.scene
+            .embedding_singularity(t, &z[..m], &z[m..2 * m], &mut self.r)
+    }
+
+    /// `|r|` at `(t, z)`: the distance from the map's singular set.
+    pub fn distance(&mut self, t: f64, z: &[f64]) -> Option<f64> {
+        let p = self.singular_vector(t, z);
+        (p > 0).then(|| magnitude(&self.r, p))
+    }
+
+    /// Refuses a stage beyond the singular set: the guard's signed distance,
+    /// measured along the direction at the step start, has fallen below zero.
+    pub fn check_stage(&mut self, t: f64, z: &[f64]) -> Result<(), SystemError> {
+        let p = self.singular_vector(t, z);
+        if self.guard.crossed(&self.r, p) {
+            return Err(SystemError::new(format!(
+                "a stage crossed the singular set of the embedding map {} ({})",
+                self.e.formula, self.e.singular_set
+            )));
+        }
+        Ok(())
+    }
+
+    /// The error for equations that are not finite at `z`.
+    pub fn not_finite(&mut self, t: f64, z: &[f64]) -> SystemError {
+        let p = self.singular_vector(t, z);
+        SystemError::new(format!(
+            "the equations (19) are not finite here (|r| = {:.3e}): the embedding map is singular",
+            magnitude(&self.r, p)
+        ))
+    }
+
+    /// After an accepted step: diagnostics of the physical state, and the
+    /// guard's reference direction.
+    pub fn accept_state(&mut self, t: f64, z: &[f64]) {
+        self.physical(t, z);
+        self.monitor.record(&*self.scene, t, &self.q, &self.qd);
+        let p = self.singular_vector(t, z);
+        self.guard.accept(&self.r, p);
+    }
+
+    /// Signed distance from the embedding map's singular set (see
+    /// `nonholo_core::guard`): the singular vector's component along its
+    /// direction at the start of the step, minus `singular_tol`.
+    pub fn guard_value(&mut self, t: f64, z: &[f64]) -> Option<f64> {
+        let p = self.singular_vector(t, z);
+        (p > 0).then(|| self.guard.value(&self.r, p))
+    }
+
+    /// `|r|` at `(t, z)` and the zero of the guard's signed distance,
+    /// extrapolated linearly from the rate at which `r` falls along its own
+    /// direction, as text.
+    pub fn approach(&mut self, t: f64, z: &[f64]) -> (f64, String) {
+        let m = self.m;
+        let p = self.singular_vector(t, z);
+        let size = magnitude(&self.r, p);
+        if p == 0 {
+            return (size, String::new());
+        }
+        let h = 1e-7 * (1.0 + t.abs());
+        let later: Vec<f64> = (0..2 * m).map(|i| z[i] + h * z[m + i]).collect();
+        let along_now = self.guard.value(&self.r, p);
+        let pl = self.singular_vector(t + h, &later);
+        let rate = (self.guard.value(&self.r, pl) - along_now) / h;
+        let crossing = if rate < 0.0 {
+            format!(
+                "; extrapolated zero at t ≈ {:.9}",
+                t - (along_now + self.guard.tol) / rate
+            )
+        } else {
+            String::new()
+        };
+        (size, crossing)
+    }
+
+    /// Why the guard at the singular set stopped the run.
+    pub fn guard_text(&mut self, t: f64, z: &[f64]) -> String {
+        let (size, crossing) = self.approach(t, z);
+        format!(
+            "the motion reached the singular set of the embedding map {} — {} \
+             (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
+            self.e.formula, self.e.singular_set, self.guard.tol
+        )
+    }
+
+    pub fn diagnostics(&self) -> &Diagnostics {
+        self.monitor.diagnostics()
+    }
+}

@@ -104,7 +104,8 @@ pub fn svd_of(
         ));
     }
     let (r, c) = a.shape();
-    a.try_svd(compute_u, compute_v, f64::EPSILON, SVD_MAX_ITER)
+    // nalgebra's own convergence threshold (that of `Matrix::svd`).
+    a.try_svd(compute_u, compute_v, 5.0 * f64::EPSILON, SVD_MAX_ITER)
         .ok_or_else(|| format!("the SVD of a {r}×{c} Jacobian did not converge"))
 }
 

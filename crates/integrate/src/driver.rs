@@ -33,9 +33,7 @@ use std::mem::swap;
 
 use crate::guard::guard_crossing;
 use crate::record::Record;
-use crate::{
-    Failure, IntegrateError, Options, Solution, Stats, StiffnessEstimate, StopReason, SystemError,
-};
+use crate::{IntegrateError, Options, Solution, Stats, StiffnessEstimate, StopReason, SystemError};
 
 /// What the step loop asks of the system (through the method's wrapper of
 /// it): its hooks and its count of evaluations of `f` (or `F`).
@@ -213,6 +211,47 @@ pub(crate) fn fixed_step_count(span: f64, h: f64) -> usize {
     ((span / h) * (1.0 - 1e-12)).ceil().max(1.0) as usize
 }
 
+/// A run in progress, whatever its method and system: what
+/// [`crate::Solver`] asks of a [`Driver`].
+pub(crate) trait Run {
+    /// Advances the run by one accepted step, or says why it cannot.
+    fn step(&mut self) -> StopReason;
+    /// Current time.
+    fn t(&self) -> f64;
+    /// Current state.
+    fn y(&self) -> &[f64];
+    /// Counters so far (`rhs_evals` and `wall_time_s` included).
+    fn stats(&self) -> Stats;
+    /// Samples, continuous extension and counters up to the current time.
+    fn into_solution(self: Box<Self>) -> Solution;
+}
+
+impl<P: Hooks, C: Core<P>> Run for Driver<P, C> {
+    fn step(&mut self) -> StopReason {
+        self.advance()
+    }
+
+    fn t(&self) -> f64 {
+        self.t
+    }
+
+    fn y(&self) -> &[f64] {
+        &self.y
+    }
+
+    fn stats(&self) -> Stats {
+        let mut stats = self.rec.stats.clone();
+        stats.rhs_evals = self.problem.evals();
+        stats.wall_time_s = self.rec.start.elapsed().as_secs_f64();
+        stats
+    }
+
+    fn into_solution(self: Box<Self>) -> Solution {
+        let evals = self.problem.evals();
+        self.rec.finish(self.t, &self.y, evals)
+    }
+}
+
 /// The state of a run and the step loop shared by every method (see the
 /// module documentation). `P` is the system, `C` the method.
 pub(crate) struct Driver<P, C> {
@@ -289,49 +328,8 @@ impl<P: Hooks, C: Core<P>> Driver<P, C> {
         }
     }
 
-    /// Current time.
-    pub(crate) fn t(&self) -> f64 {
-        self.t
-    }
-
-    /// Current state.
-    pub(crate) fn y(&self) -> &[f64] {
-        &self.y
-    }
-
-    /// Counters so far (`rhs_evals` and `wall_time_s` included).
-    pub(crate) fn stats(&self) -> Stats {
-        let mut stats = self.rec.stats.clone();
-        stats.rhs_evals = self.problem.evals();
-        stats.wall_time_s = self.rec.start.elapsed().as_secs_f64();
-        stats
-    }
-
-    /// Samples, continuous extension and counters up to the current time.
-    pub(crate) fn into_solution(self) -> Solution {
-        let evals = self.problem.evals();
-        self.rec.finish(self.t, &self.y, evals)
-    }
-
-    /// Steps to the end: `Ok` at `t_end`, else the [`Failure`] with the
-    /// partial solution (a guard stop as [`IntegrateError::Stopped`]).
-    pub(crate) fn solve(mut self) -> Result<Solution, Failure> {
-        let error = loop {
-            match self.step() {
-                StopReason::Accepted { .. } => {}
-                StopReason::End { .. } => return Ok(self.into_solution()),
-                StopReason::Guard { t, reason } => break IntegrateError::Stopped { t, reason },
-                StopReason::Budget(error) | StopReason::Failed(error) => break error,
-            }
-        };
-        Err(Failure {
-            error,
-            partial: self.into_solution(),
-        })
-    }
-
     /// Advances the run by one accepted step (see the module documentation).
-    pub(crate) fn step(&mut self) -> StopReason {
+    fn advance(&mut self) -> StopReason {
         match &self.phase {
             Phase::Done(stop) => return stop.clone(),
             Phase::Start => {

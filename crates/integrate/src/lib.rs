@@ -8,12 +8,12 @@
 //! continuous extension, work counters) or a [`Failure`] carrying the error,
 //! the time at which it happened and the partial solution up to that time.
 //!
-//! | method | order | error estimate | dense output order | solver state | reference |
-//! |---|---|---|---|---|---|
-//! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | [`ExplicitRk`] | Kutta 1901 |
-//! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | [`ExplicitRk`] | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
-//! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | [`ExplicitRk`] | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
-//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | [`Radau5`], [`Radau5Implicit`] | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
+//! | method | order | error estimate | dense output order | reference |
+//! |---|---|---|---|---|
+//! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | Kutta 1901 |
+//! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
+//! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
+//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
 //!
 //! Step-size control, initial step selection and stiffness detection follow
 //! Hairer's DOPRI5/DOP853 codes; Radau IIA follows his RADAU5 (simplified
@@ -25,9 +25,10 @@
 //! # Solving, or stepping
 //!
 //! [`solve`] and [`solve_implicit`] run to `t_end`. They are loops over a
-//! solver state, which can also be driven by hand: [`ExplicitRk`],
-//! [`Radau5`] and [`Radau5Implicit`] are built from `(system, t0, y0[, y'0],
-//! t_end, options)` (invalid input is refused there) and advanced by
+//! solver state, which can also be driven by hand: a [`Solver`] is built
+//! from `(method, system, t0, y0, t_end, options)` ([`Solver::new`]) or
+//! `(system, t0, y0, y'0, t_end, options)` ([`Solver::implicit`]; invalid
+//! input is refused there) and advanced by
 //! `step()`, which returns after every accepted step with a [`StopReason`]:
 //! `Accepted { t }` (the run goes on), or a terminal `End { t }`,
 //! `Guard { t, reason }`, `Budget(error)` or `Failed(error)`. `t()`, `y()`
@@ -68,16 +69,16 @@ mod options;
 mod radau;
 mod record;
 mod solution;
+mod solver;
 mod stop;
 mod system;
 mod validate;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
-pub use explicit::ExplicitRk;
 pub use options::{Method, Options, Radau5Options, RadauNewton};
-pub use radau::{Radau5, Radau5Implicit};
 pub use solution::{Solution, Stats};
+pub use solver::Solver;
 pub use stop::StopReason;
 pub use system::{ImplicitSystem, OdeSystem};
 
@@ -116,8 +117,7 @@ pub use system::{ImplicitSystem, OdeSystem};
 /// fails and a singular iteration matrix reject the step (`h /= 2`).
 ///
 /// This is the loop over the solver state's `step()`:
-/// `ExplicitRk::new(method, ..)?.solve()`, or `Radau5::new(..)?.solve()`
-/// for [`Method::Radau5`] (see [`StopReason`]).
+/// `Solver::new(method, ..)?.solve()` (see [`StopReason`]).
 pub fn solve<S: OdeSystem + ?Sized>(
     method: Method,
     sys: &mut S,
@@ -127,8 +127,9 @@ pub fn solve<S: OdeSystem + ?Sized>(
     opts: &Options,
 ) -> Result<Solution, Failure> {
     match method {
-        Method::Radau5 => Radau5::new(sys, t0, y0, t_end, opts)?.solve(),
-        _ => ExplicitRk::new(method, sys, t0, y0, t_end, opts)?.solve(),
+        Method::Radau5 | Method::Rk4 | Method::Dopri5 | Method::Dop853 => {
+            Solver::new(method, sys, t0, y0, t_end, opts)?.solve()
+        }
     }
 }
 
@@ -147,7 +148,7 @@ pub fn solve<S: OdeSystem + ?Sized>(
 /// extension, projection, guard, budgets and failures are as for [`solve`];
 /// `rhs_evals` counts evaluations of `F`. Method, error estimate and
 /// counters: see `src/radau/mod.rs`. This is
-/// `Radau5Implicit::new(..)?.solve()`, the loop over its `step()`.
+/// `Solver::implicit(..)?.solve()`, the loop over its `step()`.
 pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     sys: &mut S,
     t0: f64,
@@ -156,5 +157,5 @@ pub fn solve_implicit<S: ImplicitSystem + ?Sized>(
     t_end: f64,
     opts: &Options,
 ) -> Result<Solution, Failure> {
-    Radau5Implicit::new(sys, t0, y0, yp0, t_end, opts)?.solve()
+    Solver::implicit(sys, t0, y0, yp0, t_end, opts)?.solve()
 }

@@ -1,7 +1,6 @@
 use crate::IntegrateError;
 
-/// Why a solver's `step()` returned ([`crate::ExplicitRk::step`],
-/// [`crate::Radau5::step`], [`crate::Radau5Implicit::step`]).
+/// Why [`crate::Solver::step`] returned.
 ///
 /// `Accepted` means the run goes on; the other reasons are terminal: the
 /// solver stays at the time they report (for `Guard`, the located time and

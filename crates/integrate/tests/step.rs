@@ -10,8 +10,8 @@ use std::cell::Cell;
 
 use common::Oscillator;
 use nonholo_integrate::{
-    ExplicitRk, Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, Radau5,
-    Radau5Implicit, Solution, Stats, StopReason, SystemError, solve, solve_implicit,
+    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, Solution, Solver, Stats,
+    StopReason, SystemError, solve, solve_implicit,
 };
 
 /// The oscillator `y1' = y2, y2' = −y1` as `F(t, y, y') = y' − f(y) = 0`.
@@ -178,69 +178,6 @@ impl ImplicitSystem for Watched {
     }
 }
 
-/// The solver states of this crate behind one interface, for the tests.
-trait Stepper {
-    fn step(&mut self) -> StopReason;
-    fn t(&self) -> f64;
-    fn y(&self) -> &[f64];
-    fn stats(&self) -> Stats;
-    fn into_solution(self) -> Solution;
-}
-
-impl<S: OdeSystem + ?Sized> Stepper for ExplicitRk<'_, S> {
-    fn step(&mut self) -> StopReason {
-        ExplicitRk::step(self)
-    }
-    fn t(&self) -> f64 {
-        ExplicitRk::t(self)
-    }
-    fn y(&self) -> &[f64] {
-        ExplicitRk::y(self)
-    }
-    fn stats(&self) -> Stats {
-        ExplicitRk::stats(self)
-    }
-    fn into_solution(self) -> Solution {
-        ExplicitRk::into_solution(self)
-    }
-}
-
-impl<S: OdeSystem + ?Sized> Stepper for Radau5<'_, S> {
-    fn step(&mut self) -> StopReason {
-        Radau5::step(self)
-    }
-    fn t(&self) -> f64 {
-        Radau5::t(self)
-    }
-    fn y(&self) -> &[f64] {
-        Radau5::y(self)
-    }
-    fn stats(&self) -> Stats {
-        Radau5::stats(self)
-    }
-    fn into_solution(self) -> Solution {
-        Radau5::into_solution(self)
-    }
-}
-
-impl<S: ImplicitSystem + ?Sized> Stepper for Radau5Implicit<'_, S> {
-    fn step(&mut self) -> StopReason {
-        Radau5Implicit::step(self)
-    }
-    fn t(&self) -> f64 {
-        Radau5Implicit::t(self)
-    }
-    fn y(&self) -> &[f64] {
-        Radau5Implicit::y(self)
-    }
-    fn stats(&self) -> Stats {
-        Radau5Implicit::stats(self)
-    }
-    fn into_solution(self) -> Solution {
-        Radau5Implicit::into_solution(self)
-    }
-}
-
 /// What a hand-driven run saw: every reason `step()` returned (the last
 /// one terminal) and the result `solve` would give.
 struct Driven {
@@ -251,7 +188,7 @@ struct Driven {
 /// Drives `s` by hand to a terminal reason, checking on the way that the
 /// accepted times increase, that `t()` follows them and that `stats()`
 /// counts the steps; then checks that the terminal reason repeats.
-fn drive<T: Stepper>(mut s: T) -> Driven {
+fn drive(mut s: Solver<'_>) -> Driven {
     let mut reasons = Vec::new();
     let mut t_prev = s.t();
     loop {
@@ -329,10 +266,7 @@ fn ode_both(method: Method, t_end: f64, opts: &Options) -> (Result<Solution, Fai
     let y0 = [1.0, 0.0];
     let solved = solve(method, &mut Oscillator, 0.0, &y0, t_end, &opts);
     let mut sys = Oscillator;
-    let driven = match method {
-        Method::Radau5 => drive(Radau5::new(&mut sys, 0.0, &y0, t_end, &opts).unwrap()),
-        _ => drive(ExplicitRk::new(method, &mut sys, 0.0, &y0, t_end, &opts).unwrap()),
-    };
+    let driven = drive(Solver::new(method, &mut sys, 0.0, &y0, t_end, &opts).unwrap());
     (solved, driven)
 }
 
@@ -359,14 +293,15 @@ fn step_returns_accepted_steps_then_end() {
     }
     // t_end = t0 ends at once.
     let mut sys = Oscillator;
-    let s = ExplicitRk::new(Method::Dopri5, &mut sys, 1.0, &[1.0, 0.0], 1.0, &opts);
-    assert!(s.is_err(), "output times outside [t0, t_end] are refused");
+    let refused = Solver::new(Method::Dopri5, &mut sys, 1.0, &[1.0, 0.0], 1.0, &opts).is_err();
+    assert!(refused, "output times outside [t0, t_end] are refused");
     let o = Options::default();
-    let mut s = ExplicitRk::new(Method::Dopri5, &mut sys, 1.0, &[1.0, 0.0], 1.0, &o).unwrap();
+    let mut s = Solver::new(Method::Dopri5, &mut sys, 1.0, &[1.0, 0.0], 1.0, &o).unwrap();
     assert_eq!(s.step(), StopReason::End { t: 1.0 });
     assert_eq!(s.stats().rhs_evals, 0);
+    drop(s);
     // Before the first step: the initial state, nothing counted.
-    s = ExplicitRk::new(Method::Dop853, &mut sys, 0.0, &[1.0, 0.0], 1.0, &o).unwrap();
+    let s = Solver::new(Method::Dop853, &mut sys, 0.0, &[1.0, 0.0], 1.0, &o).unwrap();
     assert_eq!((s.t(), s.y()), (0.0, &[1.0, 0.0][..]));
     let st = s.stats();
     assert_eq!(
@@ -404,7 +339,7 @@ fn solve_is_the_loop_over_step() {
         let yp0 = [0.0, -1.0];
         let solved = solve_implicit(&mut ImplicitOscillator, 0.0, &y0, &yp0, 5.0, opts);
         let mut sys = ImplicitOscillator;
-        let s = Radau5Implicit::new(&mut sys, 0.0, &y0, &yp0, 5.0, opts).unwrap();
+        let s = Solver::implicit(&mut sys, 0.0, &y0, &yp0, 5.0, opts).unwrap();
         assert_same(&solved, &drive(s).result);
     }
     // With a guard stop, too.
@@ -413,10 +348,7 @@ fn solve_is_the_loop_over_step() {
         let y0 = [1.0, 0.0];
         let solved = solve(method, &mut Watched::new(0.3), 0.0, &y0, 5.0, &opts);
         let mut sys = Watched::new(0.3);
-        let driven = match method {
-            Method::Radau5 => drive(Radau5::new(&mut sys, 0.0, &y0, 5.0, &opts).unwrap()),
-            _ => drive(ExplicitRk::new(method, &mut sys, 0.0, &y0, 5.0, &opts).unwrap()),
-        };
+        let driven = drive(Solver::new(method, &mut sys, 0.0, &y0, 5.0, &opts).unwrap());
         assert!(matches!(
             solved,
             Err(Failure {
@@ -443,10 +375,7 @@ fn guard_stop_is_a_reason_with_the_located_time() {
             },
         );
         let mut sys = Watched::new(0.3);
-        let d = match method {
-            Method::Radau5 => drive(Radau5::new(&mut sys, 0.0, &y0, 5.0, &opts).unwrap()),
-            _ => drive(ExplicitRk::new(method, &mut sys, 0.0, &y0, 5.0, &opts).unwrap()),
-        };
+        let d = drive(Solver::new(method, &mut sys, 0.0, &y0, 5.0, &opts).unwrap());
         let Some(StopReason::Guard { t, reason }) = d.reasons.last() else {
             panic!("{method:?}: {:?}", d.reasons.last());
         };
@@ -458,8 +387,7 @@ fn guard_stop_is_a_reason_with_the_located_time() {
     }
     // A guard <= 0 at t0 stops the first step() at t0, before any evaluation of f.
     let mut sys = Watched::new(1.0);
-    let mut s =
-        ExplicitRk::new(Method::Dopri5, &mut sys, 0.0, &y0, 5.0, &Options::default()).unwrap();
+    let mut s = Solver::new(Method::Dopri5, &mut sys, 0.0, &y0, 5.0, &Options::default()).unwrap();
     assert_eq!(
         s.step(),
         StopReason::Guard {
@@ -563,7 +491,7 @@ fn budgets_and_failures_are_reasons() {
         ..Options::default()
     };
     let mut sys = Oscillator;
-    let mut s = Radau5::new(&mut sys, 0.0, &y0, 1.0, &opts).unwrap();
+    let mut s = Solver::new(Method::Radau5, &mut sys, 0.0, &y0, 1.0, &opts).unwrap();
     assert!(matches!(
         s.step(),
         StopReason::Budget(IntegrateError::TimeBudgetExceeded { t: 0.0, .. })
@@ -574,7 +502,7 @@ fn budgets_and_failures_are_reasons() {
         ..Options::default()
     };
     let mut sys = FailsLate;
-    let d = drive(ExplicitRk::new(Method::Rk4, &mut sys, 0.0, &[1.0], 1.0, &opts).unwrap());
+    let d = drive(Solver::new(Method::Rk4, &mut sys, 0.0, &[1.0], 1.0, &opts).unwrap());
     let Some(StopReason::Failed(IntegrateError::System { t, source })) = d.reasons.last() else {
         panic!("{:?}", d.reasons.last());
     };
@@ -586,10 +514,7 @@ fn budgets_and_failures_are_reasons() {
     };
     let mut sys = Oscillator;
     for method in Method::ALL {
-        let e = match method {
-            Method::Radau5 => Radau5::new(&mut sys, 0.0, &y0, 1.0, &bad).err(),
-            _ => ExplicitRk::new(method, &mut sys, 0.0, &y0, 1.0, &bad).err(),
-        };
+        let e = Solver::new(method, &mut sys, 0.0, &y0, 1.0, &bad).err();
         let f = e.expect("invalid rtol refused");
         assert!(matches!(f.error, IntegrateError::InvalidInput(_)));
         assert_same(
@@ -597,11 +522,6 @@ fn budgets_and_failures_are_reasons() {
             &solve(method, &mut Oscillator, 0.0, &y0, 1.0, &bad),
         );
     }
-    let e = ExplicitRk::new(Method::Radau5, &mut sys, 0.0, &y0, 1.0, &Options::default());
-    assert!(matches!(
-        e.err().map(|f| f.error),
-        Some(IntegrateError::InvalidInput(m)) if m.contains("implicit")
-    ));
 }
 
 // ---- Steps allocate nothing: a counting global allocator, armed per thread.
@@ -640,7 +560,7 @@ static GLOBAL: Counting = Counting;
 
 /// Allocations made by 50 accepted steps of `s` after two warm-up steps
 /// (no dense output, no output time before `t_end`, no guard).
-fn allocations_of_steps<T: Stepper>(mut s: T) -> usize {
+fn allocations_of_steps(mut s: Solver<'_>) -> usize {
     for _ in 0..2 {
         assert!(matches!(s.step(), StopReason::Accepted { .. }));
     }
@@ -664,17 +584,10 @@ fn steps_allocate_nothing() {
     for method in Method::ALL {
         let opts = for_method(method, &opts);
         let mut sys = Oscillator;
-        let n = match method {
-            Method::Radau5 => {
-                allocations_of_steps(Radau5::new(&mut sys, 0.0, &y0, 1e4, &opts).unwrap())
-            }
-            _ => allocations_of_steps(
-                ExplicitRk::new(method, &mut sys, 0.0, &y0, 1e4, &opts).unwrap(),
-            ),
-        };
+        let n = allocations_of_steps(Solver::new(method, &mut sys, 0.0, &y0, 1e4, &opts).unwrap());
         assert_eq!(n, 0, "{method:?}");
     }
     let mut sys = ImplicitOscillator;
-    let s = Radau5Implicit::new(&mut sys, 0.0, &y0, &[0.0, -1.0], 1e4, &opts).unwrap();
+    let s = Solver::implicit(&mut sys, 0.0, &y0, &[0.0, -1.0], 1e4, &opts).unwrap();
     assert_eq!(allocations_of_steps(s), 0, "implicit");
 }

@@ -24,7 +24,7 @@
 //! `Options::h_init` is given; `h_max` defaults to `|t_end − t0|`. These
 //! constants are fixed: the method reads only the shared
 //! [`crate::Options`] (no settings of its own), and runs as the solver
-//! state [`crate::ExplicitRk`].
+//! state [`crate::Solver`].
 //!
 //! **Stiffness test.** After every 1000th accepted step (and then after each
 //! step while it fires): `h·ρ` with `ρ = ‖f(t+h, y_{n+1}) − k_12‖/‖y_{n+1} − y_12‖`

@@ -19,7 +19,7 @@
 //! `iord = 5` unless `Options::h_init` is given; `h_max` defaults to
 //! `|t_end − t0|`. These constants are fixed: the method reads only the
 //! shared [`crate::Options`] (no settings of its own), and runs as the
-//! solver state [`crate::ExplicitRk`].
+//! solver state [`crate::Solver`].
 //!
 //! **Stiffness test.** After every 1000th accepted step (and then after each
 //! step while it fires): `h·ρ` with `ρ = ‖k_7 − k_6‖/‖y_{n+1} − y_6‖` (stages

@@ -1,7 +1,7 @@
 //! Explicit Runge–Kutta methods: RK4 (fixed step), DOPRI5 and DOP853
 //! (adaptive, or fixed step when `Options::fixed_step` is set).
 //!
-//! [`ExplicitRk`] is the solver state of the three methods: the shared
+//! [`crate::Solver`] is the solver state of the three methods: the shared
 //! step loop ([`crate::driver`]: budgets, minimum step, landing on `t_end`
 //! and output times, `after_step`, guard, samples) around the core [`Rk`],
 //! which attempts trial steps with Hairer's controller and stiffness test.
@@ -14,7 +14,7 @@
 //!
 //! # A step
 //!
-//! 1. `f(t0, y0)` is evaluated once (at the first [`ExplicitRk::step`]);
+//! 1. `f(t0, y0)` is evaluated once (at the first [`crate::Solver::step`]);
 //!    afterwards the derivative at the end of each accepted step is the
 //!    first stage of the next (FSAL). An error of `f` at an accepted state
 //!    is fatal: [`IntegrateError::System`]; a non-finite `f(t0, y0)` is
@@ -56,7 +56,7 @@
 //! Every error reports the last time reached (`error.time() ==
 //! Some(partial.t_last)`), with the samples, counters and dense output up to
 //! that time. Stage vectors are allocated once per run (by
-//! [`ExplicitRk::new`]); a step only allocates by pushing samples and step
+//! [`crate::Solver::new`]); a step only allocates by pushing samples and step
 //! polynomials.
 
 pub(crate) mod control;
@@ -67,12 +67,11 @@ mod tableau;
 
 use std::mem::swap;
 
-use crate::driver::{Attempt, Core, Driver, Landing, Trial};
+use crate::driver::{Attempt, Core, Driver, Landing, Run, Trial};
 use crate::record::Record;
 use crate::validate::{atol_vector, validate};
 use crate::{
-    Failure, IntegrateError, Method, OdeSystem, Options, Solution, Stats, StiffnessEstimate,
-    StopReason, SystemError,
+    Failure, IntegrateError, Method, OdeSystem, Options, Stats, StiffnessEstimate, SystemError,
 };
 use control::{ControlParams, Controller, Rhs, StiffnessTest, Tol, all_finite, hinit};
 use dop853::Dop853;
@@ -155,134 +154,24 @@ fn hermite(coef: &mut [f64], s: StepData<'_>) {
     }
 }
 
-/// An explicit Runge–Kutta run in progress — RK4, DOPRI5 or DOP853 on
-/// `y' = f(t, y)` — advanced one accepted step at a time.
-///
-/// Built from `(sys, t0, y0, t_end, opts)` like [`crate::solve`], which is
-/// `ExplicitRk::new(..)?.solve()`. [`ExplicitRk::step`] returns after every
-/// accepted step and tells why it stopped ([`StopReason`]); the samples on
-/// `opts.output`, the continuous extension and the counters accumulate as
-/// in [`crate::solve`], and [`ExplicitRk::into_solution`] hands them over
-/// at any point. Workspaces are allocated by [`ExplicitRk::new`]; a step
-/// allocates only to store samples and step polynomials.
-///
-/// ```
-/// use nonholo_integrate::{ExplicitRk, Method, OdeSystem, Options, StopReason, SystemError};
-///
-/// struct Decay;
-/// impl OdeSystem for Decay {
-///     fn dim(&self) -> usize {
-///         1
-///     }
-///     fn rhs(&mut self, _t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
-///         dy[0] = -y[0];
-///         Ok(())
-///     }
-/// }
-///
-/// let mut sys = Decay;
-/// let opts = Options { rtol: 1e-8, atol: 1e-8, ..Options::default() };
-/// let mut rk = ExplicitRk::new(Method::Dopri5, &mut sys, 0.0, &[1.0], 1.0, &opts).unwrap();
-/// while let StopReason::Accepted { t } = rk.step() {
-///     assert!(t > 0.0 && t < 1.0);
-/// }
-/// assert_eq!(rk.t(), 1.0);
-/// assert!((rk.y()[0] - (-1.0f64).exp()).abs() < 1e-7);
-/// ```
-pub struct ExplicitRk<'a, S: OdeSystem + ?Sized> {
-    inner: Inner<'a, S>,
-}
-
-/// The driver of each method (the stage computation is monomorphised).
-enum Inner<'a, S: OdeSystem + ?Sized> {
-    Rk4(Driver<Rhs<'a, S>, Rk<Rk4>>),
-    Dopri5(Driver<Rhs<'a, S>, Rk<Dopri5>>),
-    Dop853(Driver<Rhs<'a, S>, Rk<Dop853>>),
-}
-
-impl<'a, S: OdeSystem + ?Sized> ExplicitRk<'a, S> {
-    /// A run of `method` (RK4, DOPRI5 or DOP853) on `sys` from `(t0, y0)`
-    /// to `t_end`, with the settings and checks of [`crate::solve`]: an
-    /// [`IntegrateError::InvalidInput`] (also for [`Method::Radau5`], which
-    /// is [`crate::Radau5`]) comes back as a [`Failure`] at once. Nothing
-    /// of `sys` is evaluated before the first [`ExplicitRk::step`].
-    pub fn new(
-        method: Method,
-        sys: &'a mut S,
-        t0: f64,
-        y0: &[f64],
-        t_end: f64,
-        opts: &Options,
-    ) -> Result<Self, Failure> {
-        let inner = match method {
-            Method::Rk4 => Inner::Rk4(driver(method, sys, t0, y0, t_end, opts)?),
-            Method::Dopri5 => Inner::Dopri5(driver(method, sys, t0, y0, t_end, opts)?),
-            Method::Dop853 => Inner::Dop853(driver(method, sys, t0, y0, t_end, opts)?),
-            Method::Radau5 => {
-                let rec = Record::new(method, sys.dim(), 4, opts, t_end);
-                let msg = "radau5 is implicit: use Radau5 (or solve) instead of ExplicitRk";
-                return Err(rec.fail(IntegrateError::InvalidInput(msg.into()), t0, y0, 0));
-            }
-        };
-        Ok(ExplicitRk { inner })
-    }
-
-    /// Advances the run by one accepted step, or says why it cannot
-    /// ([`StopReason`]). The first call also evaluates the guard and `f` at
-    /// `t0` and chooses the first step size.
-    pub fn step(&mut self) -> StopReason {
-        match &mut self.inner {
-            Inner::Rk4(d) => d.step(),
-            Inner::Dopri5(d) => d.step(),
-            Inner::Dop853(d) => d.step(),
-        }
-    }
-
-    /// Current time: `t0` before the first step, the end of the last
-    /// accepted step, or the time a terminal [`StopReason`] reports.
-    pub fn t(&self) -> f64 {
-        match &self.inner {
-            Inner::Rk4(d) => d.t(),
-            Inner::Dopri5(d) => d.t(),
-            Inner::Dop853(d) => d.t(),
-        }
-    }
-
-    /// State at [`ExplicitRk::t`] (after `after_step`).
-    pub fn y(&self) -> &[f64] {
-        match &self.inner {
-            Inner::Rk4(d) => d.y(),
-            Inner::Dopri5(d) => d.y(),
-            Inner::Dop853(d) => d.y(),
-        }
-    }
-
-    /// Work counters so far.
-    pub fn stats(&self) -> Stats {
-        match &self.inner {
-            Inner::Rk4(d) => d.stats(),
-            Inner::Dopri5(d) => d.stats(),
-            Inner::Dop853(d) => d.stats(),
-        }
-    }
-
-    /// Samples, continuous extension and counters up to [`ExplicitRk::t`].
-    pub fn into_solution(self) -> Solution {
-        match self.inner {
-            Inner::Rk4(d) => d.into_solution(),
-            Inner::Dopri5(d) => d.into_solution(),
-            Inner::Dop853(d) => d.into_solution(),
-        }
-    }
-
-    /// Steps to the end (see [`crate::solve`], which this is).
-    pub fn solve(self) -> Result<Solution, Failure> {
-        match self.inner {
-            Inner::Rk4(d) => d.solve(),
-            Inner::Dopri5(d) => d.solve(),
-            Inner::Dop853(d) => d.solve(),
-        }
-    }
+/// A run of `method` (RK4, DOPRI5 or DOP853) on `sys` from `(t0, y0)` to
+/// `t_end`, with the settings and checks of [`crate::solve`] (invalid input
+/// comes back as a [`Failure`] at once; nothing of `sys` is evaluated
+/// before the first step).
+pub(crate) fn run<'a, S: OdeSystem + ?Sized + 'a>(
+    method: Method,
+    sys: &'a mut S,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Box<dyn Run + 'a>, Failure> {
+    Ok(match method {
+        Method::Rk4 => Box::new(driver::<Rk4, S>(method, sys, t0, y0, t_end, opts)?),
+        Method::Dopri5 => Box::new(driver::<Dopri5, S>(method, sys, t0, y0, t_end, opts)?),
+        Method::Dop853 => Box::new(driver::<Dop853, S>(method, sys, t0, y0, t_end, opts)?),
+        Method::Radau5 => unreachable!("Radau IIA is set up by crate::radau"),
+    })
 }
 
 /// Validates the input and sets up the driver of scheme `M`.

@@ -3,7 +3,7 @@
 //! **Method.** Four stages (Kutta 1901, tableau in [`super::tableau::rk4`]),
 //! no error estimate: the step is `Options::fixed_step` (required, positive),
 //! and the last step is shortened to land exactly on `t_end`. No settings
-//! of its own; solver state [`crate::ExplicitRk`].
+//! of its own; solver state [`crate::Solver`].
 //!
 //! **Continuous extension.** Cubic Hermite interpolation of `y_n, y_{n+1}`
 //! and `f_n, f_{n+1}` (order 3, local error `O(h⁴)`), in the nested form of

@@ -3,7 +3,7 @@
 //! ([`crate::solve`] with [`Method::Radau5`]; solver state [`Radau5`]) and
 //! fully implicit systems `F(t, y, y') = 0`, including
 //! differential-algebraic equations of index up to 3
-//! ([`crate::solve_implicit`]; solver state [`Radau5Implicit`]).
+//! ([`crate::solve_implicit`]; solver state [`crate::Solver::implicit`]).
 //!
 //! **Reference.** E. Hairer & G. Wanner, *Solving Ordinary Differential
 //! Equations II. Stiff and Differential-Algebraic Problems*, 2nd ed.,
@@ -235,7 +235,7 @@
 //!
 //! # A step and its failures
 //!
-//! [`Radau5::step`] (and [`Radau5Implicit::step`]) runs the loop head
+//! [`crate::Solver::step`] runs the loop head
 //! shared with the explicit methods (`crate::driver`: budgets, minimum
 //! step, landing on `t_end` with RADAU5's `t + 1.0001 h >= t_end` and on
 //! output times), then trial steps of [`RadauCore`] in RADAU5's order until
@@ -305,8 +305,8 @@
 //! guard on the state it left (the contract stated on the traits).
 //!
 //! Workspaces (Jacobians, both factorisations, the full-Newton matrix, stage
-//! vectors) are allocated once per run, by [`Radau5::new`] and
-//! [`Radau5Implicit::new`]; a step allocates only when it stores samples
+//! vectors) are allocated once per run, by [`crate::Solver::new`] and
+//! [`crate::Solver::implicit`]; a step allocates only when it stores samples
 //! and step polynomials.
 
 mod linalg;
@@ -315,13 +315,13 @@ mod problem;
 mod tableau;
 mod work;
 
-use crate::driver::{Attempt, Core, Driver, Landing, Trial};
+use crate::driver::{Attempt, Core, Driver, Landing, Run, Trial};
 use crate::explicit::control::{Tol, all_finite};
 use crate::record::Record;
 use crate::validate::{atol_vector, validate};
 use crate::{
-    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton, Solution,
-    Stats, StopReason, SystemError,
+    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton, Stats,
+    SystemError,
 };
 use newton::{Newton, NewtonParams};
 use problem::{Dae, Ode, Problem, UROUND};
@@ -403,131 +403,35 @@ fn inconsistency(res: &[f64], y0: &[f64], atol: &[f64], rtol: f64) -> Option<Str
     })
 }
 
-/// A Radau IIA (RADAU5) run on a stiff ODE `y' = f(t, y)` in progress,
-/// advanced one accepted step at a time.
-///
-/// Built from `(sys, t0, y0, t_end, opts)` like [`crate::solve`] with
-/// [`Method::Radau5`], which is `Radau5::new(..)?.solve()`. [`Radau5::step`]
-/// returns after every accepted step and tells why it stopped
-/// ([`StopReason`]); samples, continuous extension and counters accumulate
-/// as in [`crate::solve`] and [`Radau5::into_solution`] hands them over.
-/// Workspaces (Jacobians, factorisations, stage vectors) are allocated by
-/// [`Radau5::new`]; a step allocates only to store samples and step
-/// polynomials.
-pub struct Radau5<'a, S: OdeSystem + ?Sized> {
-    driver: Driver<Ode<'a, S>, RadauCore>,
+/// A Radau IIA (RADAU5) run on the stiff ODE `y' = f(t, y)` of `sys` from
+/// `(t0, y0)` to `t_end`, with the settings and checks of [`crate::solve`]
+/// (invalid input comes back as a [`Failure`] at once; nothing of `sys` is
+/// evaluated before the first step).
+pub(crate) fn run_ode<'a, S: OdeSystem + ?Sized + 'a>(
+    sys: &'a mut S,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Box<dyn Run + 'a>, Failure> {
+    Ok(Box::new(driver(Ode::new(sys), t0, y0, None, t_end, opts)?))
 }
 
-impl<'a, S: OdeSystem + ?Sized> Radau5<'a, S> {
-    /// A run on `sys` from `(t0, y0)` to `t_end` with the settings and
-    /// checks of [`crate::solve`]; invalid input comes back as a
-    /// [`Failure`] at once. Nothing of `sys` is evaluated before the first
-    /// [`Radau5::step`].
-    pub fn new(
-        sys: &'a mut S,
-        t0: f64,
-        y0: &[f64],
-        t_end: f64,
-        opts: &Options,
-    ) -> Result<Self, Failure> {
-        let driver = driver(Ode::new(sys), t0, y0, None, t_end, opts)?;
-        Ok(Radau5 { driver })
-    }
-
-    /// Advances the run by one accepted step, or says why it cannot
-    /// ([`StopReason`]). The first call also evaluates the guard and `f` at
-    /// `t0` and chooses the first step size.
-    pub fn step(&mut self) -> StopReason {
-        self.driver.step()
-    }
-
-    /// Current time: `t0` before the first step, the end of the last
-    /// accepted step, or the time a terminal [`StopReason`] reports.
-    pub fn t(&self) -> f64 {
-        self.driver.t()
-    }
-
-    /// State at [`Radau5::t`] (after `after_step`).
-    pub fn y(&self) -> &[f64] {
-        self.driver.y()
-    }
-
-    /// Work counters so far.
-    pub fn stats(&self) -> Stats {
-        self.driver.stats()
-    }
-
-    /// Samples, continuous extension and counters up to [`Radau5::t`].
-    pub fn into_solution(self) -> Solution {
-        self.driver.into_solution()
-    }
-
-    /// Steps to the end (see [`crate::solve`], which this is for [`Method::Radau5`]).
-    pub fn solve(self) -> Result<Solution, Failure> {
-        self.driver.solve()
-    }
-}
-
-/// A Radau IIA run on an implicit system `F(t, y, y') = 0` (a DAE of index
-/// up to 3) in progress, advanced one accepted step at a time.
-///
-/// Built from `(sys, t0, y0, y'0, t_end, opts)` like
-/// [`crate::solve_implicit`], which is `Radau5Implicit::new(..)?.solve()`;
-/// otherwise as [`Radau5`].
-pub struct Radau5Implicit<'a, S: ImplicitSystem + ?Sized> {
-    driver: Driver<Dae<'a, S>, RadauCore>,
-}
-
-impl<'a, S: ImplicitSystem + ?Sized> Radau5Implicit<'a, S> {
-    /// A run on `sys` from the consistent initial values `(t0, y0, y'0)` to
-    /// `t_end` with the settings and checks of [`crate::solve_implicit`]:
-    /// invalid input, including inconsistent initial values (one
-    /// evaluation of `F`), comes back as a [`Failure`] at once.
-    pub fn new(
-        sys: &'a mut S,
-        t0: f64,
-        y0: &[f64],
-        yp0: &[f64],
-        t_end: f64,
-        opts: &Options,
-    ) -> Result<Self, Failure> {
-        let dae = Dae { sys, evals: 0 };
-        let driver = driver(dae, t0, y0, Some(yp0), t_end, opts)?;
-        Ok(Radau5Implicit { driver })
-    }
-
-    /// Advances the run by one accepted step, or says why it cannot
-    /// ([`StopReason`]). The first call also evaluates the guard at `t0`
-    /// and chooses the first step size.
-    pub fn step(&mut self) -> StopReason {
-        self.driver.step()
-    }
-
-    /// Current time: `t0` before the first step, the end of the last
-    /// accepted step, or the time a terminal [`StopReason`] reports.
-    pub fn t(&self) -> f64 {
-        self.driver.t()
-    }
-
-    /// State at [`Radau5Implicit::t`] (after `after_step`).
-    pub fn y(&self) -> &[f64] {
-        self.driver.y()
-    }
-
-    /// Work counters so far.
-    pub fn stats(&self) -> Stats {
-        self.driver.stats()
-    }
-
-    /// Samples, continuous extension and counters up to [`Radau5Implicit::t`].
-    pub fn into_solution(self) -> Solution {
-        self.driver.into_solution()
-    }
-
-    /// Steps to the end (see [`crate::solve_implicit`], which this is).
-    pub fn solve(self) -> Result<Solution, Failure> {
-        self.driver.solve()
-    }
+/// A Radau IIA run on the implicit system `F(t, y, y') = 0` of `sys` (a DAE
+/// of index up to 3) from the consistent initial values `(t0, y0, y'0)` to
+/// `t_end`, with the settings and checks of [`crate::solve_implicit`]:
+/// invalid input, including inconsistent initial values (one evaluation of
+/// `F`), comes back as a [`Failure`] at once.
+pub(crate) fn run_implicit<'a, S: ImplicitSystem + ?Sized + 'a>(
+    sys: &'a mut S,
+    t0: f64,
+    y0: &[f64],
+    yp0: &[f64],
+    t_end: f64,
+    opts: &Options,
+) -> Result<Box<dyn Run + 'a>, Failure> {
+    let dae = Dae { sys, evals: 0 };
+    Ok(Box::new(driver(dae, t0, y0, Some(yp0), t_end, opts)?))
 }
 
 /// Validates the input (for an implicit system also the consistency of

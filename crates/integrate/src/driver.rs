@@ -363,7 +363,7 @@ impl<P: Hooks, C: Core<P>> Driver<P, C> {
         self.rec.emit(t0, &self.y, None, &mut self.buf);
         self.g_prev = self.problem.guard(t0, &self.y);
         self.guard_active = self.g_prev.is_some();
-        if self.g_prev.is_some_and(|g| g <= 0.0) {
+        if self.g_prev.is_some_and(|g| g <= 0.0 || g.is_nan()) {
             let reason = self.problem.guard_reason(t0, &self.y);
             return Some(StopReason::Guard { t: t0, reason });
         }

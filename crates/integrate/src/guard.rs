@@ -9,7 +9,7 @@ use crate::dense::eval_nested;
 /// `after_step`. `g_prev` holds the guard at the step start (`None`: no
 /// guard, nothing is evaluated).
 ///
-/// If the guard changed from `> 0` to `<= 0`, the crossing is located on
+/// If the guard changed from `> 0` to `<= 0` (or NaN), the crossing is located on
 /// the polynomial (Illinois iteration to `~1e-14` relative in `t`): its
 /// time is returned and the state there written into `y_root` (`y` itself
 /// when it is the step end). Otherwise `g_prev` takes the new value (kept
@@ -29,7 +29,10 @@ pub(crate) fn guard_crossing(
 ) -> Option<f64> {
     let gp = (*g_prev)?;
     let gn = guard(t, y)?;
-    if !(gp > 0.0 && gn <= 0.0) {
+    // A NaN guard counts as not positive: a guard that can no longer be
+    // evaluated stops the run rather than switching itself off.
+    let crossed = gp > 0.0 && (gn <= 0.0 || gn.is_nan());
+    if !crossed {
         *g_prev = Some(gn);
         return None;
     }

@@ -50,7 +50,8 @@ pub trait OdeSystem {
     /// per accepted step, **after** [`OdeSystem::after_step`] of that step,
     /// with the (possibly projected) new state; then, only if the sign
     /// changed from `> 0` to `<= 0`, at points of the step polynomial to
-    /// locate the zero.
+    /// locate the zero. NaN counts as `<= 0`: a guard that cannot be
+    /// evaluated stops the run.
     fn guard(&mut self, _t: f64, _y: &[f64]) -> Option<f64> {
         None
     }

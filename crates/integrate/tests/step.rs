@@ -591,3 +591,52 @@ fn steps_allocate_nothing() {
     let s = Solver::implicit(&mut sys, 0.0, &y0, &[0.0, -1.0], 1e4, &opts).unwrap();
     assert_eq!(allocations_of_steps(s), 0, "implicit");
 }
+
+/// `y' = 1` with a guard that is 1 before `t = 0.5` and NaN after: NaN
+/// counts as not positive, so the run stops at the located `t = 0.5`
+/// instead of switching the guard off.
+struct NanGuard;
+
+impl OdeSystem for NanGuard {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn rhs(&mut self, _t: f64, _y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = 1.0;
+        Ok(())
+    }
+    fn guard(&mut self, _t: f64, y: &[f64]) -> Option<f64> {
+        Some(if y[0] < 0.5 { 1.0 } else { f64::NAN })
+    }
+}
+
+#[test]
+fn a_nan_guard_stops_the_run() {
+    for method in Method::ALL {
+        let opts = for_method(method, &Options::default());
+        let r = solve(method, &mut NanGuard, 0.0, &[0.0], 3.0, &opts);
+        match r.map(|s| s.t_last) {
+            Err(Failure {
+                error: IntegrateError::Stopped { t, .. },
+                ..
+            }) => assert!((t - 0.5).abs() < 1e-12, "{method:?}: {t}"),
+            other => panic!("{method:?}: {other:?}"),
+        }
+    }
+    // NaN at t0 stops at once.
+    let r = solve(
+        Method::Dopri5,
+        &mut NanGuard,
+        0.0,
+        &[1.0],
+        3.0,
+        &Options::default(),
+    );
+    assert!(matches!(
+        r,
+        Err(Failure {
+            error: IntegrateError::Stopped { t: 0.0, .. },
+            ..
+        })
+    ));
+}

@@ -58,6 +58,11 @@ impl EvalError {
     /// The error as the integrator reports it, naming the formulation.
     pub fn into_system(self, info: &FormulationInfo) -> SystemError {
         match self {
+            EvalError::Kkt(e) if e.pivot.is_nan() => SystemError::new(format!(
+                "the KKT system of formulation {} is not finite here (a NaN entry): a derivative \
+                 of the Lagrangian or of the constraints is not defined at this state",
+                info.letter
+            )),
             EvalError::Kkt(e) => SystemError::new(format!(
                 "KKT system of formulation {} singular ({e}): constraints dependent, or the \
                  kinetic energy degenerate on the admissible velocities",

@@ -184,13 +184,13 @@ impl StepHooks {
         let p = scene.constraint_singularity(t, q, qd, &mut self.r);
         let info = scene.info();
         format!(
-            "the motion reached the singular set of the constraints of `{}`: {} \
-             (|r| = {:.3e}, singular_tol = {:.1e})",
+            "the motion came within singular_tol = {:.1e} of the singular set of the \
+             constraints of `{}`: {} (|r| = {:.3e})",
+            self.guard.tol,
             info.name,
             info.constraint_singular_set
                 .unwrap_or("constraint singular"),
             magnitude(&self.r, p),
-            self.guard.tol
         )
     }
 

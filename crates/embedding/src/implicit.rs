@@ -157,6 +157,20 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         Ok(())
     }
 
+    /// `x`, `y_dot`, `x_ddot`, … for the components of `z`; the last `m`
+    /// are paired with the equations (19).
+    fn component_name(&self, i: usize) -> String {
+        let sh = &self.shared;
+        let m = sh.m;
+        let coord = sh.scene.info().coordinates[sh.e.independent[i % m]].name;
+        let suffix = ["", "_dot", "_ddot", "_dddot"][i / m];
+        if i >= 3 * m {
+            format!("{coord}{suffix}: equation (19) in {coord}")
+        } else {
+            format!("{coord}{suffix}")
+        }
+    }
+
     /// Index classes for Radau's error estimate: `q_I, q̇_I` → 1, `q̈_I` → 2,
     /// `q⃛_I` → 3. The hidden constraints tie `q⃛_I` to `(q, q̇, q̈)` over two
     /// differentiation levels, so the chain `q̈ → q⃛` carries the algebraic

@@ -144,9 +144,9 @@ fn away_from_singular_set<S: Scene>(
     let size = nonholo_core::guard::magnitude(&r, p);
     if p > 0 && (size.is_nan() || size <= singular_tol) {
         return Err(inconsistent(format!(
-            "the initial state lies on the singular set of the embedding map {} — {} \
-             (|r| = {size:.3e}, singular_tol = {singular_tol:.1e}): the map gives no dependent \
-             coordinates there; start A away from it",
+            "the initial state lies within singular_tol = {singular_tol:.1e} of the singular set \
+             of the embedding map {} — {} (|r| = {size:.3e}), where A stops: start it further \
+             away (or with a smaller singular_tol)",
             e.formula, e.singular_set
         )));
     }

@@ -168,9 +168,9 @@ impl<S: Scene> Shared<S> {
     pub fn guard_text(&mut self, t: f64, z: &[f64]) -> String {
         let (size, crossing) = self.approach(t, z);
         format!(
-            "the motion reached the singular set of the embedding map {} — {} \
-             (|r| = {size:.3e}, singular_tol = {:.1e}{crossing})",
-            self.e.formula, self.e.singular_set, self.guard.tol
+            "the motion came within singular_tol = {:.1e} of the singular set of the embedding \
+             map {} — {} (|r| = {size:.3e}{crossing})",
+            self.guard.tol, self.e.formula, self.e.singular_set
         )
     }
 

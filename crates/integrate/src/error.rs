@@ -63,6 +63,17 @@ pub enum IntegrateError {
         /// Set when an explicit method's stiffness test had fired.
         stiffness: Option<StiffnessEstimate>,
     },
+    /// An explicit method's stiffness test fired 15 times in a row and
+    /// `Options::stiff_stop` is set: stability, not accuracy, limits the
+    /// step from there on.
+    Stiff {
+        /// Last time reached.
+        t: f64,
+        /// The step size at that time.
+        h: f64,
+        /// Where the test fired.
+        stiffness: StiffnessEstimate,
+    },
     /// The state or its derivative stopped being finite; also when the step
     /// size collapsed because the last trial steps were rejected for
     /// non-finite stages, states or error estimates (overflow), and when the
@@ -134,6 +145,7 @@ impl IntegrateError {
             IntegrateError::StepSizeTooSmall { t, .. }
             | IntegrateError::TooManySteps { t, .. }
             | IntegrateError::TimeBudgetExceeded { t, .. }
+            | IntegrateError::Stiff { t, .. }
             | IntegrateError::NonFinite { t }
             | IntegrateError::System { t, .. }
             | IntegrateError::Stopped { t, .. } => Some(t),
@@ -170,6 +182,11 @@ impl fmt::Display for IntegrateError {
                 f,
                 "at t = {t}: wall-time budget of {seconds} s used up{}",
                 budget_note(*h, stiffness)
+            ),
+            IntegrateError::Stiff { t, h, stiffness } => write!(
+                f,
+                "at t = {t}: stopped{}",
+                budget_note(*h, &Some(*stiffness))
             ),
             IntegrateError::NonFinite { t } => write!(
                 f,

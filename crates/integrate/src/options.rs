@@ -130,6 +130,7 @@ impl RadauNewton {
 /// | `h_max` | `None` (`t_end − t0`) |
 /// | `max_steps` | `10⁷` |
 /// | `max_wall_time_s` | `None` (unlimited) |
+/// | `stiff_stop` | `false` |
 /// | `output` | `[]` (only `t_end`) |
 /// | `dense` | `true` |
 /// | `hit_output` | `false` |
@@ -170,6 +171,14 @@ pub struct Options {
     pub max_steps: usize,
     /// Budget on wall-clock time in seconds (`None`, the default: unlimited).
     pub max_wall_time_s: Option<f64>,
+    /// Explicit methods stop with [`crate::IntegrateError::Stiff`] when
+    /// their stiffness test has fired 15 times in a row (Hairer's
+    /// `dopri5.f`/`dop853.f` interrupt there, `IDID = -4`, when not
+    /// printing): stability, not accuracy, then limits the step, and the
+    /// run would spend its whole budget on steps of that size. A
+    /// deterministic stop, unlike a wall-time budget. Default `false` (run
+    /// on, recording where the test fired in `Stats::stiffness_detected`).
+    pub stiff_stop: bool,
     /// Times at which to sample the solution (increasing, within the span).
     /// The final time is always sampled as the last row if not listed.
     /// Default empty.
@@ -199,6 +208,7 @@ impl Default for Options {
             h_max: None,
             max_steps: 10_000_000,
             max_wall_time_s: None,
+            stiff_stop: false,
             output: Vec::new(),
             dense: true,
             hit_output: false,

@@ -24,6 +24,8 @@ pub(crate) struct Record {
     max_steps: usize,
     /// `Options::max_wall_time_s`.
     max_wall_time_s: Option<f64>,
+    /// `Options::stiff_stop`.
+    stiff_stop: bool,
 }
 
 impl Record {
@@ -55,6 +57,7 @@ impl Record {
             start: Instant::now(),
             max_steps: opts.max_steps,
             max_wall_time_s: opts.max_wall_time_s,
+            stiff_stop: opts.stiff_stop,
         }
     }
 
@@ -95,13 +98,18 @@ impl Record {
     /// The budget error before the next trial step from `(t, h)`, if any:
     /// `max_steps` trial steps (accepted + rejected) done →
     /// [`IntegrateError::TooManySteps`]; `max_wall_time_s` elapsed, checked
-    /// every 8 trial steps → [`IntegrateError::TimeBudgetExceeded`].
+    /// every 8 trial steps → [`IntegrateError::TimeBudgetExceeded`]; with
+    /// `stiff_stop`, an explicit method's stiffness test fired 15 times in
+    /// a row → [`IntegrateError::Stiff`].
     pub(crate) fn budget_exceeded(
         &self,
         t: f64,
         h: f64,
         stiffness: Option<StiffnessEstimate>,
     ) -> Option<IntegrateError> {
+        if let Some(s) = stiffness.filter(|_| self.stiff_stop) {
+            return Some(IntegrateError::Stiff { t, h, stiffness: s });
+        }
         let trials = self.stats.steps + self.stats.rejected_steps;
         if trials >= self.max_steps {
             return Some(IntegrateError::TooManySteps {

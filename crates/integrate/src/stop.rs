@@ -35,7 +35,9 @@ pub enum StopReason {
     },
     /// A budget was used up before the next trial step:
     /// [`IntegrateError::TooManySteps`] or
-    /// [`IntegrateError::TimeBudgetExceeded`].
+    /// [`IntegrateError::TimeBudgetExceeded`]; or an explicit method found
+    /// the problem stiff ([`IntegrateError::Stiff`], with
+    /// `Options::stiff_stop`).
     Budget(IntegrateError),
     /// The run cannot go on: any other [`IntegrateError`] (the step size
     /// collapsed, a non-finite state, the system failed at an accepted

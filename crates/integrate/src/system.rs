@@ -100,6 +100,12 @@ pub trait ImplicitSystem {
         jyp: &mut [f64],
     ) -> Result<(), SystemError>;
 
+    /// A name for component `i` of `y` (and of the equation `F_i` paired
+    /// with it), for messages; `y[i]` by default.
+    fn component_name(&self, i: usize) -> String {
+        format!("y[{i}]")
+    }
+
     /// The index class (1, 2 or 3) of every component of `y`, used as in
     /// RADAU5 to scale the error estimate of index-2 and index-3 variables by
     /// `h` and `h²`. Default: all 1 (an ODE or index-1 system).

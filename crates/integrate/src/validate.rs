@@ -66,6 +66,17 @@ pub(crate) fn validate(
         Some(h) if !positive(h) => {
             return Err(format!("fixed_step = {h} must be positive and finite"));
         }
+        Some(h) => {
+            // Refused before the first step rather than at the budget.
+            let steps = (t_end - t0) / h;
+            if steps > opts.max_steps as f64 {
+                return Err(format!(
+                    "fixed_step = {h:e} over [{t0}, {t_end}] takes {steps:.3e} steps, more than \
+                     the step budget max_steps = {}",
+                    opts.max_steps
+                ));
+            }
+        }
         _ => {}
     }
     for (name, v) in [("h_init", opts.h_init), ("h_max", opts.h_max)] {

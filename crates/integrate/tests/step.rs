@@ -266,7 +266,14 @@ fn ode_both(method: Method, t_end: f64, opts: &Options) -> (Result<Solution, Fai
     let y0 = [1.0, 0.0];
     let solved = solve(method, &mut Oscillator, 0.0, &y0, t_end, &opts);
     let mut sys = Oscillator;
-    let driven = drive(Solver::new(method, &mut sys, 0.0, &y0, t_end, &opts).unwrap());
+    // Input refused by the constructor: no step, the same failure.
+    let driven = match Solver::new(method, &mut sys, 0.0, &y0, t_end, &opts) {
+        Ok(s) => drive(s),
+        Err(f) => Driven {
+            reasons: Vec::new(),
+            result: Err(f),
+        },
+    };
     (solved, driven)
 }
 
@@ -475,6 +482,15 @@ fn budgets_and_failures_are_reasons() {
             },
         );
         let (_, d) = ode_both(method, 100.0, &opts);
+        if method.needs_fixed_step() {
+            // A fixed step knows its step count: refused before the first step.
+            let e = &d.result.as_ref().unwrap_err().error;
+            assert!(
+                matches!(e, IntegrateError::InvalidInput(m) if m.contains("max_steps = 5")),
+                "{e}"
+            );
+            continue;
+        }
         let Some(StopReason::Budget(IntegrateError::TooManySteps { max_steps, t, .. })) =
             d.reasons.last()
         else {
@@ -639,4 +655,62 @@ fn a_nan_guard_stops_the_run() {
             ..
         })
     ));
+}
+
+/// `y' = −10⁶ (y − cos t)`: stiff for every explicit method.
+struct StiffDecay;
+
+impl OdeSystem for StiffDecay {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
+        dy[0] = -1e6 * (y[0] - t.cos());
+        Ok(())
+    }
+}
+
+/// With `stiff_stop`, DOPRI5 and DOP853 stop where their stiffness test has
+/// fired 15 times in a row, as a budget, naming the estimate; without it
+/// they run on (here into the step budget). Deterministic: the same stop
+/// twice.
+#[test]
+fn stiff_stop_ends_explicit_runs_on_stiff_problems() {
+    for method in [Method::Dopri5, Method::Dop853] {
+        let opts = Options {
+            stiff_stop: true,
+            ..Options::default()
+        };
+        let mut sys = StiffDecay;
+        let mut run = Solver::new(method, &mut sys, 0.0, &[1.0], 10.0, &opts).unwrap();
+        let stop = loop {
+            match run.step() {
+                StopReason::Accepted { .. } => {}
+                other => break other,
+            }
+        };
+        let StopReason::Budget(IntegrateError::Stiff { t, stiffness, .. }) = stop else {
+            panic!("{method:?}: {stop:?}");
+        };
+        // ρ = 10⁶ exactly for this problem.
+        assert!(
+            (stiffness.rho() / 1e6 - 1.0).abs() < 0.05,
+            "{method:?}: ρ ≈ {}",
+            stiffness.rho()
+        );
+        assert!(t < 1e-2, "{method:?}: stopped at t = {t}");
+        let steps = run.stats().steps;
+        assert!(steps < 2000, "{method:?}: {steps} steps");
+        let again = solve(method, &mut StiffDecay, 0.0, &[1.0], 10.0, &opts).unwrap_err();
+        assert_eq!(again.error.time(), Some(t));
+        let off = Options {
+            max_steps: 5000,
+            ..Options::default()
+        };
+        let e = solve(method, &mut StiffDecay, 0.0, &[1.0], 10.0, &off).unwrap_err();
+        assert!(
+            matches!(e.error, IntegrateError::TooManySteps { .. }),
+            "{method:?}"
+        );
+    }
 }

@@ -115,9 +115,15 @@ impl Scene for AppellHamel {
         (qd[0] * qd[0] + qd[1] * qd[1] + qd[2] * qd[2]) * (0.5 * self.m) - q[2] * (self.m * self.g)
     }
 
-    /// `g = ż + c √(ẋ² + ẏ²)`.
+    /// `g = ż + c √(ẋ² + ẏ²)`; for `c = 0` just `ż` (the square root's
+    /// derivatives are not defined at zero horizontal speed, and `0 · NaN`
+    /// would carry that into a constraint that is regular there).
     fn nonholonomic<D: Scalar>(&self, _t: D, _q: &[D], qd: &[D], out: &mut [D]) {
-        out[0] = qd[2] + (qd[0] * qd[0] + qd[1] * qd[1]).sqrt() * self.c;
+        out[0] = if self.c == 0.0 {
+            qd[2]
+        } else {
+            qd[2] + (qd[0] * qd[0] + qd[1] * qd[1]).sqrt() * self.c
+        };
     }
 
     /// The horizontal velocity `(ẋ, ẏ)`: the constraint is not differentiable

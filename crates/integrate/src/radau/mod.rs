@@ -378,14 +378,23 @@ fn validate_radau(opts: &Options, yp0: Option<&[f64]>, index: &[u8]) -> Result<(
 }
 
 /// `Some(message)` if `F(t0, y0, y'0) = res` is not zero within the
-/// tolerances: `|F_i| <= atol + rtol·|y0_i|` for every `i`.
-fn inconsistency(res: &[f64], y0: &[f64], atol: &[f64], rtol: f64) -> Option<String> {
+/// tolerances: `|F_i| <= atol + rtol·|y0_i|` for every `i`; `name(i)` names
+/// component `i` (and the equation paired with it).
+fn inconsistency(
+    res: &[f64],
+    y0: &[f64],
+    atol: &[f64],
+    rtol: f64,
+    name: impl Fn(usize) -> String,
+) -> Option<String> {
     let mut worst: Option<(usize, f64)> = None;
     for (i, (&r, &y)) in res.iter().zip(y0).enumerate() {
         let q = r.abs() / (atol[i] + rtol * y.abs());
         if !q.is_finite() {
             return Some(format!(
-                "inconsistent initial values: F[{i}](t0, y0, y'0) = {r} is not finite"
+                "inconsistent initial values: F[{i}](t0, y0, y'0) = {r} (the equation paired \
+                 with {}) is not finite",
+                name(i)
             ));
         }
         if worst.is_none_or(|(_, w)| q > w) {
@@ -395,9 +404,12 @@ fn inconsistency(res: &[f64], y0: &[f64], atol: &[f64], rtol: f64) -> Option<Str
     let (i, q) = worst?;
     (q > 1.0).then(|| {
         format!(
-            "inconsistent initial values: |F[{i}](t0, y0, y'0)| = {:e} exceeds atol + rtol·|y0[{i}]| = {:e} \
-             (the largest residual component relative to its tolerance)",
+            "inconsistent initial values: |F[{i}](t0, y0, y'0)| = {:.3e} (the equation paired \
+             with {}) exceeds atol + rtol·|y0[{i}]| = {:.3e}, the largest residual relative to \
+             its tolerance; where the equations cannot be satisfied more closely in floating \
+             point than this, a looser tolerance may start",
             res[i].abs(),
+            name(i),
             atol[i] + rtol * y0[i].abs()
         )
     })
@@ -570,7 +582,9 @@ impl RadauCore {
             return Err(IntegrateError::System { t: t0, source });
         }
         let atol_user = atol_vector(opts, y0.len());
-        match inconsistency(&self.res, y0, &atol_user, opts.rtol) {
+        match inconsistency(&self.res, y0, &atol_user, opts.rtol, |i| {
+            p.component_name(i)
+        }) {
             Some(msg) => Err(IntegrateError::InvalidInput(msg)),
             None => Ok(()),
         }

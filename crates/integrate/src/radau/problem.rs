@@ -76,6 +76,11 @@ pub(super) trait Problem: Hooks {
 
     /// The index class (1, 2, 3) of every component.
     fn variable_index(&self, index: &mut [u8]);
+
+    /// A name for component `i`, for messages.
+    fn component_name(&self, i: usize) -> String {
+        format!("y[{i}]")
+    }
 }
 
 /// An [`OdeSystem`] as `F(t, y, y') = y' − f(t, y)`.
@@ -296,5 +301,9 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
 
     fn variable_index(&self, index: &mut [u8]) {
         self.sys.variable_index(index);
+    }
+
+    fn component_name(&self, i: usize) -> String {
+        self.sys.component_name(i)
     }
 }

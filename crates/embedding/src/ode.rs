@@ -92,12 +92,12 @@
 
 use nalgebra::DMatrix;
 use nonholo_core::Scene;
-use nonholo_core::scene::EmbeddingInfo;
-use num_dual::{Dual2, Dual64};
+use nonholo_core::scene::{EmbeddingInfo, Scalar};
+use num_dual::{Dual, Dual2};
 
 use crate::analysis::{LEVELS, derivative_array, relative, row_scales};
 use crate::elo::elo_array;
-use crate::jet::Jet4;
+use crate::jet::{Jet4, TimeJet};
 
 /// Relative accuracy to which the iteration determines `q⁗` (and, in the
 /// projection, `q⃛`): estimated remaining error of the chord iteration.
@@ -196,77 +196,123 @@ pub struct ReductionStats {
     pub probes: usize,
 }
 
-/// Workspace and warm start of the derivative-array solve (see the module
-/// documentation). Everything is allocated once, in [`Reduction::new`].
-pub struct Reduction {
+/// The numbers the derivative array is solved over: `f64` on the real time
+/// axis, complex numbers along a path in complex time. The linear algebra
+/// is done on the realified system, in which a number is `PARTS` reals and
+/// a complex coefficient the real block `[[re, −im], [im, re]]`; the
+/// minimum-norm least-squares solution of the realified system is that of
+/// the complex one.
+pub trait Field: Scalar + PartialEq {
+    /// Reals per number: 1 (real) or 2 (complex).
+    const PARTS: usize;
+    /// Part `k < PARTS` (real part, then imaginary part).
+    fn part(self, k: usize) -> f64;
+    /// The number with parts `p` (`PARTS` of them).
+    fn from_parts(p: &[f64]) -> Self;
+    /// `|x|`.
+    fn norm(self) -> f64;
+}
+
+impl Field for f64 {
+    const PARTS: usize = 1;
+    fn part(self, _k: usize) -> f64 {
+        self
+    }
+    fn from_parts(p: &[f64]) -> Self {
+        p[0]
+    }
+    fn norm(self) -> f64 {
+        self.abs()
+    }
+}
+
+/// Workspace and warm start of the derivative-array solve over the field
+/// `T` (see the module documentation). Everything is allocated once, in
+/// [`Reduction::new`].
+pub struct Reduction<T: Field = f64> {
     m: usize,
-    /// Rank of `∂D/∂u` (`3m − hidden constraints`), fixed at a consistent
-    /// point by [`Reduction::reset`]; `None` before (numerical rank then).
+    /// Rank of the realified `∂D/∂u` (`PARTS · (3m − hidden constraints)`),
+    /// fixed at a consistent point by [`Reduction::reset`]; `None` before
+    /// (numerical rank then).
     rank_u: Option<usize>,
     /// `(z, u) = (q_I⁽⁰⁾ … q_I⁽⁶⁾)` of the last solve: `u` is the warm start.
-    d: Vec<f64>,
+    d: Vec<T>,
     /// `u` of the last successful solve, restored after a failure.
-    u_good: Vec<f64>,
-    d_dual: Vec<Dual64>,
-    out_dual: Vec<Dual64>,
-    /// `D` at `d`.
-    value: Vec<f64>,
+    u_good: Vec<T>,
+    d_dual: Vec<Dual<T>>,
+    out_dual: Vec<Dual<T>>,
+    /// `D` at `d`, and its parts (realified).
+    value: Vec<T>,
+    value_parts: Vec<f64>,
     /// `∂D/∂(unknowns)`, column-major, `3m` rows, up to `4m` columns.
-    jac: Vec<f64>,
+    jac: Vec<T>,
     /// `∂E/∂q⃛` (`m × m`, column-major).
-    e3: Vec<f64>,
-    /// Equilibrated Jacobian, rotated in place by the Jacobi SVD.
+    e3: Vec<T>,
+    /// Realified equilibrated Jacobian, rotated in place by the Jacobi SVD.
     a: Vec<f64>,
-    /// Right singular vectors (`cols × cols`, column-major).
+    /// Right singular vectors (`cols × cols` realified, column-major).
     v: Vec<f64>,
     norms: Vec<f64>,
     order: Vec<usize>,
-    /// Pseudo-inverse with the scalings folded in (`cols × 3m`, row-major):
-    /// a step is `Δ = P · D`.
+    /// Realified pseudo-inverse with the scalings folded in (`PARTS·cols ×
+    /// PARTS·3m`, row-major): a step is `Δ = P · D`.
     pinv: Vec<f64>,
+    /// One scale per (complex) row and column.
     row_scale: Vec<f64>,
     col_scale: Vec<f64>,
+    /// Realified step of the last iteration.
+    step: Vec<f64>,
     /// Condition number `σ₁/σ_r` of the equilibrated `∂D/∂u` of the last
     /// solve's Jacobian.
     kappa: f64,
     /// Time of the solve whose `(z, u)` is in `d` (`None` after a failure,
     /// a projection or a reset): a solve at the same `(t, z)` returns it.
-    solved_at: Option<f64>,
+    solved_at: Option<T>,
     /// The observed round-off at that solve, once measured.
     probed: Option<f64>,
-    /// `D` at the solve and `z` of the solve, for the probe.
+    /// `D` (parts) at the solve and `z` of the solve, for the probe.
     probe_base: Vec<f64>,
-    probe_z: Vec<f64>,
+    probe_z: Vec<T>,
     stats: ReductionStats,
 }
 
-impl Reduction {
+impl<T: Field> Reduction<T>
+where
+    Dual<T>: Scalar,
+    Jet4<T>: TimeJet<T>,
+    Jet4<Dual<T>>: TimeJet<Dual<T>>,
+    Dual2<Dual<T>>: TimeJet<Dual<T>>,
+{
     /// Workspace for `m` independent coordinates.
     pub fn new(m: usize) -> Self {
+        let p = T::PARTS;
         let rows = LEVELS * m;
         let cols = 4 * m;
+        let zero = T::from(0.0);
         Reduction {
             m,
             rank_u: None,
-            d: vec![0.0; 7 * m],
-            u_good: vec![0.0; 3 * m],
-            d_dual: vec![Dual64::from_re(0.0); 7 * m],
-            out_dual: vec![Dual64::from_re(0.0); rows],
-            value: vec![0.0; rows],
-            jac: vec![0.0; rows * cols],
-            e3: vec![0.0; m * m],
-            a: vec![0.0; rows * cols],
-            v: vec![0.0; cols * cols],
-            norms: vec![0.0; cols],
-            order: vec![0; cols],
-            pinv: vec![0.0; rows * cols],
+            d: vec![zero; 7 * m],
+            u_good: vec![zero; 3 * m],
+            d_dual: vec![Dual::from_re(zero); 7 * m],
+            out_dual: vec![Dual::from_re(zero); rows],
+            value: vec![zero; rows],
+            value_parts: vec![0.0; p * rows],
+            jac: vec![zero; rows * cols],
+            e3: vec![zero; m * m],
+            a: vec![0.0; p * rows * p * cols],
+            v: vec![0.0; p * cols * p * cols],
+            norms: vec![0.0; p * cols],
+            order: vec![0; p * cols],
+            pinv: vec![0.0; p * rows * p * cols],
             row_scale: vec![1.0; rows],
             col_scale: vec![1.0; cols],
+            step: vec![0.0; p * cols],
             kappa: f64::INFINITY,
             solved_at: None,
             probed: None,
-            probe_base: vec![0.0; rows],
-            probe_z: vec![0.0; 4 * m],
+            probe_base: vec![0.0; p * rows],
+            probe_z: vec![zero; 4 * m],
             stats: ReductionStats::default(),
         }
     }
@@ -279,8 +325,8 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
-        d: &[f64],
+        t: T,
+        d: &[T],
     ) -> Result<(), String> {
         let m = self.m;
         self.d.copy_from_slice(&d[..7 * m]);
@@ -294,7 +340,7 @@ impl Reduction {
         Ok(())
     }
 
-    /// Rank of `∂D/∂u` in use.
+    /// Rank of the realified `∂D/∂u` in use.
     #[cfg(test)]
     fn rank_u(&self) -> Option<usize> {
         self.rank_u
@@ -305,6 +351,11 @@ impl Reduction {
         self.stats
     }
 
+    /// `(z, u)` of the last solve.
+    pub fn state(&self) -> &[T] {
+        &self.d
+    }
+
     /// `w(z) = q⁗`: solves `D(z, u) = 0` for `u` (least squares off the
     /// manifold, see the module documentation). A call at the `(t, z)` of
     /// the previous solve returns its result.
@@ -312,9 +363,9 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
-        z: &[f64],
-    ) -> Result<&[f64], String> {
+        t: T,
+        z: &[T],
+    ) -> Result<&[T], String> {
         let m = self.m;
         if self.solved_at == Some(t) && self.d[..4 * m] == z[..4 * m] {
             self.stats.cache_hits += 1;
@@ -341,8 +392,8 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
-        z: &[f64],
+        t: T,
+        z: &[T],
     ) -> Result<Resolution, String> {
         self.fourth(scene, e, t, z)?;
         let conditioning = NOISE_FACTOR * f64::EPSILON * self.kappa;
@@ -368,40 +419,65 @@ impl Reduction {
         })
     }
 
+    /// The parts of `value` into `value_parts`.
+    fn split_value(&mut self) {
+        let p = T::PARTS;
+        for (l, v) in self.value.iter().enumerate() {
+            for k in 0..p {
+                self.value_parts[p * l + k] = v.part(k);
+            }
+        }
+    }
+
+    /// Row `k` (realified) of the pseudo-inverse applied to `x` (realified).
+    fn apply_row(&self, k: usize, x: &[f64]) -> f64 {
+        let pr = T::PARTS * LEVELS * self.m;
+        let row = &self.pinv[k * pr..(k + 1) * pr];
+        row.iter().zip(x).map(|(a, b)| a * b).sum()
+    }
+
     /// The observed part of [`Reduction::resolution`] at the solve in `d`
     /// (its pseudo-inverse in `pinv`).
-    fn probe<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: f64) -> f64 {
+    fn probe<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) -> f64 {
         let m = self.m;
-        let rows = LEVELS * m;
+        let p = T::PARTS;
         self.stats.probes += 1;
         self.probe_z.copy_from_slice(&self.d[..4 * m]);
         self.evaluate(scene, e, t);
-        self.probe_base.copy_from_slice(&self.value);
+        self.split_value();
+        self.probe_base.copy_from_slice(&self.value_parts);
         // Relative to |q⁗|∞, with the floor of the iteration's measure.
         let floor = 1e-6
             * self.d[m..4 * m]
                 .iter()
-                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.norm()));
         let scale = self.d[4 * m..5 * m]
             .iter()
-            .fold(floor, |a, v| a.max(v.abs()));
+            .fold(floor, |a, v| a.max(v.norm()));
         let mut observed = 0.0f64;
+        let mut diff = std::mem::take(&mut self.step);
         for trial in 0..PROBE_TRIALS {
             for (i, x) in self.d[..4 * m].iter_mut().enumerate() {
                 let pattern = ((i * 7 + trial * 13) % 11) as f64 - 5.0;
                 *x = self.probe_z[i] * (1.0 + PROBE_SIZE * pattern);
             }
             self.evaluate(scene, e, t);
+            self.split_value();
+            let mut change = std::mem::take(&mut self.value_parts);
+            for (c, b) in change.iter_mut().zip(&self.probe_base) {
+                *c -= b;
+            }
             for k in 0..m {
-                let row = &self.pinv[k * rows..(k + 1) * rows];
-                let s: f64 = (0..rows)
-                    .map(|l| row[l] * (self.value[l] - self.probe_base[l]))
-                    .sum();
+                for q in 0..p {
+                    diff[q] = self.apply_row(p * k + q, &change);
+                }
                 // NaN propagates (max would drop it).
-                let rel = s.abs() / scale;
+                let rel = T::from_parts(&diff[..p]).norm() / scale;
                 observed = if rel.is_nan() { rel } else { observed.max(rel) };
             }
+            self.value_parts = change;
         }
+        self.step = diff;
         self.d[..4 * m].copy_from_slice(&self.probe_z);
         observed
     }
@@ -413,8 +489,8 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
-        z: &mut [f64],
+        t: T,
+        z: &mut [T],
     ) -> Result<f64, String> {
         let m = self.m;
         self.d[..4 * m].copy_from_slice(&z[..4 * m]);
@@ -430,37 +506,14 @@ impl Reduction {
         self.u_good.copy_from_slice(&self.d[4 * m..]);
         let scale = z[3 * m..4 * m]
             .iter()
-            .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+            .fold(f64::MIN_POSITIVE, |a, v| a.max(v.norm()));
         let change = (0..m).fold(0.0f64, |a, k| {
-            a.max((self.d[3 * m + k] - z[3 * m + k]).abs())
+            a.max((self.d[3 * m + k] - z[3 * m + k]).norm())
         });
         z[3 * m..4 * m].copy_from_slice(&self.d[3 * m..4 * m]);
         let rel = change / scale;
         self.stats.max_third_change = self.stats.max_third_change.max(rel);
         Ok(rel)
-    }
-
-    /// How far `z` is from A's hidden constraints: after solving for `u` as
-    /// the right-hand side does, `max_l |D_l(z, u)| / (1 + Σ_j |∂D_l/∂d_j d_j|)`
-    /// — the residual left in each row relative to the terms that cancel in
-    /// it (the measure of [`crate::analysis::complete`]). Round-off level on
-    /// the manifold. A diagnostic (full derivative-array Jacobian; allocates).
-    pub fn hidden_residual<S: Scene>(
-        &mut self,
-        scene: &S,
-        e: &EmbeddingInfo,
-        t: f64,
-        z: &[f64],
-    ) -> Result<f64, String> {
-        let m = self.m;
-        self.fourth(scene, e, t, z)?;
-        let rows = LEVELS * m;
-        let mut value = vec![0.0; rows];
-        let mut jac = DMatrix::zeros(rows, 7 * m);
-        derivative_array(scene, e, t, &self.d, &mut value, &mut jac);
-        let mut scales = vec![0.0; rows];
-        row_scales(&jac, &self.d, &mut scales);
-        Ok(relative(&value, &scales))
     }
 
     /// The chord iteration on the unknowns `d[first..7m]` (`first = 4m`:
@@ -469,34 +522,37 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
+        t: T,
         first: usize,
     ) -> Result<(), String> {
         let m = self.m;
-        let rows = LEVELS * m;
+        let p = T::PARTS;
         let cols = 7 * m - first;
         // Watched blocks: q⁗ (and q⃛ in the projection), each relative to
         // its own size, with a floor for a vanishing block.
         let floor = 1e-6
             * self.d[m..4 * m]
                 .iter()
-                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs()));
+                .fold(f64::MIN_POSITIVE, |a, v| a.max(v.norm()));
         self.jacobian(scene, e, t, first)?;
         let mut restarts = 0;
         let mut prev = f64::INFINITY;
         for _ in 0..MAX_ITER {
             self.stats.iterations += 1;
             // Step Δ = P·D, and its size in the watched blocks, relative.
+            self.split_value();
             let mut size = 0.0f64;
             for k in 0..cols {
-                let row = &self.pinv[k * rows..(k + 1) * rows];
-                let s: f64 = row.iter().zip(&self.value).map(|(p, v)| p * v).sum();
+                for q in 0..p {
+                    self.step[q] = self.apply_row(p * k + q, &self.value_parts);
+                }
+                let s = T::from_parts(&self.step[..p]);
                 self.d[first + k] -= s;
                 let block = (first + k) / m;
                 if block < 5 {
                     let range = block * m..(block + 1) * m;
-                    let scale = self.d[range].iter().fold(floor, |a, v| a.max(v.abs()));
-                    size = size.max(s.abs() / scale);
+                    let scale = self.d[range].iter().fold(floor, |a, v| a.max(v.norm()));
+                    size = size.max(s.norm() / scale);
                 }
             }
             if !size.is_finite() {
@@ -538,9 +594,9 @@ impl Reduction {
         Err(format!("no convergence in {MAX_ITER} iterations"))
     }
 
-    /// `D` at `d` into `value` (order-4 jet over `f64`).
-    fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: f64) {
-        elo_array::<_, f64, Jet4<f64>>(scene, e, t, &self.d, &mut self.value);
+    /// `D` at `d` into `value` (order-4 jet over `T`).
+    fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
+        elo_array::<_, T, Jet4<T>>(scene, e, t, &self.d, &mut self.value);
     }
 
     /// `D` and `∂D/∂d[first..7m]` at `d`, equilibrated, and its truncated
@@ -549,23 +605,25 @@ impl Reduction {
         &mut self,
         scene: &S,
         e: &EmbeddingInfo,
-        t: f64,
+        t: T,
         first: usize,
     ) -> Result<(), String> {
         let m = self.m;
+        let p = T::PARTS;
         let rows = LEVELS * m;
         let cols = 7 * m - first;
         self.stats.jacobians += 1;
-        let tt = Dual64::from_re(t);
+        let zero = T::from(0.0);
+        let tt = Dual::from_re(t);
         // Order-4 dual passes for the columns that need them: q⃛ (projection
         // only) and q⁗. The first pass also gives D.
         let passes = 5 * m - first;
         for k in 0..passes {
             for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
-                *x = Dual64::from_re(v);
+                *x = Dual::from_re(v);
             }
-            self.d_dual[first + k].eps = 1.0;
-            elo_array::<_, Dual64, Jet4<Dual64>>(scene, e, tt, &self.d_dual, &mut self.out_dual);
+            self.d_dual[first + k].eps = T::from(1.0);
+            elo_array::<_, Dual<T>, Jet4<Dual<T>>>(scene, e, tt, &self.d_dual, &mut self.out_dual);
             for i in 0..rows {
                 self.jac[k * rows + i] = self.out_dual[i].eps;
             }
@@ -585,10 +643,10 @@ impl Reduction {
         } else {
             for j in 0..m {
                 for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
-                    *x = Dual64::from_re(v);
+                    *x = Dual::from_re(v);
                 }
-                self.d_dual[3 * m + j].eps = 1.0;
-                elo_array::<_, Dual64, Dual2<Dual64>>(
+                self.d_dual[3 * m + j].eps = T::from(1.0);
+                elo_array::<_, Dual<T>, Dual2<Dual<T>>>(
                     scene,
                     e,
                     tt,
@@ -609,11 +667,11 @@ impl Reduction {
                 let q = self.jac[(c4 + j) * rows + m + mu];
                 let col5 = (c5 + j) * rows;
                 let col6 = (c6 + j) * rows;
-                self.jac[col5 + mu] = 0.0;
+                self.jac[col5 + mu] = zero;
                 self.jac[col5 + m + mu] = w;
-                self.jac[col5 + 2 * m + mu] = 2.0 * q - self.e3[j * m + mu];
-                self.jac[col6 + mu] = 0.0;
-                self.jac[col6 + m + mu] = 0.0;
+                self.jac[col5 + 2 * m + mu] = q * 2.0 - self.e3[j * m + mu];
+                self.jac[col6 + mu] = zero;
+                self.jac[col6 + m + mu] = zero;
                 self.jac[col6 + 2 * m + mu] = w;
             }
         }
@@ -629,7 +687,7 @@ impl Reduction {
             let mut sum = 0.0;
             for c in blocks {
                 for mu in 0..m {
-                    sum += self.jac[c * rows + l * m + mu].powi(2);
+                    sum += self.jac[c * rows + l * m + mu].norm().powi(2);
                 }
             }
             let s = if sum > 0.0 && sum.is_finite() {
@@ -645,34 +703,48 @@ impl Reduction {
             let mut sum = 0.0;
             for c in b * m..(b + 1) * m {
                 for i in 0..rows {
-                    sum += (self.jac[c * rows + i] / self.row_scale[i]).powi(2);
+                    sum += (self.jac[c * rows + i].norm() / self.row_scale[i]).powi(2);
                 }
             }
             let s = (sum / m as f64).sqrt();
             let s = if s > 0.0 && s.is_finite() { s } else { 1.0 };
             self.col_scale[b * m..(b + 1) * m].fill(s);
         }
-        if !self.value[..rows].iter().all(|v| v.is_finite())
-            || !self.jac[..rows * cols].iter().all(|v| v.is_finite())
-        {
+        let finite = |x: &T| (0..p).all(|k| x.part(k).is_finite());
+        if !self.value[..rows].iter().all(finite) || !self.jac[..rows * cols].iter().all(finite) {
             return Err("the derivative array is not finite here".into());
         }
+        // The realified equilibrated matrix: complex entry w at (i, c) is
+        // the block [[re, −im], [im, re]] at rows p·i.., columns p·c...
+        let pr = p * rows;
         for c in 0..cols {
             for i in 0..rows {
-                self.a[c * rows + i] =
-                    self.jac[c * rows + i] / (self.row_scale[i] * self.col_scale[c]);
+                let w = self.jac[c * rows + i] / (self.row_scale[i] * self.col_scale[c]);
+                for b in 0..p {
+                    for a in 0..p {
+                        // Column p·c + b, row p·i + a: re on the diagonal,
+                        // ∓im off it.
+                        let x = match (a, b) {
+                            (0, 0) | (1, 1) => w.part(0),
+                            (1, 0) => w.part(1),
+                            _ => -w.part(1),
+                        };
+                        self.a[(p * c + b) * pr + p * i + a] = x;
+                    }
+                }
             }
         }
         self.pseudo_inverse(first)
     }
 
-    /// One-sided Jacobi SVD of the equilibrated Jacobian in `a` and the
-    /// truncated pseudo-inverse (`rank_u` for a solve, numerical rank for a
-    /// projection), scalings folded in.
+    /// One-sided Jacobi SVD of the realified equilibrated Jacobian in `a`
+    /// and the truncated pseudo-inverse (`rank_u` for a solve, numerical
+    /// rank for a projection), scalings folded in.
     fn pseudo_inverse(&mut self, first: usize) -> Result<(), String> {
         let m = self.m;
-        let rows = LEVELS * m;
-        let cols = 7 * m - first;
+        let p = T::PARTS;
+        let rows = p * LEVELS * m;
+        let cols = p * (7 * m - first);
         let (a, v) = (&mut self.a, &mut self.v);
         v[..cols * cols].fill(0.0);
         for c in 0..cols {
@@ -680,14 +752,14 @@ impl Reduction {
         }
         let total: f64 = a[..rows * cols].iter().map(|x| x * x).sum();
         let negligible = (f64::EPSILON * f64::EPSILON) * total;
-        let tol = f64::EPSILON * rows as f64;
+        let tol = f64::EPSILON * rows as f64 / p as f64;
         for _sweep in 0..60 {
             let mut rotated = false;
-            for p in 0..cols - 1 {
-                for q in p + 1..cols {
+            for pc in 0..cols - 1 {
+                for qc in pc + 1..cols {
                     let (mut alpha, mut beta, mut gamma) = (0.0, 0.0, 0.0);
                     for i in 0..rows {
-                        let (x, y) = (a[p * rows + i], a[q * rows + i]);
+                        let (x, y) = (a[pc * rows + i], a[qc * rows + i]);
                         alpha += x * x;
                         beta += y * y;
                         gamma += x * y;
@@ -704,14 +776,14 @@ impl Reduction {
                     let cos = 1.0 / (1.0 + tan * tan).sqrt();
                     let sin = cos * tan;
                     for i in 0..rows {
-                        let (x, y) = (a[p * rows + i], a[q * rows + i]);
-                        a[p * rows + i] = cos * x - sin * y;
-                        a[q * rows + i] = sin * x + cos * y;
+                        let (x, y) = (a[pc * rows + i], a[qc * rows + i]);
+                        a[pc * rows + i] = cos * x - sin * y;
+                        a[qc * rows + i] = sin * x + cos * y;
                     }
                     for i in 0..cols {
-                        let (x, y) = (v[p * cols + i], v[q * cols + i]);
-                        v[p * cols + i] = cos * x - sin * y;
-                        v[q * cols + i] = sin * x + cos * y;
+                        let (x, y) = (v[pc * cols + i], v[qc * cols + i]);
+                        v[pc * cols + i] = cos * x - sin * y;
+                        v[qc * cols + i] = sin * x + cos * y;
                     }
                 }
             }
@@ -759,7 +831,7 @@ impl Reduction {
         }
         for k in 0..cols {
             for l in 0..rows {
-                self.pinv[k * rows + l] /= self.col_scale[k] * self.row_scale[l];
+                self.pinv[k * rows + l] /= self.col_scale[k / p] * self.row_scale[l / p];
             }
         }
         Ok(())
@@ -767,12 +839,36 @@ impl Reduction {
 
     /// Number of singular values kept by the last pseudo-inverse's rule.
     fn kept_rank(&self) -> usize {
-        let m = self.m;
-        let cols = 3 * m;
+        let cols = T::PARTS * 3 * self.m;
         let top = self.norms[self.order[0]];
         (0..cols)
             .filter(|&c| self.norms[c] > RANK_RTOL * top)
             .count()
+    }
+}
+
+impl Reduction<f64> {
+    /// How far `z` is from A's hidden constraints: after solving for `u` as
+    /// the right-hand side does, `max_l |D_l(z, u)| / (1 + Σ_j |∂D_l/∂d_j d_j|)`
+    /// — the residual left in each row relative to the terms that cancel in
+    /// it (the measure of [`crate::analysis::complete`]). Round-off level on
+    /// the manifold. A diagnostic (full derivative-array Jacobian; allocates).
+    pub fn hidden_residual<S: Scene>(
+        &mut self,
+        scene: &S,
+        e: &EmbeddingInfo,
+        t: f64,
+        z: &[f64],
+    ) -> Result<f64, String> {
+        let m = self.m;
+        self.fourth(scene, e, t, z)?;
+        let rows = LEVELS * m;
+        let mut value = vec![0.0; rows];
+        let mut jac = DMatrix::zeros(rows, 7 * m);
+        derivative_array(scene, e, t, &self.d, &mut value, &mut jac);
+        let mut scales = vec![0.0; rows];
+        row_scales(&jac, &self.d, &mut scales);
+        Ok(relative(&value, &scales))
     }
 
     /// The Jacobian of the last solve in the unknowns (`3m × cols`), for tests.

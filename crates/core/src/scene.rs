@@ -200,7 +200,22 @@ pub trait Scene: Send + Sync + 'static {
     }
 
     /// The embedding map `q_D = φ(q_I, q̇_I, t)` into `q_dep` (length `s`).
-    fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], _qd_ind: &[D], _q_dep: &mut [D]) {}
+    ///
+    /// A map that is many-valued (the sleigh's `φ = arctan(ẏ/ẋ)`, eq. 21,
+    /// whose branches differ by multiples of π) gives the branch nearest to
+    /// `near` (one reference value per dependent coordinate), so that it can
+    /// be followed continuously — through the map's singular set, or along
+    /// a path in complex time; with `near` empty it gives its principal
+    /// branch (the sleigh: `atan2(ẏ, ẋ)` in `(−π, π]`).
+    fn embedding<D: Scalar>(
+        &self,
+        _t: D,
+        _q_ind: &[D],
+        _qd_ind: &[D],
+        _near: &[f64],
+        _q_dep: &mut [D],
+    ) {
+    }
 
     /// A vector `r(t, q_I, q̇_I)` whose zero set is the singular set of the
     /// embedding map (the sleigh: the velocity `(ẋ, ẏ)`); see

@@ -51,12 +51,14 @@ pub struct Structure {
 
 /// The derivative array `D = [E; Ė; Ë]` at `d = (q_I⁽⁰⁾ … q_I⁽⁶⁾)` (7m
 /// numbers) into `value` (3m) and its Jacobian `∂D/∂d` (3m × 7m), by one
-/// dual pass per column.
+/// dual pass per column; the map on the branch nearest to `near` (its
+/// principal one if empty).
 pub fn derivative_array<S: Scene>(
     scene: &S,
     e: &EmbeddingInfo,
     t: f64,
     d: &[f64],
+    near: &[f64],
     value: &mut [f64],
     jac: &mut DMatrix<f64>,
 ) {
@@ -69,7 +71,7 @@ pub fn derivative_array<S: Scene>(
             *x = Dual64::from_re(v);
         }
         dd[j].eps = 1.0;
-        elo_array::<_, Dual64, Jet4<Dual64>>(scene, e, Dual64::from_re(t), &dd, &mut out);
+        elo_array::<_, Dual64, Jet4<Dual64>>(scene, e, Dual64::from_re(t), &dd, near, &mut out);
         for i in 0..LEVELS * m {
             jac[(i, j)] = out[i].eps;
             value[i] = out[i].re;
@@ -135,7 +137,7 @@ pub fn structure<S: Scene>(
     let m = e.independent.len();
     let mut value = vec![0.0; LEVELS * m];
     let mut jac = DMatrix::zeros(LEVELS * m, 7 * m);
-    derivative_array(scene, e, t, d, &mut value, &mut jac);
+    derivative_array(scene, e, t, d, &[], &mut value, &mut jac);
     let b = balanced(&jac, d);
     // W alone, scaled like its own entries (it is symmetric, no row terms needed).
     let w = jac.view((0, 4 * m), (m, m)).clone_owned();
@@ -249,7 +251,7 @@ pub fn complete<S: Scene>(
     let mut scales = vec![1.0; rows];
     let mut cols = vec![1.0; unknowns];
     let third_before: Vec<f64> = d[3 * m..4 * m].to_vec();
-    derivative_array(scene, e, t, d, &mut value, &mut jac);
+    derivative_array(scene, e, t, d, &[], &mut value, &mut jac);
     row_scales(&jac, d, &mut scales);
     // Scales are frozen at the start of each iteration so that the objective
     // compared by the damping logic does not move under it.
@@ -305,7 +307,7 @@ pub fn complete<S: Scene>(
                     trial[first + k] -= f * vt[(i, k)] * cols[k];
                 }
             }
-            derivative_array(scene, e, t, &trial, &mut trial_value, &mut trial_jac);
+            derivative_array(scene, e, t, &trial, &[], &mut trial_value, &mut trial_jac);
             if objective(&trial_value, &scales) < current {
                 mu /= 10.0;
                 accepted = true;

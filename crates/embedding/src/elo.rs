@@ -26,7 +26,8 @@ use crate::jet::TimeJet;
 /// Largest number of coordinates formulation A supports (stack buffers).
 pub const MAX_DOF: usize = 12;
 
-/// `Θ(t, q_I, q̇_I, q̈_I)`: the Lagrangian with the embedding map substituted.
+/// `Θ(t, q_I, q̇_I, q̈_I)`: the Lagrangian with the embedding map substituted
+/// (on the branch of the map nearest to `near`, its principal one if empty).
 pub fn theta<S: Scene, D: Scalar>(
     scene: &S,
     e: &EmbeddingInfo,
@@ -34,16 +35,20 @@ pub fn theta<S: Scene, D: Scalar>(
     qi: &[D],
     qdi: &[D],
     qddi: &[D],
+    near: &[f64],
 ) -> D {
     let n = scene.info().n();
     let zero = D::from(0.0);
     let mut q = [zero; MAX_DOF];
     let mut qd = [zero; MAX_DOF];
-    reconstruct(scene, e, t, qi, qdi, qddi, &mut q, &mut qd);
+    reconstruct(scene, e, t, qi, qdi, qddi, near, &mut q, &mut qd);
     scene.lagrangian(t, &q[..n], &qd[..n])
 }
 
-/// The full coordinates `(q, q̇)` from `(q_I, q̇_I, q̈_I)`: `q_D = φ`, `q̇_D = dφ/dt`.
+/// The full coordinates `(q, q̇)` from `(q_I, q̇_I, q̈_I)`: `q_D = φ`,
+/// `q̇_D = dφ/dt` (`φ` on the branch nearest to `near`, see
+/// [`Scene::embedding`]).
+#[allow(clippy::too_many_arguments)]
 pub fn reconstruct<S: Scene, D: Scalar>(
     scene: &S,
     e: &EmbeddingInfo,
@@ -51,6 +56,7 @@ pub fn reconstruct<S: Scene, D: Scalar>(
     qi: &[D],
     qdi: &[D],
     qddi: &[D],
+    near: &[f64],
     q: &mut [D],
     qd: &mut [D],
 ) {
@@ -67,6 +73,7 @@ pub fn reconstruct<S: Scene, D: Scalar>(
         Dual::new(t, D::from(1.0)),
         &qi_jet[..m],
         &qdi_jet[..m],
+        near,
         &mut dep[..s],
     );
     for (k, &i) in e.independent.iter().enumerate() {
@@ -83,12 +90,14 @@ pub fn reconstruct<S: Scene, D: Scalar>(
 /// equations (19) along the curve `q_I(τ)` whose derivatives at `τ = 0` are
 /// `d[k·m .. (k+1)·m] = q_I⁽ᵏ⁾`, `k = 0 ..= J::ORDER + 2`.
 ///
-/// Writes `out[l·m + μ] = E_μ⁽ˡ⁾` for `l = 0 ..= L`; 3m evaluations of `Θ`.
+/// Writes `out[l·m + μ] = E_μ⁽ˡ⁾` for `l = 0 ..= L`; 3m evaluations of `Θ`,
+/// the map on the branch nearest to `near` (its principal one if empty).
 pub fn elo_array<S: Scene, T: Scalar, J: TimeJet<T>>(
     scene: &S,
     e: &EmbeddingInfo,
     t: T,
     d: &[T],
+    near: &[f64],
     out: &mut [T],
 ) {
     let m = e.independent.len();
@@ -119,7 +128,15 @@ pub fn elo_array<S: Scene, T: Scalar, J: TimeJet<T>>(
         for r in 0..3 {
             let mut args = base;
             args[r][mu].eps = J::from(1.0);
-            let v = theta(scene, e, t_jet, &args[0][..m], &args[1][..m], &args[2][..m]);
+            let v = theta(
+                scene,
+                e,
+                t_jet,
+                &args[0][..m],
+                &args[1][..m],
+                &args[2][..m],
+                near,
+            );
             let sign = if r == 1 { -1.0 } else { 1.0 };
             for l in 0..levels {
                 out[l * m + mu] += v.eps.time_derivative(l + r) * sign;

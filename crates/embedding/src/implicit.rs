@@ -41,7 +41,7 @@ impl<S: Scene> Implicit<S> {
     /// `E` at `d = self.d` into `self.e_out`.
     fn evaluate(&mut self, t: f64) {
         let sh = &self.shared;
-        elo_array::<_, f64, Dual2_64>(&*sh.scene, &sh.e, t, &self.d, &mut self.e_out);
+        elo_array::<_, f64, Dual2_64>(&*sh.scene, &sh.e, t, &self.d, &sh.near, &mut self.e_out);
     }
 
     /// `∂E/∂d_j` at `d = self.d` (`(z, q⁗)`, 5m numbers): one dual pass
@@ -58,6 +58,7 @@ impl<S: Scene> Implicit<S> {
             &sh.e,
             Dual64::from_re(t),
             &self.d_dual,
+            &sh.near,
             &mut self.e_dual,
         );
     }

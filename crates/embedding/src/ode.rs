@@ -273,6 +273,9 @@ pub struct Reduction<T: Field = f64> {
     /// `D` (parts) at the solve and `z` of the solve, for the probe.
     probe_base: Vec<f64>,
     probe_z: Vec<T>,
+    /// Reference values of the dependent coordinates: the map's branch in
+    /// use ([`Scene::embedding`]; empty: its principal branch).
+    near: Vec<f64>,
     stats: ReductionStats,
 }
 
@@ -313,6 +316,7 @@ where
             probed: None,
             probe_base: vec![0.0; p * rows],
             probe_z: vec![zero; 4 * m],
+            near: Vec::new(),
             stats: ReductionStats::default(),
         }
     }
@@ -344,6 +348,15 @@ where
     #[cfg(test)]
     fn rank_u(&self) -> Option<usize> {
         self.rank_u
+    }
+
+    /// Follows the branch of the embedding map nearest to `near` from now
+    /// on (empty: the principal branch); forgets the last solve.
+    pub fn set_branch(&mut self, near: &[f64]) {
+        self.near.clear();
+        self.near.extend_from_slice(near);
+        self.solved_at = None;
+        self.probed = None;
     }
 
     /// Work counters since [`Reduction::reset`].
@@ -596,7 +609,7 @@ where
 
     /// `D` at `d` into `value` (order-4 jet over `T`).
     fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
-        elo_array::<_, T, Jet4<T>>(scene, e, t, &self.d, &mut self.value);
+        elo_array::<_, T, Jet4<T>>(scene, e, t, &self.d, &self.near, &mut self.value);
     }
 
     /// `D` and `∂D/∂d[first..7m]` at `d`, equilibrated, and its truncated
@@ -623,7 +636,14 @@ where
                 *x = Dual::from_re(v);
             }
             self.d_dual[first + k].eps = T::from(1.0);
-            elo_array::<_, Dual<T>, Jet4<Dual<T>>>(scene, e, tt, &self.d_dual, &mut self.out_dual);
+            elo_array::<_, Dual<T>, Jet4<Dual<T>>>(
+                scene,
+                e,
+                tt,
+                &self.d_dual,
+                &self.near,
+                &mut self.out_dual,
+            );
             for i in 0..rows {
                 self.jac[k * rows + i] = self.out_dual[i].eps;
             }
@@ -651,6 +671,7 @@ where
                     e,
                     tt,
                     &self.d_dual[..5 * m],
+                    &self.near,
                     &mut self.out_dual[..m],
                 );
                 for mu in 0..m {
@@ -865,7 +886,7 @@ impl Reduction<f64> {
         let rows = LEVELS * m;
         let mut value = vec![0.0; rows];
         let mut jac = DMatrix::zeros(rows, 7 * m);
-        derivative_array(scene, e, t, &self.d, &mut value, &mut jac);
+        derivative_array(scene, e, t, &self.d, &self.near, &mut value, &mut jac);
         let mut scales = vec![0.0; rows];
         row_scales(&jac, &self.d, &mut scales);
         Ok(relative(&value, &scales))
@@ -917,7 +938,7 @@ mod tests {
             d[11] += 0.7;
             let mut value = vec![0.0; 6];
             let mut full = DMatrix::zeros(6, 14);
-            derivative_array(&s, &e, 0.0, &d, &mut value, &mut full);
+            derivative_array(&s, &e, 0.0, &d, &[], &mut value, &mut full);
             let mut r = Reduction::new(2);
             for first in [8, 6] {
                 r.d.copy_from_slice(&d);
@@ -967,7 +988,7 @@ mod tests {
         // relative to the terms of the product (whose round-off, through
         // the large level-2 entries, is ~1e-10 of them).
         let (mut value, mut full) = (vec![0.0; 6], DMatrix::zeros(6, 14));
-        derivative_array(&s, &e, 0.0, &r.d, &mut value, &mut full);
+        derivative_array(&s, &e, 0.0, &r.d, &[], &mut value, &mut full);
         let hidden = value.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         assert!(hidden > 1e-6, "the point is off the manifold: {value:?}");
         let ju = full.columns(8, 6);

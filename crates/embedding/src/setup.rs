@@ -174,6 +174,7 @@ fn dependent_coordinates<S: Scene>(
         &d[..m],
         &d[m..2 * m],
         &d[2 * m..3 * m],
+        &[],
         &mut q,
         &mut qd,
     );

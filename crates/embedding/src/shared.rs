@@ -26,6 +26,9 @@ pub struct Shared<S: Scene> {
     pub qd: Vec<f64>,
     /// Last reported dependent coordinates, for unwrapping angles.
     last_dep: Vec<f64>,
+    /// Reference values of the dependent coordinates: the branch of the
+    /// map in use ([`Scene::embedding`]; empty: its principal branch).
+    pub near: Vec<f64>,
 }
 
 impl<S: Scene> Shared<S> {
@@ -45,6 +48,7 @@ impl<S: Scene> Shared<S> {
             q: vec![0.0; n],
             qd: vec![0.0; n],
             last_dep: vec![0.0; e.dependent.len()],
+            near: Vec::new(),
             scene,
         }
     }
@@ -72,6 +76,7 @@ impl<S: Scene> Shared<S> {
             &z[..m],
             &z[m..2 * m],
             &z[2 * m..3 * m],
+            &self.near,
             &mut self.q,
             &mut self.qd,
         );

@@ -50,6 +50,7 @@ fn term_scale(s: &Sleigh, d: &[f64]) -> f64 {
                 &args[0],
                 &args[1],
                 &args[2],
+                &[],
             );
             let part = [v.eps.re, v.eps.v1, v.eps.v2][r];
             scale = scale.max(part.abs());
@@ -92,7 +93,7 @@ fn elo_residual_vanishes_on_vakonomic_motions() {
                 y[0], y[1], y[3], y[4], yd[3], yd[4], ydd[3], ydd[4], yddd[3], yddd[4],
             ];
             let mut res = [0.0; 2];
-            elo_array::<_, f64, Dual2_64>(&s, &e, 0.0, &d, &mut res);
+            elo_array::<_, f64, Dual2_64>(&s, &e, 0.0, &d, &[], &mut res);
             // Tolerance from the conditioning at this state: how far E moves
             // when the Taylor data move by ~1e-15 relative (their own round-off
             // level, coming out of C's KKT solves). A systematic error in E
@@ -107,7 +108,7 @@ fn elo_residual_vanishes_on_vakonomic_motions() {
                     })
                     .collect();
                 let mut rp = [0.0; 2];
-                elo_array::<_, f64, Dual2_64>(&s, &e, 0.0, &dp, &mut rp);
+                elo_array::<_, f64, Dual2_64>(&s, &e, 0.0, &dp, &[], &mut rp);
                 sensitivity = sensitivity
                     .max((rp[0] - res[0]).abs())
                     .max((rp[1] - res[1]).abs());

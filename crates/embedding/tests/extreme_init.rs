@@ -91,7 +91,7 @@ fn scaled_singular_values(s: &Sleigh, d: &[f64]) -> Vec<f64> {
     let e = Sleigh::INFO.embedding.unwrap();
     let mut v = vec![0.0; 6];
     let mut jac = DMatrix::zeros(6, 14);
-    derivative_array(s, &e, 0.0, d, &mut v, &mut jac);
+    derivative_array(s, &e, 0.0, d, &[], &mut v, &mut jac);
     let scale: Vec<f64> = (0..6)
         .map(|l| 1.0 + (0..14).map(|j| (jac[(l, j)] * d[j]).abs()).sum::<f64>())
         .collect();
@@ -199,7 +199,7 @@ fn zero_turning_rate_leaves_third_derivatives_free() {
         assert!(done.residual.1 <= 1e-14, "{done:?}");
         let mut v = vec![0.0; 6];
         let mut jac = DMatrix::zeros(6, 14);
-        derivative_array(&s, &e, 0.0, &d, &mut v, &mut jac);
+        derivative_array(&s, &e, 0.0, &d, &[], &mut v, &mut jac);
         let sv = third_determination(&jac, &d, 2).unwrap();
         eprintln!("ω = {omega:e}: singular values of the hidden constraints in q⃛ {sv:?}");
         assert!(sv[0] > 0.05, "{sv:?}");

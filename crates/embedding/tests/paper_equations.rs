@@ -63,6 +63,7 @@ fn eq23_heading_rate() {
             &[st.x, st.y],
             &[st.xd, st.yd],
             &[st.xdd, st.ydd],
+            &[],
             &mut q,
             &mut qd,
         );
@@ -102,6 +103,7 @@ fn eq24_theta() {
                 &[st.x, st.y],
                 &[st.xd, st.yd],
                 &[st.xdd, st.ydd],
+                &[],
             );
             let v2 = st.xd * st.xd + st.yd * st.yd;
             let phid = (st.xd * st.ydd - st.yd * st.xdd) / v2;
@@ -141,7 +143,7 @@ fn eq26_partial_derivatives() {
                 1 => qdi[k].eps = 1.0,
                 _ => qddi[k].eps = 1.0,
             }
-            theta(&s, &e, Dual64::from_re(0.0), &qi, &qdi, &qddi).eps
+            theta(&s, &e, Dual64::from_re(0.0), &qi, &qdi, &qddi, &[]).eps
         };
         let v2 = st.xd * st.xd + st.yd * st.yd;
         let cross = st.xd * st.ydd - st.yd * st.xdd;
@@ -181,6 +183,7 @@ fn a_drops_out_of_theta_with_paper_potential() {
                 &[HyperDual64::from_re(st.x), HyperDual64::from_re(st.y)],
                 &[HyperDual64::from_re(st.xd), HyperDual64::from_re(st.yd)],
                 &qddi,
+                &[],
             )
         };
         let (t0, t1) = (th(0.0), th(1.2));

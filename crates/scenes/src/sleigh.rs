@@ -182,8 +182,30 @@ impl Scene for Sleigh {
     /// Eq. (21) with the quadrant-correct arctangent: `φ = atan2(ẏ, ẋ)`
     /// (evaluated so that its derivatives stay accurate at every heading,
     /// see [`nonholo_core::scene::atan2`]).
-    fn embedding<D: Scalar>(&self, _t: D, _q_ind: &[D], qd_ind: &[D], q_dep: &mut [D]) {
-        q_dep[0] = atan2(qd_ind[1], qd_ind[0]);
+    ///
+    /// The branches of `arctan(ẏ/ẋ)` differ by multiples of π: with `near`
+    /// the one nearest to `near[0]` (continuing the heading through a
+    /// reversal, where `atan2` turns it by π), else `atan2`'s.
+    fn embedding<D: Scalar>(
+        &self,
+        _t: D,
+        _q_ind: &[D],
+        qd_ind: &[D],
+        near: &[f64],
+        q_dep: &mut [D],
+    ) {
+        let principal = atan2(qd_ind[1], qd_ind[0]);
+        q_dep[0] = match near.first() {
+            Some(&r) if r.is_finite() => {
+                let k = ((r - principal.re()) / std::f64::consts::PI).round();
+                if k == 0.0 {
+                    principal
+                } else {
+                    principal + k * std::f64::consts::PI
+                }
+            }
+            _ => principal,
+        };
     }
 
     /// The velocity `(ẋ, ẏ)`: atan2 has no value at zero speed.

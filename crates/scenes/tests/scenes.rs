@@ -76,7 +76,7 @@ fn sleigh_constraint_chart_and_embedding_map() {
 
         if qd[0] != 0.0 || qd[1] != 0.0 {
             let mut phi = [0.0];
-            s.embedding(0.0, &q[..2], &qd[..2], &mut phi);
+            s.embedding(0.0, &q[..2], &qd[..2], &[], &mut phi);
             assert!((phi[0] - qd[1].atan2(qd[0])).abs() < 1e-15);
             // The map's heading points along the velocity.
             let speed = qd[0].hypot(qd[1]);

@@ -4,7 +4,9 @@
 //! `(t, q, q̇)` plus its multipliers, so code that compares runs never
 //! special-cases a formulation.
 
-use nonholo_integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
+use nonholo_integrate::{
+    ImplicitSystem, Method, OdeSystem, Options, RadauNewton, Stats, SystemError,
+};
 
 use crate::Error;
 use crate::consistency::InitProjection;
@@ -84,6 +86,18 @@ pub trait Model: Send {
     fn radau_newton(&self) -> RadauNewton {
         RadauNewton::Simplified
     }
+    /// Whether the model can be integrated by `method` with its options as
+    /// given (e.g. A continued through its singular set runs on its
+    /// explicit form only); `Err` says why not.
+    fn accepts(&self, _method: Method) -> Result<(), Error> {
+        Ok(())
+    }
+    /// What carries the explicit form's solution across a stop of its guard,
+    /// if the model has it (A through the singular set of its embedding
+    /// map); `None`: the run ends at the stop.
+    fn crossing(&mut self) -> Option<&mut dyn Crossing> {
+        None
+    }
     /// Consistent `y'(t0)` for the implicit form, after [`Model::initial_state`].
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
         Err(Error::numerical(
@@ -138,6 +152,66 @@ pub trait Model: Send {
     }
     /// Diagnostics accumulated since [`Model::initial_state`].
     fn diagnostics(&self) -> Diagnostics;
+}
+
+/// A continuation of a run's solution across a stop of its guard, where the
+/// equations are singular but the solution is not (A's embedding map at
+/// zero speed).
+pub trait Crossing {
+    /// Carries the state `y` of the explicit form, at the stop `t` of its
+    /// guard, across, integrating with `method` and `opts` (tolerances, the
+    /// budgets left; `opts.output` is ignored). The model is left ready to
+    /// go on from [`Crossed::t`] with [`Model::ode`], or says why it cannot
+    /// (the error names the time, the crossing's number and the reason).
+    fn cross(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        method: Method,
+        opts: &Options,
+    ) -> Result<Crossed, SystemError>;
+}
+
+/// The state at a time of a crossing's gap, written into the slice.
+pub type GapFill = Box<dyn Fn(f64, &mut [f64]) + Send>;
+
+/// A crossing made: where the run goes on, the solution in between, the
+/// work and the record.
+pub struct Crossed {
+    /// Where the run goes on (after the singular instant).
+    pub t: f64,
+    /// The state there.
+    pub y: Vec<f64>,
+    /// The state at any time of `[t_stop, t]` into `out` (the gap between
+    /// the stop and the restart, on the real axis).
+    pub gap: GapFill,
+    /// Work done by the crossing.
+    pub stats: Stats,
+    pub record: CrossingRecord,
+}
+
+/// What one crossing did and how well, for the results.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CrossingRecord {
+    /// 1 for the first crossing of a run.
+    pub number: usize,
+    /// The stop of the guard, where the crossing starts.
+    pub t_stop: f64,
+    /// The singular instant as estimated before the crossing.
+    pub t_singular: f64,
+    /// Where the run goes on.
+    pub t_resume: f64,
+    /// How close to the singular instant the crossing passed (in time).
+    pub clearance: f64,
+    /// A bound on the error of the crossing's states between `t_stop` and
+    /// `t_resume` (relative to the state's size).
+    pub gap_error: f64,
+    /// The imaginary part left on the state where it returns to the real
+    /// axis, relative to its size (zero for an exact continuation).
+    pub return_residual: f64,
+    /// Change of the state's highest derivatives made at the restart (the
+    /// literal-map continuation re-completes them on the map's branch).
+    pub restart_change: f64,
 }
 
 /// Multiplier names for `s` nonholonomic and `k` holonomic constraints:

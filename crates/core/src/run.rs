@@ -1,14 +1,16 @@
 //! One run: initial data, a model, an integrator; the physical trajectory
 //! on the output grid, the continuous extension, diagnostics and counters.
 
+use std::time::Instant;
+
 use nonholo_integrate::{
-    IntegrateError, Method, Options, RadauNewton, Solution, solve, solve_implicit,
+    Failure, IntegrateError, Method, Options, RadauNewton, Solution, solve, solve_implicit,
 };
 
 use crate::Error;
 use crate::consistency::InitProjection;
 use crate::init::Initial;
-use crate::model::{Model, Observation};
+use crate::model::{CrossingRecord, Model, Observation};
 use crate::monitor::Diagnostics;
 
 /// Integrator choice and settings for a run.
@@ -36,6 +38,8 @@ pub struct Run {
     pub diagnostics: Diagnostics,
     /// Why the run stopped before `t_end`, if it did.
     pub failure: Option<IntegrateError>,
+    /// The crossings of singular sets the run made ([`Model::crossing`]).
+    pub crossings: Vec<CrossingRecord>,
 }
 
 impl std::fmt::Debug for Run {
@@ -137,18 +141,21 @@ pub fn simulate(
     if config.options.radau5.newton == RadauNewton::Auto {
         config.options.radau5.newton = model.radau_newton();
     }
+    model.accepts(config.method)?;
+    let mut crossings = Vec::new();
     let result = if config.method.is_implicit() && model.implicit().is_some() {
         let yp0 = model.initial_slope()?;
         let sys = model.implicit().expect("checked above");
         solve_implicit(sys, initial.t0, &y0, &yp0, config.t_end, &config.options)
-    } else if let Some(sys) = model.ode() {
-        solve(
+    } else if model.ode().is_some() {
+        solve_across(
+            model.as_mut(),
             config.method,
-            sys,
             initial.t0,
             &y0,
             config.t_end,
             &config.options,
+            &mut crossings,
         )
     } else {
         return Err(Error::NoExplicitForm {
@@ -191,5 +198,116 @@ pub fn simulate(
         samples,
         diagnostics,
         failure,
+        crossings,
     })
+}
+
+/// Pieces of the continuous extension per crossing gap.
+const GAP_PIECES: usize = 4;
+
+/// Integrates the explicit form from `(t0, y0)` to `t_end`, and past every
+/// stop of its guard that the model can cross ([`Model::crossing`]): the
+/// segments' samples, continuous extensions and counters are joined into
+/// one solution, the gaps filled from each crossing's states; budgets are
+/// for the whole run.
+#[allow(clippy::result_large_err)]
+fn solve_across(
+    model: &mut dyn Model,
+    method: Method,
+    t0: f64,
+    y0: &[f64],
+    t_end: f64,
+    opts: &Options,
+    crossings: &mut Vec<CrossingRecord>,
+) -> Result<Solution, Failure> {
+    let start = Instant::now();
+    let mut seg = opts.clone();
+    let mut total: Option<Solution> = None;
+    let (mut t, mut y) = (t0, y0.to_vec());
+    loop {
+        let sys = model.ode().expect("checked by the caller");
+        let result = solve(method, sys, t, &y, t_end, &seg);
+        let (part, error) = match result {
+            Ok(s) => (s, None),
+            Err(f) => (f.partial, Some(f.error)),
+        };
+        let total = join(&mut total, part);
+        let t_stop = match error {
+            None => return Ok(total.clone()),
+            Some(IntegrateError::Stopped { t, .. }) if model.crossing().is_some() => t,
+            Some(error) => {
+                return Err(Failure {
+                    error,
+                    partial: total.clone(),
+                });
+            }
+        };
+        let mut left = opts.clone();
+        let used = total.stats.steps + total.stats.rejected_steps;
+        left.max_steps = opts.max_steps.saturating_sub(used);
+        left.max_wall_time_s = opts
+            .max_wall_time_s
+            .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+        let y_stop = total.y_last.clone();
+        let crossing = model.crossing().expect("checked above");
+        let crossed = match crossing.cross(t_stop, &y_stop, method, &left) {
+            Ok(c) => c,
+            Err(source) => {
+                return Err(Failure {
+                    error: IntegrateError::System { t: t_stop, source },
+                    partial: total.clone(),
+                });
+            }
+        };
+        // The gap (t_stop, t_resume]: samples and step polynomials from the
+        // crossing's states.
+        let dim = total.dim;
+        let mut buf = vec![0.0; dim];
+        for &tau in opts
+            .output
+            .iter()
+            .filter(|&&tau| tau > t_stop && tau <= crossed.t)
+        {
+            (crossed.gap)(tau, &mut buf);
+            total.t.push(tau);
+            total.y.extend_from_slice(&buf);
+        }
+        if let Some(dense) = total.dense.as_mut() {
+            let h = (crossed.t - t_stop) / GAP_PIECES as f64;
+            for k in 0..GAP_PIECES {
+                dense.push_fitted(t_stop + k as f64 * h, h, |tau, out| (crossed.gap)(tau, out));
+            }
+        }
+        total.stats.add(&crossed.stats);
+        total.t_last = crossed.t;
+        total.y_last.clone_from(&crossed.y);
+        crossings.push(crossed.record);
+        (t, y) = (crossed.t, crossed.y);
+        seg = left;
+        seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
+        seg.max_steps = opts
+            .max_steps
+            .saturating_sub(total.stats.steps + total.stats.rejected_steps);
+        seg.max_wall_time_s = opts
+            .max_wall_time_s
+            .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+    }
+}
+
+/// Appends the segment `part` to the run's solution so far.
+fn join(total: &mut Option<Solution>, part: Solution) -> &mut Solution {
+    match total {
+        None => total.insert(part),
+        Some(sol) => {
+            sol.t.extend_from_slice(&part.t);
+            sol.y.extend_from_slice(&part.y);
+            if let (Some(d), Some(p)) = (sol.dense.as_mut(), part.dense.as_ref()) {
+                d.append(p);
+            }
+            sol.stats.add(&part.stats);
+            sol.t_last = part.t_last;
+            sol.y_last = part.y_last;
+            sol
+        }
+    }
 }

@@ -64,6 +64,78 @@ impl Dense {
         self.coef.extend_from_slice(coef);
     }
 
+    /// Number of coefficient vectors per step.
+    pub fn ncoef(&self) -> usize {
+        self.ncoef
+    }
+
+    /// Appends the steps of `other` (same `dim` and `ncoef`, starting where
+    /// this one ends).
+    pub fn append(&mut self, other: &Dense) {
+        debug_assert_eq!((self.dim, self.ncoef), (other.dim, other.ncoef));
+        self.t.extend_from_slice(&other.t);
+        self.h.extend_from_slice(&other.h);
+        self.coef.extend_from_slice(&other.coef);
+    }
+
+    /// Appends a step `[t, t + h]` whose polynomial interpolates `f` (a
+    /// function of time writing `dim` values) at `ncoef` Chebyshev–Lobatto
+    /// points of the step, ends included: for states known by another
+    /// interpolant (a continuation across a singular set), in the form every
+    /// method writes.
+    pub fn push_fitted(&mut self, t: f64, h: f64, mut f: impl FnMut(f64, &mut [f64])) {
+        let (n, dim) = (self.ncoef, self.dim);
+        // Basis b_0 = 1, b_k = b_{k−1}·(s or s1, alternating from s).
+        let mut basis = vec![0.0; n * n];
+        let mut values = vec![0.0; n * dim];
+        for i in 0..n {
+            let s = if n == 1 {
+                0.0
+            } else {
+                0.5 * (1.0 - (std::f64::consts::PI * i as f64 / (n - 1) as f64).cos())
+            };
+            let mut b = 1.0;
+            for k in 0..n {
+                basis[i * n + k] = b;
+                b *= if k % 2 == 0 { s } else { 1.0 - s };
+            }
+            f(t + s * h, &mut values[i * dim..(i + 1) * dim]);
+        }
+        // Gaussian elimination with partial pivoting, all components at once.
+        for k in 0..n {
+            let p = (k..n)
+                .max_by(|&a, &b| basis[a * n + k].abs().total_cmp(&basis[b * n + k].abs()))
+                .unwrap_or(k);
+            if p != k {
+                for c in 0..n {
+                    basis.swap(k * n + c, p * n + c);
+                }
+                for c in 0..dim {
+                    values.swap(k * dim + c, p * dim + c);
+                }
+            }
+            for r in k + 1..n {
+                let l = basis[r * n + k] / basis[k * n + k];
+                for c in k..n {
+                    basis[r * n + c] -= l * basis[k * n + c];
+                }
+                for c in 0..dim {
+                    values[r * dim + c] -= l * values[k * dim + c];
+                }
+            }
+        }
+        for k in (0..n).rev() {
+            for c in 0..dim {
+                let mut x = values[k * dim + c];
+                for j in k + 1..n {
+                    x -= basis[k * n + j] * values[j * dim + c];
+                }
+                values[k * dim + c] = x / basis[k * n + k];
+            }
+        }
+        self.push(t, h, &values);
+    }
+
     /// Evaluates the continuous extension at `t` into `out` (length `dim`).
     /// Returns `false` if `t` lies outside the covered span (beyond a
     /// relative slack of a few ulps), leaving `out` untouched.
@@ -112,6 +184,52 @@ pub(crate) fn eval_nested(coef: &[f64], dim: usize, ncoef: usize, s: f64, out: &
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A fitted step reproduces a polynomial of degree `ncoef − 1` exactly
+    /// and evaluates like any other step.
+    #[test]
+    fn fitted_steps_interpolate() {
+        for ncoef in [4, 5, 8] {
+            let mut d = Dense::new(2, ncoef);
+            let p = |t: f64| {
+                let mut v = 1.0;
+                let mut acc = 0.0;
+                for k in 0..ncoef {
+                    acc += (k as f64 + 1.0) * v;
+                    v *= t - 0.3;
+                }
+                acc
+            };
+            d.push_fitted(0.25, 0.5, |t, out| {
+                out[0] = p(t);
+                out[1] = (3.0 * t).sin();
+            });
+            // The interpolation bound for sin(3t): 3ⁿ/n! · max |Π(t − tᵢ)|
+            // over the step, with the nodes tᵢ of push_fitted.
+            let nodes: Vec<f64> = (0..ncoef)
+                .map(|i| {
+                    let c = (std::f64::consts::PI * i as f64 / (ncoef - 1) as f64).cos();
+                    0.25 + 0.25 * (1.0 - c)
+                })
+                .collect();
+            let factorial: f64 = (1..=ncoef).map(|k| k as f64).product();
+            let omega = (0..=200)
+                .map(|i| {
+                    let t = 0.25 + 0.0025 * i as f64;
+                    nodes.iter().map(|x| (t - x).abs()).product::<f64>()
+                })
+                .fold(0.0f64, f64::max);
+            let bound = 3f64.powi(ncoef as i32) / factorial * omega * (1.0 + 1e-9);
+            let mut out = [0.0; 2];
+            for i in 0..=10 {
+                let t = 0.25 + 0.05 * i as f64;
+                assert!(d.eval(t, &mut out));
+                assert!((out[0] - p(t)).abs() < 1e-12, "{ncoef}: {t}");
+                let err = (out[1] - (3.0 * t).sin()).abs();
+                assert!(err <= bound + 1e-15, "{ncoef}: {t}: {err} > {bound}");
+            }
+        }
+    }
 
     #[test]
     fn nested_form_matches_expanded_polynomial() {

@@ -44,6 +44,25 @@ pub struct Stats {
     pub stiffness_detected: Option<(f64, f64)>,
 }
 
+impl Stats {
+    /// Adds the counters of `other` (work done after this, e.g. another
+    /// segment of the same run); the first stiffness detection is kept.
+    pub fn add(&mut self, other: &Stats) {
+        self.steps += other.steps;
+        self.rejected_steps += other.rejected_steps;
+        self.rhs_evals += other.rhs_evals;
+        self.dense_rhs_evals += other.dense_rhs_evals;
+        self.jacobian_evals += other.jacobian_evals;
+        self.lu_decompositions += other.lu_decompositions;
+        self.newton_iterations += other.newton_iterations;
+        self.newton_failures += other.newton_failures;
+        self.wall_time_s += other.wall_time_s;
+        if self.stiffness_detected.is_none() {
+            self.stiffness_detected = other.stiffness_detected;
+        }
+    }
+}
+
 /// Result of a run: samples on the output grid, optional continuous extension, counters.
 #[derive(Debug, Clone)]
 pub struct Solution {

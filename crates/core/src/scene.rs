@@ -6,15 +6,54 @@
 //! matrix, forces, constraint Jacobians and their time derivatives are never
 //! written by hand.
 
-use num_dual::DualNum;
+use num_dual::{Dual, Dual2, Dual3, DualNum, HyperDual, HyperHyperDual, Real};
 
 use crate::Error;
+use crate::complex::C64;
 use crate::param::{ParamSpec, Params};
 
-/// The number types scene functions are evaluated with: `f64` and every
-/// (nested) num-dual type over `f64`.
-pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
-impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
+/// The number types scene functions are evaluated with: `f64`, the complex
+/// [`C64`], and every (nested) num-dual number over them (`Dual`, `Dual2`,
+/// `Dual3`, `HyperDual`, `HyperHyperDual`, `Real`; the vector duals need
+/// num-dual's `nalgebra` feature, which the workspace does not enable).
+pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
+    /// The size of the value, for branch decisions (which formula, which
+    /// pivot): `|x|` for `f64`, `|z|` for [`C64`], and for a dual number
+    /// the modulus of its value part (the derivative parts never decide).
+    ///
+    /// For `f64` and every dual number over it this is `re().abs()`,
+    /// bit for bit.
+    fn modulus(&self) -> f64;
+}
+
+impl Scalar for f64 {
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.abs()
+    }
+}
+
+impl Scalar for C64 {
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.norm()
+    }
+}
+
+macro_rules! scalar_over_inner {
+    ($($dual:ident),*) => {
+        $(
+            impl<T: Scalar> Scalar for $dual<T> {
+                #[inline]
+                fn modulus(&self) -> f64 {
+                    self.re.modulus()
+                }
+            }
+        )*
+    };
+}
+
+scalar_over_inner!(Real, Dual, Dual2, Dual3, HyperDual, HyperHyperDual);
 
 /// `atan2(y, x)` whose derivatives stay accurate in every quadrant.
 ///
@@ -25,10 +64,27 @@ impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 /// and `±π/2 − atan(x/y)` elsewhere, plus the constant that puts the value
 /// on `atan2`'s branch `(−π, π]`: the same function, with a ratio of at most
 /// one inside the arctangent.
+///
+/// The formula is chosen by [`Scalar::modulus`] of `x` and `y`, the
+/// constant by the signs of their real parts (`re()`): for real arguments
+/// (`f64` and dual numbers over it) that is the comparison of `|x|` and
+/// `|y|` above, and the value is `f64::atan2`'s.
+///
+/// For complex arguments ([`C64`] and dual numbers over it) the ratio
+/// inside the arctangent still has modulus at most one, so it stays off
+/// `atan`'s branch cuts `±i·[1, ∞)` (it reaches `±i` only where
+/// `x² + y² = 0`, where every `atan2` is singular). The result is then an
+/// analytic function of `(x, y)` whose tangent is `y/x`: it equals the
+/// principal value (`−i ln((x + iy)/√(x² + y²))`) up to a constant multiple
+/// of `π`, and that constant may change where the formula switches
+/// (`|x| = |y|`) or where the real part that picks the constant changes sign
+/// (`Re x` where `|x| ≥ |y|`, `Re y` elsewhere). A continuation along a path
+/// must track that multiple itself. The derivatives (dual parts) do not see
+/// the constant: they are exact everywhere off `x² + y² = 0`.
 pub fn atan2<D: Scalar>(y: D, x: D) -> D {
     use std::f64::consts::{FRAC_PI_2, PI};
     let (yr, xr) = (y.re(), x.re());
-    if xr.abs() >= yr.abs() {
+    if x.modulus() >= y.modulus() {
         let offset = if xr >= 0.0 {
             0.0
         } else if yr.is_sign_negative() {

@@ -66,33 +66,39 @@ scalar_over_inner!(Real, Dual, Dual2, Dual3, HyperDual, HyperHyperDual);
 /// one inside the arctangent.
 ///
 /// The formula is chosen by [`Scalar::modulus`] of `x` and `y`, the
-/// constant by the signs of their real parts (`re()`): for real arguments
-/// (`f64` and dual numbers over it) that is the comparison of `|x|` and
-/// `|y|` above, and the value is `f64::atan2`'s.
+/// constant by signs of real parts (`re()`): of `x`, then where `|x| ≥ |y|`
+/// and `Re x < 0` of `atan(y/x)`, and elsewhere of `y`. For real arguments
+/// (`f64` and dual numbers over it) these are the comparisons above (with
+/// `x < 0`, `atan(y/x)` has the opposite sign of `y`, signed zeros
+/// included), and the value is `f64::atan2`'s up to rounding.
 ///
 /// For complex arguments ([`C64`] and dual numbers over it) the ratio
 /// inside the arctangent still has modulus at most one, so it stays off
 /// `atan`'s branch cuts `±i·[1, ∞)` (it reaches `±i` only where
-/// `x² + y² = 0`, where every `atan2` is singular). The result is then an
-/// analytic function of `(x, y)` whose tangent is `y/x`: it equals the
-/// principal value (`−i ln((x + iy)/√(x² + y²))`) up to a constant multiple
-/// of `π`, and that constant may change where the formula switches
-/// (`|x| = |y|`) or where the real part that picks the constant changes sign
-/// (`Re x` where `|x| ≥ |y|`, `Re y` elsewhere). A continuation along a path
-/// must track that multiple itself. The derivatives (dual parts) do not see
-/// the constant: they are exact everywhere off `x² + y² = 0`.
+/// `x² + y² = 0`, where every `atan2` is singular). The result is an
+/// analytic function of `(x, y)` whose tangent is `y/x` and whose real part
+/// is in `[−π, π]`: it equals the principal value
+/// (`−i ln((x + iy)/√(x² + y²))`) up to a constant multiple of `π`, and that
+/// constant may change where the formula switches (`|x| = |y|`) or where a
+/// real part that picks it changes sign (`Re x` or `Re atan(y/x)` where
+/// `|x| ≥ |y|`, `Re y` elsewhere). A continuation along a path must track
+/// that multiple itself. The derivatives (dual parts) do not see the
+/// constant: they are exact everywhere off `x² + y² = 0`.
 pub fn atan2<D: Scalar>(y: D, x: D) -> D {
     use std::f64::consts::{FRAC_PI_2, PI};
     let (yr, xr) = (y.re(), x.re());
     if x.modulus() >= y.modulus() {
+        let a = (y / x).atan();
+        // For real arguments with x < 0, atan(y/x) has the opposite sign of
+        // y (signed zeros included): the same offset as by the sign of y.
         let offset = if xr >= 0.0 {
             0.0
-        } else if yr.is_sign_negative() {
+        } else if a.re().is_sign_positive() {
             -PI
         } else {
             PI
         };
-        (y / x).atan() + offset
+        a + offset
     } else {
         let offset = if yr > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 };
         -(x / y).atan() + offset

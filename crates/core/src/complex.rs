@@ -5,8 +5,8 @@
 //! and so are the num-dual numbers over it (`Dual<C64>`, `Dual2<C64>`,
 //! `Dual3<C64>`, `HyperDual<C64>`, `Dual2<Dual2<C64>>`, ...): a scene's
 //! Lagrangian, constraints and embedding map, written once over
-//! `D: Scalar`, then evaluate and differentiate at complex states. This is
-//! what continuing a real solution along a path in complex time needs.
+//! `D: Scalar`, are then evaluated and differentiated at complex states, as
+//! continuing a real solution along a path in complex time needs.
 //!
 //! # Values
 //!

@@ -10,10 +10,13 @@
 //!   onto the constraint manifold.
 //! * [`kkt`]: the constrained-acceleration system of the formulations with
 //!   multipliers; [`binding`]: a formulation's equations bound to a scene.
+//! * [`complex`]: [`complex::C64`], a complex [`Scalar`] for evaluating and
+//!   differentiating scene functions at complex states.
 //! * [`model`], [`run`]: the formulation-independent view used by the lab.
 
 pub mod ad;
 pub mod binding;
+pub mod complex;
 pub mod consistency;
 pub mod constraints;
 mod error;
@@ -30,6 +33,7 @@ pub mod scene;
 pub mod stab;
 
 pub use binding::{Binding, Equations, EvalError};
+pub use complex::C64;
 pub use error::{Error, Level};
 pub use init::Initial;
 pub use model::{Description, FormulationInfo, Model, Observation};

@@ -6,15 +6,54 @@
 //! matrix, forces, constraint Jacobians and their time derivatives are never
 //! written by hand.
 
-use num_dual::DualNum;
+use num_dual::{Dual, Dual2, Dual3, DualNum, HyperDual, HyperHyperDual, Real};
 
 use crate::Error;
+use crate::complex::C64;
 use crate::param::{ParamSpec, Params};
 
-/// The number types scene functions are evaluated with: `f64` and every
-/// (nested) num-dual type over `f64`.
-pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
-impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
+/// The number types scene functions are evaluated with: `f64`, the complex
+/// [`C64`], and every (nested) num-dual number over them (`Dual`, `Dual2`,
+/// `Dual3`, `HyperDual`, `HyperHyperDual`, `Real`; the vector duals need
+/// num-dual's `nalgebra` feature, which the workspace does not enable).
+pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
+    /// The size of the value, for branch decisions (which formula, which
+    /// pivot): `|x|` for `f64`, `|z|` for [`C64`], and for a dual number
+    /// the modulus of its value part (the derivative parts never decide).
+    ///
+    /// For `f64` and every dual number over it this is `re().abs()`,
+    /// bit for bit.
+    fn modulus(&self) -> f64;
+}
+
+impl Scalar for f64 {
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.abs()
+    }
+}
+
+impl Scalar for C64 {
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.norm()
+    }
+}
+
+macro_rules! scalar_over_inner {
+    ($($dual:ident),*) => {
+        $(
+            impl<T: Scalar> Scalar for $dual<T> {
+                #[inline]
+                fn modulus(&self) -> f64 {
+                    self.re.modulus()
+                }
+            }
+        )*
+    };
+}
+
+scalar_over_inner!(Real, Dual, Dual2, Dual3, HyperDual, HyperHyperDual);
 
 /// `atan2(y, x)` whose derivatives stay accurate in every quadrant.
 ///
@@ -25,18 +64,41 @@ impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 /// and `±π/2 − atan(x/y)` elsewhere, plus the constant that puts the value
 /// on `atan2`'s branch `(−π, π]`: the same function, with a ratio of at most
 /// one inside the arctangent.
+///
+/// The formula is chosen by [`Scalar::modulus`] of `x` and `y`, the
+/// constant by signs of real parts (`re()`): of `x`, then where `|x| ≥ |y|`
+/// and `Re x < 0` of `atan(y/x)`, and elsewhere of `y`. For real arguments
+/// (`f64` and dual numbers over it) these are the comparisons above (with
+/// `x < 0`, `atan(y/x)` has the opposite sign of `y`, signed zeros
+/// included), and the value is `f64::atan2`'s up to rounding.
+///
+/// For complex arguments ([`C64`] and dual numbers over it) the ratio
+/// inside the arctangent still has modulus at most one, so it stays off
+/// `atan`'s branch cuts `±i·[1, ∞)` (it reaches `±i` only where
+/// `x² + y² = 0`, where every `atan2` is singular). The result is an
+/// analytic function of `(x, y)` whose tangent is `y/x` and whose real part
+/// is in `[−π, π]`: it equals the principal value
+/// (`−i ln((x + iy)/√(x² + y²))`) up to a constant multiple of `π`, and that
+/// constant may change where the formula switches (`|x| = |y|`) or where a
+/// real part that picks it changes sign (`Re x` or `Re atan(y/x)` where
+/// `|x| ≥ |y|`, `Re y` elsewhere). A continuation along a path must track
+/// that multiple itself. The derivatives (dual parts) do not see the
+/// constant: they are exact everywhere off `x² + y² = 0`.
 pub fn atan2<D: Scalar>(y: D, x: D) -> D {
     use std::f64::consts::{FRAC_PI_2, PI};
     let (yr, xr) = (y.re(), x.re());
-    if xr.abs() >= yr.abs() {
+    if x.modulus() >= y.modulus() {
+        let a = (y / x).atan();
+        // For real arguments with x < 0, atan(y/x) has the opposite sign of
+        // y (signed zeros included): the same offset as by the sign of y.
         let offset = if xr >= 0.0 {
             0.0
-        } else if yr.is_sign_negative() {
+        } else if a.re().is_sign_positive() {
             -PI
         } else {
             PI
         };
-        (y / x).atan() + offset
+        a + offset
     } else {
         let offset = if yr > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 };
         -(x / y).atan() + offset

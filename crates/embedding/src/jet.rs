@@ -117,4 +117,42 @@ mod tests {
             assert!((x - y).abs() < 1e-13, "k = {k}");
         }
     }
+
+    /// The same jets over complex numbers (`C64`): along the complex
+    /// polynomial x(τ) = Σ cₖ τᵏ the order-4 jet of x² is the product
+    /// polynomial's, and the order-3 and order-4 jets of x² sin x agree.
+    #[test]
+    fn jets_over_complex_numbers() {
+        use nonholo_core::C64;
+        let c = [
+            C64::new(0.3, -0.2),
+            C64::new(1.0, 0.5),
+            C64::new(-0.4, 0.1),
+            C64::new(0.2, 0.0),
+            C64::new(0.0, 0.05),
+        ];
+        let fact = [1.0, 1.0, 2.0, 6.0, 24.0];
+        let d: Vec<C64> = c.iter().zip(fact).map(|(c, f)| *c * f).collect();
+        let j4 = Jet4::from_derivatives(&d);
+        let sq = j4 * j4;
+        let mut prod = [C64::from(0.0); 9];
+        for i in 0..5 {
+            for j in 0..5 {
+                prod[i + j] += c[i] * c[j];
+            }
+        }
+        for k in 0..=4 {
+            let got: C64 = TimeJet::<C64>::time_derivative(&sq, k);
+            assert!((got - prod[k] * fact[k]).norm() < 1e-14, "k = {k}");
+        }
+        let a = Dual3::from_derivatives(&d);
+        let (a, b) = (a * a * a.sin(), j4 * j4 * j4.sin());
+        for k in 0..=3 {
+            let (x, y): (C64, C64) = (
+                TimeJet::<C64>::time_derivative(&a, k),
+                TimeJet::<C64>::time_derivative(&b, k),
+            );
+            assert!((x - y).norm() < 1e-13, "k = {k}");
+        }
+    }
 }

@@ -260,28 +260,39 @@ fn solve_across(
             }
         };
         // The gap (t_stop, t_resume]: samples and step polynomials from the
-        // crossing's states.
+        // crossing's states; a gap that reaches t_end ends the run there.
+        let t_gap = crossed.t.min(t_end);
         let dim = total.dim;
         let mut buf = vec![0.0; dim];
         for &tau in opts
             .output
             .iter()
-            .filter(|&&tau| tau > t_stop && tau <= crossed.t)
+            .filter(|&&tau| tau > t_stop && tau <= t_gap)
         {
             (crossed.gap)(tau, &mut buf);
             total.t.push(tau);
             total.y.extend_from_slice(&buf);
         }
         if let Some(dense) = total.dense.as_mut() {
-            let h = (crossed.t - t_stop) / GAP_PIECES as f64;
+            let h = (t_gap - t_stop) / GAP_PIECES as f64;
             for k in 0..GAP_PIECES {
                 dense.push_fitted(t_stop + k as f64 * h, h, |tau, out| (crossed.gap)(tau, out));
             }
         }
         total.stats.add(&crossed.stats);
+        crossings.push(crossed.record);
+        if crossed.t >= t_end {
+            total.t_last = t_end;
+            (crossed.gap)(t_end, &mut buf);
+            total.y_last.clone_from(&buf);
+            if total.t.last() != Some(&t_end) {
+                total.t.push(t_end);
+                total.y.extend_from_slice(&buf);
+            }
+            return Ok(total.clone());
+        }
         total.t_last = crossed.t;
         total.y_last.clone_from(&crossed.y);
-        crossings.push(crossed.record);
         (t, y) = (crossed.t, crossed.y);
         seg = left;
         seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();

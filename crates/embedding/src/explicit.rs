@@ -9,8 +9,11 @@
 //! round-off grows towards the singular set), before its solve would fail.
 
 use nonholo_core::Scene;
-use nonholo_core::integrate::{OdeSystem, SystemError};
+use nonholo_core::complex::C64;
+use nonholo_core::integrate::{Method, OdeSystem, Options, SystemError};
+use nonholo_core::model::{Crossed, Crossing};
 
+use crate::crossing::{APPROACH_FACTOR, CROSS_RESOLUTION, Continuation, Stop, cross, crossed};
 use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
 use crate::shared::Shared;
 
@@ -29,6 +32,17 @@ pub struct Explicit<S: Scene> {
     /// `OdeSystem::guard_reason`), and the solve behind it, warm-started,
     /// could not be repeated bitwise.
     stop_record: Option<Result<Resolution, String>>,
+    /// How the run goes on past the singular set.
+    continuation: Continuation,
+    /// Crossings made in this run.
+    crossings: usize,
+    /// The solve along paths in complex time (built at the first crossing).
+    complex: Option<Box<Reduction<C64>>>,
+    /// While the motion approaches the singular set (the speed falls): the
+    /// resolution of `q⁗` at which the real integration stops for a
+    /// crossing — [`CROSS_RESOLUTION`], or [`APPROACH_FACTOR`] times the
+    /// resolution where the approach began if that is worse.
+    approach: Option<f64>,
 }
 
 /// The error of a failed solve for `q⁗`.
@@ -39,14 +53,49 @@ fn unsolved(msg: String) -> SystemError {
 }
 
 impl<S: Scene> Explicit<S> {
-    pub fn new(shared: Shared<S>, project_hidden: bool) -> Self {
+    pub fn new(shared: Shared<S>, project_hidden: bool, continuation: Continuation) -> Self {
         Explicit {
             reduction: Reduction::new(shared.m),
             shared,
             project_hidden,
             hidden_log: None,
             stop_record: None,
+            continuation,
+            crossings: 0,
+            complex: None,
+            approach: None,
         }
+    }
+
+    /// Follows the map's branch nearest to `near` from now on.
+    pub fn follow_from(&mut self, near: &[f64]) {
+        self.reduction.set_branch(near);
+    }
+
+    /// The resolution of `q⁗` at which the guard stops the real integration:
+    /// earlier when the run is to go on along a complex path, so that the
+    /// path passes where the equations are well resolved.
+    fn limit(&self) -> f64 {
+        match (self.continuation, self.approach) {
+            (Continuation::None, _) | (_, None) => ODE_RESOLUTION,
+            (_, Some(limit)) => limit.min(ODE_RESOLUTION),
+        }
+    }
+
+    /// After an accepted step of a run that continues: whether the motion
+    /// approaches the singular set (`|v|` falls: `v · v̇ < 0`), and the
+    /// resolution at which it will leave the real axis if so, fixed where
+    /// the approach begins (so that the guard is continuous along it).
+    fn watch_approach(&mut self, t: f64, y: &[f64]) -> Result<(), SystemError> {
+        let m = self.shared.m;
+        let falling = (0..m).map(|k| y[m + k] * y[2 * m + k]).sum::<f64>() < 0.0;
+        if !falling {
+            self.approach = None;
+        } else if self.approach.is_none() {
+            let rho = self.resolution(t, y)?.rho;
+            self.approach = Some(CROSS_RESOLUTION.max(APPROACH_FACTOR * rho));
+        }
+        Ok(())
     }
 
     /// Starts from a consistent completion `d = (q_I⁽⁰⁾ … q_I⁽⁶⁾)`: its `u`
@@ -58,6 +107,8 @@ impl<S: Scene> Explicit<S> {
             log.clear();
         }
         self.stop_record = None;
+        self.crossings = 0;
+        self.approach = None;
         Ok(())
     }
 
@@ -124,7 +175,7 @@ impl<S: Scene> Explicit<S> {
     ) -> f64 {
         let tol = self.shared.guard.tol;
         let margin = match resolution {
-            Ok(r) => tol * (ODE_RESOLUTION / r.rho).ln(),
+            Ok(r) => tol * (self.limit() / r.rho).ln(),
             Err(_) => -tol,
         };
         match singular {
@@ -185,6 +236,12 @@ impl<S: Scene> OdeSystem for Explicit<S> {
             }
         }
         self.shared.accept_state(t, y);
+        if self.shared.follow_branch() {
+            self.reduction.set_branch(&self.shared.near);
+        }
+        if self.continuation != Continuation::None {
+            self.watch_approach(t, y)?;
+        }
         Ok(moved)
     }
 
@@ -235,11 +292,100 @@ impl<S: Scene> OdeSystem for Explicit<S> {
         let sh = &self.shared;
         format!(
             "the explicit form reached its resolution limit: the derivative array [E; Ė; Ë] \
-             determines q⁗ only {measured} here, limit {ODE_RESOLUTION:.0e}; its terms grow like \
+             determines q⁗ only {measured} here, limit {:.0e}; its terms grow like \
              powers of the turning rate and cancel towards the singular set of the embedding map \
              {} — {} (|r| = {size:.3e}, singular_tol = {:.1e}{crossing}); the implicit form \
              (radau5) runs on to singular_tol",
-            sh.e.formula, sh.e.singular_set, sh.guard.tol
+            self.limit(),
+            sh.e.formula,
+            sh.e.singular_set,
+            sh.guard.tol
         )
+    }
+}
+
+/// Past a stop of its guard: along a half circle in complex time
+/// ([`crate::crossing`]), then on the real axis again from where it
+/// returns, on the branch of the map that `continuation` says.
+impl<S: Scene> Crossing for Explicit<S> {
+    fn cross(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        method: Method,
+        opts: &Options,
+    ) -> Result<Crossed, SystemError> {
+        let number = self.crossings + 1;
+        let formula = self.shared.e.formula;
+        let fail = |msg: String| {
+            SystemError::new(format!(
+                "crossing {number} of the singular set of the embedding map {formula} from \
+                 t = {t}: {msg}"
+            ))
+        };
+        let m = self.shared.m;
+        self.fourth_derivative(t, y).map_err(|e| fail(e.message))?;
+        let u = self.reduction.state()[4 * m..].to_vec();
+        let complex = self
+            .complex
+            .get_or_insert_with(|| Box::new(Reduction::new(m)));
+        let sh = &self.shared;
+        let near = if sh.near.is_empty() {
+            sh.e.dependent.iter().map(|&i| sh.q[i]).collect()
+        } else {
+            sh.near.clone()
+        };
+        let across = cross(
+            Stop {
+                scene: &*sh.scene,
+                e: &sh.e,
+                t,
+                z: y,
+                u: &u,
+                near: &near,
+                number,
+            },
+            complex,
+            method,
+            opts,
+        )
+        .map_err(fail)?;
+        // Resume on the branch the continuation says: q⃛ onto its hidden
+        // constraints (a round-off change on the analytic branch; on the
+        // map's principal branch the constraints themselves may differ).
+        let t_b = across.t;
+        self.shared.near = match self.continuation {
+            Continuation::Map => Vec::new(),
+            _ => across.near.clone(),
+        };
+        self.reduction.set_branch(&self.shared.near);
+        let mut z = across.z.clone();
+        let change = {
+            let sh = &self.shared;
+            self.reduction
+                .project(&*sh.scene, &sh.e, t_b, &mut z)
+                .map_err(fail)?
+        };
+        let d = self.reduction.state().to_vec();
+        {
+            let sh = &self.shared;
+            self.reduction
+                .reset(&*sh.scene, &sh.e, t_b, &d)
+                .map_err(fail)?;
+        }
+        self.shared.resume(t_b, &z);
+        self.approach = None;
+        let rho = self.resolution(t_b, &z).map_err(|e| fail(e.message))?.rho;
+        if rho.is_nan() || rho >= self.limit() {
+            return Err(fail(format!(
+                "where the path returns, t = {t_b}, q⁗ is resolved only to {rho:.2e}, not \
+                 better than where the real integration stopped ({:.0e})",
+                self.limit()
+            )));
+        }
+        self.crossings = number;
+        let mut across = across;
+        across.z = z;
+        Ok(crossed(across, change))
     }
 }

@@ -8,6 +8,7 @@
 //!   [`ode`]); [`model`]: both as one model.
 
 pub mod analysis;
+pub mod crossing;
 pub mod elo;
 pub mod explicit;
 pub mod implicit;

@@ -14,11 +14,12 @@ use std::sync::Arc;
 use nonholo_core::consistency::{InitProjection, check_or_project};
 use nonholo_core::init::{ExtraName, lambda_names};
 use nonholo_core::integrate::{ImplicitSystem, OdeSystem, RadauNewton, SystemError};
-use nonholo_core::model::{Description, FormulationInfo, Model, Observation};
+use nonholo_core::model::{Crossing, Description, FormulationInfo, Model, Observation};
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{Scene, SceneInfo};
 use nonholo_core::{Diagnostics, Error, Initial};
 
+use crate::crossing::Continuation;
 use crate::elo::MAX_DOF;
 use crate::explicit::Explicit;
 use crate::implicit::Implicit;
@@ -49,14 +50,28 @@ pub const BRANCH: ParamSpec = ParamSpec::choice(
 /// Stabilisation of the hidden constraints in the explicit form.
 pub const STAB: ParamSpec = ParamSpec::choice(
     "stab",
-    &["projection", "none"],
-    "explicit integrators (RK4, DOPRI5, DOP853) only: after every accepted step move q⃛ back \
-     onto A's hidden constraints with q, q̇, q̈ fixed (projection), or let them drift (none); \
-     Radau integrates the implicit form and ignores it",
+    &["none", "projection"],
+    "explicit integrators (RK4, DOPRI5, DOP853) only: let A's hidden constraints drift at the \
+     level of the local errors (none), or after every accepted step move q⃛ back onto them with \
+     q, q̇, q̈ fixed (projection; ill-posed where q⃛ is not determined by q, q̇, q̈ — the sleigh \
+     turning through ω = 0 — where it moves the motion to a neighbouring one); Radau \
+     integrates the implicit form and ignores it",
+);
+
+/// How the explicit form goes on past the embedding map's singular set.
+pub const CONTINUATION: ParamSpec = ParamSpec::choice(
+    "continuation",
+    &["analytic", "map", "none"],
+    "explicit integrators (RK4, DOPRI5, DOP853) only: past the embedding map's singular set (the \
+     sleigh's reversals) the solution is continued along a half circle in complex time, then on \
+     the real axis again: analytic follows the map's analytic continuation (the heading goes on \
+     smoothly, |v| becomes the signed speed); map resumes on its principal branch (the literal \
+     atan2, whose heading turns by π at a reversal), q⃛ re-completed on that branch's hidden \
+     constraints; none stops there. Radau integrates the implicit form, which stops there",
 );
 
 /// Options of formulation A.
-pub const OPTIONS: &[ParamSpec] = &[SINGULAR_TOL, BRANCH, STAB];
+pub const OPTIONS: &[ParamSpec] = &[SINGULAR_TOL, BRANCH, STAB, CONTINUATION];
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "embedding",
@@ -109,6 +124,7 @@ pub struct Embedding<S: Scene> {
     explicit: Explicit<S>,
     /// The form whose diagnostics and readings count.
     active: Form,
+    continuation: Continuation,
     /// `ż(0)` of the implicit form.
     yp0: Vec<f64>,
     report: Option<InitReport>,
@@ -124,11 +140,17 @@ impl<S: Scene> Embedding<S> {
         })?;
         let singular_tol = options.real(SINGULAR_TOL.name)?;
         let project_hidden = options.choice(STAB.name)? == "projection";
+        let continuation = Continuation::from_name(options.choice(CONTINUATION.name)?);
         options.choice(BRANCH.name)?;
         let scene = Arc::new(scene);
         Ok(Embedding {
             implicit: Implicit::new(Shared::new(scene.clone(), singular_tol)),
-            explicit: Explicit::new(Shared::new(scene.clone(), singular_tol), project_hidden),
+            explicit: Explicit::new(
+                Shared::new(scene.clone(), singular_tol),
+                project_hidden,
+                continuation,
+            ),
+            continuation,
             active: Form::Implicit,
             yp0: Vec::new(),
             report: None,
@@ -176,6 +198,14 @@ impl<S: Scene> Model for Embedding<S> {
     fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
         self.active = Form::Implicit;
         Some(&mut self.implicit)
+    }
+
+    /// The explicit form crosses the singular set unless `continuation = none`.
+    fn crossing(&mut self) -> Option<&mut dyn Crossing> {
+        match self.continuation {
+            Continuation::None => None,
+            _ => Some(&mut self.explicit),
+        }
     }
 
     /// (19) is fully implicit and not in Hessenberg form: Radau's simplified
@@ -255,6 +285,13 @@ impl<S: Scene> Model for Embedding<S> {
         })?;
         self.implicit.shared.start(t0, &d[..4 * m], &init.q);
         self.explicit.shared.start(t0, &d[..4 * m], &init.q);
+        // The analytic continuation follows the map's branch from the start.
+        if self.continuation == Continuation::Analytic {
+            let sh = &mut self.explicit.shared;
+            sh.near = sh.e.dependent.iter().map(|&i| sh.q[i]).collect();
+            let near = sh.near.clone();
+            self.explicit.follow_from(&near);
+        }
         self.yp0 = d[m..5 * m].to_vec();
         self.report = Some(report);
         Ok(d[..4 * m].to_vec())

@@ -64,6 +64,37 @@ impl<S: Scene> Shared<S> {
         self.guard.start(&self.r, p);
     }
 
+    /// Resumes a run at `(t, z)` after a crossing: the guard starts again
+    /// there (diagnostics and the unwrapping of angles go on).
+    pub fn resume(&mut self, t: f64, z: &[f64]) {
+        self.physical(t, z);
+        self.monitor.record(&*self.scene, t, &self.q, &self.qd);
+        let p = self.singular_vector(t, z);
+        self.guard.start(&self.r, p);
+    }
+
+    /// With the branch followed (`near` not empty): moves `near` to the
+    /// dependent coordinates of the last reading when they have turned by
+    /// more than π/4 from it (the branch nearest to `near` is then still
+    /// theirs); returns whether it moved.
+    pub fn follow_branch(&mut self) -> bool {
+        if self.near.is_empty() {
+            return false;
+        }
+        let turned = self
+            .e
+            .dependent
+            .iter()
+            .enumerate()
+            .any(|(j, &i)| (self.q[i] - self.near[j]).abs() > std::f64::consts::FRAC_PI_4);
+        if turned {
+            for (j, &i) in self.e.dependent.iter().enumerate() {
+                self.near[j] = self.q[i];
+            }
+        }
+        turned
+    }
+
     /// Physical `(q, q̇)` from `z` into [`Shared::q`], [`Shared::qd`],
     /// dependent angles unwrapped to the branch nearest the last reported
     /// value.

@@ -82,6 +82,7 @@ fn eq23_heading_rate_at_complex_states() {
             &[x, y],
             &[xd, yd],
             &[xdd, ydd],
+            &[],
             &mut q,
             &mut qd,
         );
@@ -104,7 +105,7 @@ fn eq24_theta_at_complex_states() {
     let e = Sleigh::INFO.embedding.unwrap();
     for st in states() {
         let [x, y, xd, yd, xdd, ydd] = lift(st);
-        let th = theta(&s, &e, C64::from(0.0), &[x, y], &[xd, yd], &[xdd, ydd]);
+        let th = theta(&s, &e, C64::from(0.0), &[x, y], &[xd, yd], &[xdd, ydd], &[]);
         let v2 = st[2] * st[2] + st[3] * st[3];
         let phid = (st[2] * st[5] - st[3] * st[4]) / v2;
         let expect = 0.5 * M * (v2 + J * phid * phid) + M * 9.81 * ALPHA.sin() * st[0];
@@ -119,7 +120,7 @@ fn eq24_theta_at_complex_states() {
 fn residual(s: &Sleigh, d: &[C64; 10]) -> [C64; 2] {
     let e = Sleigh::INFO.embedding.unwrap();
     let mut out = [C64::from(0.0); 2];
-    elo_array::<_, C64, Dual2<C64>>(s, &e, C64::from(0.1), d, &mut out);
+    elo_array::<_, C64, Dual2<C64>>(s, &e, C64::from(0.1), d, &[], &mut out);
     out
 }
 
@@ -144,7 +145,7 @@ fn equations_over_c64_are_f64s_on_the_real_axis() {
         for st in states() {
             let real = jet_data(st).map(|z| z.re());
             let mut want = [0.0; 2];
-            elo_array::<_, f64, Dual2<f64>>(&s, &e, 0.1, &real, &mut want);
+            elo_array::<_, f64, Dual2<f64>>(&s, &e, 0.1, &real, &[], &mut want);
             let got = residual(&s, &real.map(C64::from));
             for k in 0..2 {
                 assert!(got[k].im() == 0.0, "{potential}: {}", got[k]);
@@ -182,6 +183,7 @@ fn equations_are_analytic_and_differentiable_over_c64() {
             &d[0..2],
             &d[2..4],
             &d[4..6],
+            &[],
             &mut q,
             &mut qd,
         );
@@ -202,6 +204,7 @@ fn equations_are_analytic_and_differentiable_over_c64() {
                     &e,
                     Dual::from_re(C64::from(0.1)),
                     &dd,
+                    &[],
                     &mut ad,
                 );
                 let h = 1e-5 * d[j].0.norm().max(1.0);

@@ -36,8 +36,17 @@ fn sleigh(a: f64, j: f64) -> Sleigh {
         .unwrap()
 }
 
+/// A stopping at the singular set (the start-up is what these tests are about).
 fn embedding(s: &Sleigh) -> Embedding<Sleigh> {
-    Embedding::new(s.clone(), Params::defaults(OPTIONS)).unwrap()
+    let given = vec![
+        ("continuation".to_string(), "none".to_string()),
+        ("stab".to_string(), "projection".to_string()),
+    ];
+    Embedding::new(
+        s.clone(),
+        Params::resolve(OPTIONS, &given, "option").unwrap(),
+    )
+    .unwrap()
 }
 
 /// C's Taylor coefficients `(q̈, q⃛)` of `(x, y)` at `y`, t = 0.

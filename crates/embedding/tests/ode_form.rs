@@ -36,10 +36,16 @@ fn sleigh(potential: &str) -> Sleigh {
         .unwrap()
 }
 
+/// A with `opts`; unless they say otherwise, with the settings these tests
+/// measure: the explicit form stopping at the singular set
+/// (`continuation = none`) and projected onto its hidden constraints.
 fn embedding<S: Scene>(scene: S, opts: &[(&str, &str)]) -> Embedding<S> {
+    let mut all: Vec<(&str, &str)> = vec![("continuation", "none"), ("stab", "projection")];
+    all.retain(|(k, _)| opts.iter().all(|(o, _)| o != k));
+    all.extend_from_slice(opts);
     Embedding::new(
         scene,
-        Params::resolve(OPTIONS, &pairs(opts), "option").unwrap(),
+        Params::resolve(OPTIONS, &pairs(&all), "option").unwrap(),
     )
     .unwrap()
 }

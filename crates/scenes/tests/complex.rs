@@ -118,6 +118,7 @@ fn sleigh_functions_at_complex_states() {
                 C64::from(0.0),
                 &lift([q[0], q[1]]),
                 &lift([qd[0], qd[1]]),
+                &[],
                 &mut phi,
             );
             let (xd, yd) = (qd[0], qd[1]);
@@ -138,6 +139,7 @@ fn sleigh_functions_at_complex_states() {
                 C64::from(0.0),
                 &lift([q[0], q[1]]),
                 &[on[0], on[1]],
+                &[],
                 &mut phi,
             );
             let k = ((phi[0].0 - q[2]).re / std::f64::consts::PI).round();
@@ -159,7 +161,7 @@ fn sleigh_map_derivatives_at_complex_velocities() {
             let mut v = [Dual::from_re(C64(xd)), Dual::from_re(C64(yd))];
             v[k].eps = C64::from(1.0);
             let mut phi = [zero];
-            s.embedding(zero, &[zero, zero], &v, &mut phi);
+            s.embedding(zero, &[zero, zero], &v, &[], &mut phi);
             assert!(
                 rel(phi[0].eps.0, expect) < 1e-14,
                 "{} vs {expect}",

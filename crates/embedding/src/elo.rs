@@ -126,17 +126,19 @@ pub fn elo_array<S: Scene, T: Scalar, J: TimeJet<T>>(
     for mu in 0..m {
         // r = 0: +∂Θ/∂q_μ; r = 1: −d/dt ∂Θ/∂q̇_μ; r = 2: +d²/dt² ∂Θ/∂q̈_μ.
         for r in 0..3 {
-            let mut args = base;
-            args[r][mu].eps = J::from(1.0);
+            // The direction seeded in place (and cleared below), not in a
+            // copy of the jets: over nested duals they are kilobytes.
+            base[r][mu].eps = J::from(1.0);
             let v = theta(
                 scene,
                 e,
                 t_jet,
-                &args[0][..m],
-                &args[1][..m],
-                &args[2][..m],
+                &base[0][..m],
+                &base[1][..m],
+                &base[2][..m],
                 near,
             );
+            base[r][mu].eps = J::from(0.0);
             let sign = if r == 1 { -1.0 } else { 1.0 };
             for l in 0..levels {
                 out[l * m + mu] += v.eps.time_derivative(l + r) * sign;

@@ -21,7 +21,7 @@ mod common;
 use common::*;
 use nalgebra::DMatrix;
 use nonholo_core::integrate::{IntegrateError, Method};
-use nonholo_core::{Error, Initial, Model, Params, Run, Scene, simulate};
+use nonholo_core::{Error, Model, Params, Run, Scene, simulate};
 use nonholo_embedding::analysis::{RANK_TOL, complete, derivative_array, third_determination};
 use nonholo_embedding::{Embedding, OPTIONS};
 use nonholo_scenes::Sleigh;
@@ -49,15 +49,6 @@ fn embedding(s: &Sleigh) -> Embedding<Sleigh> {
     .unwrap()
 }
 
-/// C's Taylor coefficients `(q̈, q⃛)` of `(x, y)` at `y`, t = 0.
-fn taylor(s: &Sleigh, y: &[f64; 7]) -> ([f64; 2], [f64; 2]) {
-    let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
-    vakonomic(s)
-        .taylor(0.0, y, &mut yd, &mut ydd, &mut yddd)
-        .unwrap();
-    ([yd[3], yd[4]], [ydd[3], ydd[4]])
-}
-
 /// `d = (q, q̇, q̈, q⃛, 0, 0, 0)` of `(x, y)` from C at `y`.
 fn array_from_c(s: &Sleigh, y: &[f64; 7]) -> Vec<f64> {
     let (second, third) = taylor(s, y);
@@ -67,25 +58,6 @@ fn array_from_c(s: &Sleigh, y: &[f64; 7]) -> Vec<f64> {
     d[4..6].copy_from_slice(&second);
     d[6..8].copy_from_slice(&third);
     d
-}
-
-/// A's initial data as the lab matches them (C's `q̈`, and `q⃛` if `third`).
-fn matched(s: &Sleigh, y: &[f64; 7], third: bool) -> Initial {
-    let (second, dddot) = taylor(s, y);
-    let mut extra = vec![
-        ("x_ddot".to_string(), second[0]),
-        ("y_ddot".to_string(), second[1]),
-    ];
-    if third {
-        extra.push(("x_dddot".into(), dddot[0]));
-        extra.push(("y_dddot".into(), dddot[1]));
-    }
-    Initial {
-        t0: 0.0,
-        q: y[..3].to_vec(),
-        qd: y[3..6].to_vec(),
-        extra,
-    }
 }
 
 fn run_c(s: &Sleigh, y: &[f64; 7], t_end: f64) -> Run {

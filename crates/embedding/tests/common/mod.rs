@@ -56,3 +56,31 @@ pub fn position_difference(a: &Run, b: &Run) -> f64 {
         .map(|(p, q)| (p.q[0] - q.q[0]).abs().max((p.q[1] - q.q[1]).abs()))
         .fold(0.0, f64::max)
 }
+
+/// C's Taylor coefficients `(q̈, q⃛)` of `(x, y)` at `y`, t = 0.
+pub fn taylor(s: &Sleigh, y: &[f64; 7]) -> ([f64; 2], [f64; 2]) {
+    let (mut yd, mut ydd, mut yddd) = ([0.0; 7], [0.0; 7], [0.0; 7]);
+    vakonomic(s)
+        .taylor(0.0, y, &mut yd, &mut ydd, &mut yddd)
+        .unwrap();
+    ([yd[3], yd[4]], [ydd[3], ydd[4]])
+}
+
+/// A's initial data as the lab matches them (C's `q̈`, and `q⃛` if `third`).
+pub fn matched(s: &Sleigh, y: &[f64; 7], third: bool) -> Initial {
+    let (second, dddot) = taylor(s, y);
+    let mut extra = vec![
+        ("x_ddot".to_string(), second[0]),
+        ("y_ddot".to_string(), second[1]),
+    ];
+    if third {
+        extra.push(("x_dddot".into(), dddot[0]));
+        extra.push(("y_dddot".into(), dddot[1]));
+    }
+    Initial {
+        t0: 0.0,
+        q: y[..3].to_vec(),
+        qd: y[3..6].to_vec(),
+        extra,
+    }
+}

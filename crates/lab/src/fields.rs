@@ -54,9 +54,22 @@ fn positive_finite(v: f64) -> Result<f64, String> {
     }
 }
 
-/// End of the time span (`--t-end`, `time.t_end`).
+/// Shortest time span: with less, the default output spacing (a
+/// hundredth of the span) and the step sizes leave the normal range of
+/// doubles.
+pub const MIN_T_END: f64 = 1e-100;
+
+/// End of the time span (`--t-end`, `time.t_end`): finite, at least
+/// [`MIN_T_END`].
 pub fn t_end(v: f64) -> Result<f64, String> {
-    positive_finite(v)
+    let v = positive_finite(v)?;
+    if v < MIN_T_END {
+        return Err(format!(
+            "{} is shorter than the shortest span, {MIN_T_END:e}",
+            num(v)
+        ));
+    }
+    Ok(v)
 }
 
 /// Spacing of the output grid over `[0, t_end]` (`--output-every`,

@@ -99,6 +99,10 @@ fn temporary(path: &Path) -> io::Result<PathBuf> {
 /// directory exists and takes new files, and `path` is not a directory.
 /// Returns the file that will be replaced (symbolic links followed).
 pub fn check_target(path: &Path) -> Result<PathBuf, String> {
+    let text = path.as_os_str().to_string_lossy();
+    if text.ends_with('/') || text.ends_with(std::path::MAIN_SEPARATOR) {
+        return Err("names a directory (it ends in a separator), not a file".into());
+    }
     let target = resolve(path).map_err(|e| e.to_string())?;
     let dir = parent_of(&target);
     match fs::metadata(dir) {

@@ -221,6 +221,7 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
 pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
     let exp = load(&args.file)?;
     let out = open_dir(&exp, args.out.as_deref(), false)?;
+    out.prepare(&["plots"])?;
     let dir = out.path().to_path_buf();
     let plots = if exp.kind == Kind::WorkPrecision {
         super::wp::redraw(&exp, out)?
@@ -271,6 +272,9 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."))
         .to_path_buf();
+    if let Some(name) = figures.file_name() {
+        io::clean_stale_temporaries(&figures_dir, Some(&name.to_string_lossy()));
+    }
     let mut rows = Vec::new();
     let mut broken = Vec::new();
     for ((f, exp), out) in experiments.iter().zip(dirs) {

@@ -403,6 +403,31 @@ impl Ctx<'_> {
     }
 }
 
+/// Longest experiment name or formulation label (each names files).
+pub const MAX_NAME: usize = 64;
+
+/// A formulation label names files (`trajectories/<i>-<label>.csv`) and
+/// fills a text column of the tables: a letter, then letters, digits, `-`
+/// and `_`, at most [`MAX_NAME`]; never a word a CSV reader takes for a
+/// number (`nan`, `inf`).
+fn check_label(label: &str) -> Result<(), String> {
+    let mut chars = label.chars();
+    let shape = chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        && label.len() <= MAX_NAME;
+    let numeric = ["nan", "inf", "infinity"]
+        .iter()
+        .any(|w| label.eq_ignore_ascii_case(w));
+    if shape && !numeric {
+        Ok(())
+    } else {
+        Err(format!(
+            "`{label}`: a label is a letter followed by letters, digits, `-` and `_` (at most \
+             {MAX_NAME}; not `nan` or `inf`): it names files and fills a column of the tables"
+        ))
+    }
+}
+
 /// The text of a TOML value as the command line would give it.
 fn text(v: &Value) -> Result<String, String> {
     match v {
@@ -555,6 +580,7 @@ impl Experiment {
 
         let name = file.experiment.name.get_ref().clone();
         if name.is_empty()
+            || name.len() > MAX_NAME
             || !name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
@@ -562,7 +588,10 @@ impl Experiment {
             return Err(ctx.err(
                 file.experiment.name.span(),
                 "experiment.name",
-                "must be a non-empty name of letters, digits, `-` and `_` (it names the results directory)",
+                format!(
+                    "must be a name of 1 to {MAX_NAME} letters, digits, `-` and `_` (it names \
+                     the results directory)"
+                ),
             ));
         }
 
@@ -593,13 +622,7 @@ impl Experiment {
                     format!("`{label}` used twice"),
                 ));
             }
-            if label.is_empty() || label.contains('.') {
-                return Err(ctx.err(
-                    f.label.span(),
-                    "formulation.label",
-                    "must be non-empty and contain no `.`",
-                ));
-            }
+            check_label(&label).map_err(|m| ctx.err(f.label.span(), "formulation.label", m))?;
             let name = f.formulation.get_ref().clone();
             if name != CLOSED_FORM {
                 formulations::info(&name)
@@ -739,9 +762,20 @@ impl Experiment {
                                 .get_ref()
                                 .iter()
                                 .map(|v| {
-                                    text(v.get_ref()).map_err(|m| {
-                                        ctx.err(v.span(), &format!("sweep.values.{k}"), m)
-                                    })
+                                    text(v.get_ref())
+                                        .and_then(|t| {
+                                            if t.parse::<f64>().is_ok_and(|x| !x.is_finite()) {
+                                                Err(format!(
+                                                    "`{t}` is not a finite number (a swept value \
+                                                     fills a column of the tables)"
+                                                ))
+                                            } else {
+                                                Ok(t)
+                                            }
+                                        })
+                                        .map_err(|m| {
+                                            ctx.err(v.span(), &format!("sweep.values.{k}"), m)
+                                        })
                                 })
                                 .collect::<Result<Vec<_>, _>>()?;
                             axes.push(Axis {
@@ -1174,7 +1208,9 @@ pub fn compact(axes: &[Axis], values: &[String]) -> String {
             let name = a.name.rsplit('.').next().unwrap_or(&a.name);
             let v = v
                 .parse::<f64>()
-                .map(|x| format!("{x}"))
+                .ok()
+                .filter(|x| x.is_finite())
+                .map(crate::table::Plain::text)
                 .unwrap_or(v.clone());
             format!("{name} = {v}")
         })

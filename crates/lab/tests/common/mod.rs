@@ -171,7 +171,8 @@ pub fn walk(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// The fields of every CSV file under `dir` that are NaN, infinite, or a
-/// number written with more than 40 characters.
+/// number written with more than 50 characters (fixed notation stops at
+/// magnitude 1e-30: 49 characters at most).
 pub fn bad_numbers(dir: &Path) -> Vec<String> {
     let mut bad = Vec::new();
     for p in walk(dir) {
@@ -183,7 +184,7 @@ pub fn bad_numbers(dir: &Path) -> Vec<String> {
             for field in line.split(',') {
                 let f = field.trim().to_ascii_lowercase();
                 let non_finite = matches!(f.as_str(), "nan" | "inf" | "-inf" | "+inf" | "infinity");
-                let long = f.len() > 40 && f.parse::<f64>().is_ok();
+                let long = f.len() > 50 && f.parse::<f64>().is_ok();
                 if non_finite || long {
                     bad.push(format!("{}:{}: {field}", p.display(), i + 1));
                 }

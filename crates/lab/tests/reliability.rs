@@ -389,6 +389,18 @@ fn writes_only_where_asked() {
         .collect();
     left.sort();
     assert_eq!(left, [".draft.tmp", "notes.txt"]);
+
+    // Nor into the results of another experiment.
+    let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let other = experiment(&root, "f", &disk_sweep("f", 2, 1.0));
+    let o = nonholo_in(&root, &["experiment", &other, "--out", "results/e"]);
+    assert_eq!(code(&o), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("holds the results of experiment `e`, not `f`"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 // Item 9: no NaN, infinity or 160-digit number in a result file.

@@ -86,10 +86,13 @@ fn experiment_files(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
 /// The results directory of `exp` (`--out`, or `results/<name>`), opened
 /// and locked for writing.
 fn open_dir(exp: &Experiment, out: Option<&Path>, create: bool) -> Result<ResultsDir, CliError> {
-    match out {
-        Some(d) => ResultsDir::open(d, "--out", create),
-        None => ResultsDir::open(&default_dir(exp), "results directory", create),
-    }
+    let (dir, what) = match out {
+        Some(d) => (d.to_path_buf(), "--out"),
+        None => (default_dir(exp), "results directory"),
+    };
+    let dir = ResultsDir::open(&dir, what, create)?;
+    dir.check_experiment(&exp.name, what)?;
+    Ok(dir)
 }
 
 /// `nonholo work-precision [FILE...]`: runs work-precision experiments (the

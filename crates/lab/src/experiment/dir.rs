@@ -70,6 +70,24 @@ impl ResultsDir {
         &self.path
     }
 
+    /// Refuses a directory that holds the results of another experiment
+    /// (its `summary.json` names it), so that `--out` never mixes two.
+    pub fn check_experiment(&self, name: &str, what: &str) -> Result<(), CliError> {
+        let summary = fs::read_to_string(self.path.join("summary.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+        let stored = summary
+            .as_ref()
+            .and_then(|s| s["name"].as_str().or(s["experiment"].as_str()));
+        match stored {
+            Some(other) if other != name => Err(CliError::Input(format!(
+                "{what}: {} holds the results of experiment `{other}`, not `{name}`",
+                self.path.display()
+            ))),
+            _ => Ok(()),
+        }
+    }
+
     /// Creates the subdirectories `subs` and removes the temporaries a
     /// killed run left in the directory and in them.
     pub fn prepare(&self, subs: &[&str]) -> Result<(), CliError> {

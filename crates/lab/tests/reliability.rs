@@ -550,6 +550,16 @@ fn reproduce_checks_everything_first_and_links_right() {
     assert_eq!(code(&o), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
 
+    // Two files of one name would write one results directory.
+    experiment(&root, "b", &good);
+    let o = nonholo_in(&root, &["reproduce", "--threads", "1"]);
+    assert_eq!(code(&o), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("are both named `a`"), "{}", stderr(&o));
+    assert!(
+        !root.join("results/a").exists(),
+        "an experiment ran before the check"
+    );
+
     std::fs::remove_file(root.join("experiments/b.toml")).unwrap();
     let abs = root.join("docs/abs.md");
     let elsewhere = root.join("elsewhere");

@@ -83,6 +83,26 @@ fn experiment_files(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
     Ok(files)
 }
 
+/// Refuses two experiment files of one name: they would write one results
+/// directory.
+fn distinct_names<'a>(
+    experiments: impl IntoIterator<Item = (&'a Path, &'a Experiment)>,
+) -> Result<(), CliError> {
+    let mut seen: Vec<(&Path, &str)> = Vec::new();
+    for (f, exp) in experiments {
+        if let Some((g, _)) = seen.iter().find(|(_, n)| *n == exp.name) {
+            return Err(CliError::Input(format!(
+                "{} and {} are both named `{}`: they would write the same results directory",
+                g.display(),
+                f.display(),
+                exp.name
+            )));
+        }
+        seen.push((f, &exp.name));
+    }
+    Ok(())
+}
+
 /// The results directory of `exp` (`--out`, or `results/<name>`), opened
 /// and locked for writing.
 fn open_dir(exp: &Experiment, out: Option<&Path>, create: bool) -> Result<ResultsDir, CliError> {
@@ -130,6 +150,7 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
             f.display()
         )));
     }
+    distinct_names(experiments.iter().map(|(f, e)| (f.as_path(), e)))?;
     let dirs = experiments
         .iter()
         .map(|(_, exp)| open_dir(exp, None, true))
@@ -266,6 +287,7 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
             experiments.push((f, exp));
         }
     }
+    distinct_names(experiments.iter().map(|(f, e)| (f.as_path(), e)))?;
     let dirs = experiments
         .iter()
         .map(|(_, exp)| open_dir(exp, None, true))

@@ -10,7 +10,7 @@
 //! | `points/<i>.json` | one point: swept values, every formulation's status, counters, diagnostics, every pair's divergence |
 //! | `runs.csv` | one row per (point, formulation): swept values, status, counters, diagnostics, divergence from the reference formulation |
 //! | `pairs.csv` | one row per (point, pair): divergence measures |
-//! | `timing.csv` | wall times (kept apart: the other tables are identical whatever the thread count) |
+//! | `timing.csv` | wall times, and the time reached by runs a wall-time budget stopped (kept apart: the other tables are identical whatever the thread count and however the sweep was interrupted) |
 //! | `trajectories/<i>-<label>.csv` | samples of the plotted point (of all points with `plots.all_trajectories`) |
 //! | `summary.json`, `config.json`, `manifest.json` | aggregates; the resolved configuration; command, file hash, git revision, versions, machine, times |
 //! | `plots/*.png`, `plots/*.svg`, `index.html` | the figures and a page showing them with the tables |

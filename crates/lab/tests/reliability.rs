@@ -720,7 +720,10 @@ fn killed_and_interrupted_sweeps_resume_to_the_same_bytes() {
     let fresh = comparable(&root.join("fresh"));
     // Deterministic moments spread over (and a little past) a whole run.
     let mut x = 0x9E37_79B9_7F4A_7C15u64;
-    let mut interrupted = 0;
+    // Interrupted runs, by signal (a SIGINT is ignored where the tests run
+    // as a background job of a non-interactive shell: such a trial then
+    // checks a run that completed).
+    let (mut killed, mut stopped_by_int) = (0, 0);
     for trial in 0..10 {
         x ^= x << 13;
         x ^= x >> 7;
@@ -746,7 +749,11 @@ fn killed_and_interrupted_sweeps_resume_to_the_same_bytes() {
         signal(child.id(), how);
         let status = child.wait().unwrap();
         if !status.success() {
-            interrupted += 1;
+            if how == "KILL" {
+                killed += 1;
+            } else {
+                stopped_by_int += 1;
+            }
         }
         let o = nonholo_in(
             &root,
@@ -778,9 +785,12 @@ fn killed_and_interrupted_sweeps_resume_to_the_same_bytes() {
             .collect();
         assert!(left.is_empty(), "trial {trial}: left behind {left:?}");
     }
-    eprintln!("{interrupted} of 10 trials interrupted before the end ({whole:?} uninterrupted)");
+    eprintln!(
+        "interrupted before the end: {killed} of 5 SIGKILL, {stopped_by_int} of 5 SIGINT trials \
+         ({whole:?} uninterrupted)"
+    );
     assert!(
-        interrupted >= 5,
-        "only {interrupted} of 10 trials were interrupted"
+        killed >= 3,
+        "only {killed} of 5 SIGKILL trials hit a running sweep"
     );
 }

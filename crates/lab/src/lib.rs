@@ -2,7 +2,9 @@
 //! result files.
 
 pub mod experiment;
+pub mod fields;
 pub mod formulations;
+pub mod io;
 pub mod listing;
 pub mod matching;
 pub mod plot;
@@ -12,19 +14,29 @@ pub mod table;
 
 use thiserror::Error;
 
-/// Errors reported by the command line. Exit status 2 for bad input, 1 for a
-/// run that failed, 3 for an experiment some of whose runs failed.
+/// Errors reported by the command line, each with its exit status
+/// ([`CliError::exit_code`]; docs/cli.md lists them).
 #[derive(Debug, Error)]
 pub enum CliError {
+    /// Refused input (a flag, a file, a name, a value): nothing ran. Exit 2.
     #[error("{0}")]
     Input(String),
+    /// A scene or formulation refused its parameters or initial data. Exit 2.
     #[error(transparent)]
     Setup(#[from] nonholo_core::Error),
+    /// A run failed. Exit 1.
     #[error("{0}")]
     Run(String),
-    /// An experiment ran to its end, but some of its runs failed.
+    /// An experiment ran to its end and wrote its results, but some of its
+    /// runs failed. Exit 3.
     #[error("{0}")]
     RunsFailed(String),
+    /// A result could not be written (a file, a directory, stdout). Exit 4.
+    #[error("{0}")]
+    Output(String),
+    /// The results directory is in use by another nonholo process. Exit 5.
+    #[error("{0}")]
+    Busy(String),
 }
 
 impl CliError {
@@ -33,20 +45,13 @@ impl CliError {
             CliError::Input(_) | CliError::Setup(_) => 2,
             CliError::Run(_) => 1,
             CliError::RunsFailed(_) => 3,
+            CliError::Output(_) => 4,
+            CliError::Busy(_) => 5,
         }
     }
 }
 
-/// Writes to stdout; a closed pipe (`nonholo scenes | head`) ends quietly
-/// instead of panicking.
-pub fn print_stdout(text: &str) {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    if let Err(e) = out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        if e.kind() == std::io::ErrorKind::BrokenPipe {
-            std::process::exit(0);
-        }
-        eprintln!("error: cannot write to stdout: {e}");
-        std::process::exit(1);
-    }
+/// Writes to stdout; a closed stdout or a broken pipe is an output error.
+pub fn print_stdout(text: &str) -> Result<(), CliError> {
+    io::print_stdout(text).map_err(CliError::Output)
 }

@@ -3,12 +3,17 @@ use nonholo_lab::experiment::cli::{
     self, ExperimentArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
 };
 use nonholo_lab::simulate::{self, SimulateArgs};
-use nonholo_lab::{CliError, listing};
+use nonholo_lab::{CliError, listing, note};
 
 /// A workbench for nonholonomic mechanics: Hamilton-principle embedding (A),
 /// D'Alembert–Lagrange with Chetaev's conditions (B), vakonomic (C).
+///
+/// Exit status: 0 success; 1 a run failed; 2 refused input (nothing ran);
+/// 3 an experiment finished but some of its runs failed; 4 a result could
+/// not be written; 5 the results directory is in use by another nonholo
+/// (docs/cli.md).
 #[derive(Debug, Parser)]
-#[command(name = "nonholo", version, about)]
+#[command(name = "nonholo", version, about, long_about)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -34,19 +39,42 @@ enum Command {
     Reproduce(ReproduceArgs),
 }
 
-fn main() {
-    let cli = Cli::parse();
-    let result: Result<(), CliError> = match &cli.command {
-        Command::Scenes { json } => {
-            if *json {
-                let mut text = serde_json::to_string_pretty(&listing::json()).unwrap_or_default();
-                text.push('\n');
-                nonholo_lab::print_stdout(&text);
-            } else {
-                nonholo_lab::print_stdout(&listing::text());
+fn scenes(json: bool) -> Result<(), CliError> {
+    if json {
+        let mut text = serde_json::to_string_pretty(&listing::json())
+            .map_err(|e| CliError::Output(e.to_string()))?;
+        text.push('\n');
+        nonholo_lab::print_stdout(&text)
+    } else {
+        nonholo_lab::print_stdout(&listing::text())
+    }
+}
+
+/// The command line, parsed; help and usage errors printed as clap does,
+/// except that a closed stdout or stderr never stops the program with a
+/// panic, and help that could not be written is an output error.
+fn parse() -> Cli {
+    match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let text = e.render().to_string();
+            if e.use_stderr() {
+                note!("{}", text.trim_end());
+                std::process::exit(e.exit_code());
             }
-            Ok(())
+            if let Err(out) = nonholo_lab::print_stdout(&text) {
+                note!("error: {out}");
+                std::process::exit(out.exit_code());
+            }
+            std::process::exit(0);
         }
+    }
+}
+
+fn main() {
+    let cli = parse();
+    let result: Result<(), CliError> = match &cli.command {
+        Command::Scenes { json } => scenes(*json),
         Command::Simulate(args) => simulate::command(args),
         Command::Experiment(args) => cli::experiment(args),
         Command::WorkPrecision(args) => cli::work_precision(args),
@@ -54,7 +82,7 @@ fn main() {
         Command::Reproduce(args) => cli::reproduce(args),
     };
     if let Err(e) = result {
-        eprintln!("error: {e}");
+        note!("error: {e}");
         std::process::exit(e.exit_code());
     }
 }

@@ -1,8 +1,5 @@
 //! The result schema of one run (`nonholo.run/1`, documented in
-//! `docs/schema.md`) and atomic writing of result files.
-
-use std::io::Write;
-use std::path::Path;
+//! `docs/schema.md`).
 
 use nonholo_core::integrate::{Radau5Options, Stats};
 use nonholo_core::{Params, Run, RunStatus, Value};
@@ -385,7 +382,7 @@ impl RunRecord {
             m.as_ref().map_or(&[], |m| &m[i])
         }
         for i in 0..self.t.len() {
-            table.push(&StateRow {
+            table.push_state(&StateRow {
                 t: self.t[i],
                 q: &self.q[i],
                 q_dot: &self.q_dot[i],
@@ -396,30 +393,5 @@ impl RunRecord {
     }
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same
-/// directory, flushed to disk, then renamed over `path`. A reader never sees
-/// a half-written file, and a crash leaves at most a stray `*.tmp`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
-    if let Some(d) = dir {
-        std::fs::create_dir_all(d)?;
-    }
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other(format!("not a file path: {}", path.display())))?;
-    let tmp = path.with_file_name(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+/// Atomic writing of a result file (see [`crate::io`]).
+pub use crate::io::write_atomic;

@@ -1,69 +1,73 @@
 //! `nonholo simulate`: one motion of one scene under one formulation.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
-use nonholo_core::integrate::{Method, Options, RadauNewton};
+use nonholo_core::integrate::{Method, Options};
 use nonholo_core::{Run, RunConfig, init, simulate};
 
-use crate::CliError;
 use crate::formulations;
 use crate::matching::{self, MatchReport};
-use crate::record::{RunRecord, write_atomic};
+use crate::record::RunRecord;
+use crate::{CliError, fields, io};
 
 #[derive(Debug, Clone, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct SimulateArgs {
     /// Scene name (see `nonholo scenes`).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub scene: String,
-    /// Formulation: chetaev (B), ...
-    #[arg(long, default_value = "chetaev")]
+    /// Formulation: chetaev (B), vakonomic (C), embedding (A), visc, mass.
+    #[arg(long, default_value = "chetaev", allow_hyphen_values = true)]
     pub formulation: String,
     /// Scene parameter, `name=value` (repeatable); angles accept a `deg` suffix.
-    #[arg(long = "param", value_name = "NAME=VALUE")]
+    #[arg(long = "param", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     pub params: Vec<String>,
     /// Initial value, `name=value` (repeatable): a coordinate, `<coord>_dot`,
     /// a convenience value of the scene, or a formulation's own (`lambda`).
-    #[arg(long = "init", value_name = "NAME=VALUE")]
+    #[arg(long = "init", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     pub init: Vec<String>,
     /// Formulation option, `name=value` (repeatable), e.g. `stab=projection`.
-    #[arg(long = "option", value_name = "NAME=VALUE")]
+    #[arg(long = "option", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     pub options: Vec<String>,
     /// End of the time span (start is 0).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub t_end: f64,
-    /// Spacing of the output grid (default: 1/100 of the span).
-    #[arg(long)]
+    /// Spacing of the output grid (default: 1/100 of the span; at most 1e6 points).
+    #[arg(long, allow_hyphen_values = true)]
     pub output_every: Option<f64>,
-    /// Integrator: rk4, dopri5, dop853.
-    #[arg(long, default_value = "dop853")]
+    /// Integrator: rk4 (needs --step), dopri5, dop853, radau5 (implicit).
+    #[arg(long, default_value = "dop853", allow_hyphen_values = true)]
     pub integrator: String,
-    /// Relative tolerance (adaptive methods).
-    #[arg(long, default_value_t = 1e-10)]
-    pub rtol: f64,
-    /// Absolute tolerance (adaptive methods).
-    #[arg(long, default_value_t = 1e-10)]
-    pub atol: f64,
+    /// Relative tolerance, in [2.2e-14, 1) (default 1e-10; not with --step
+    /// for the explicit methods).
+    #[arg(long, allow_hyphen_values = true)]
+    pub rtol: Option<f64>,
+    /// Absolute tolerance, in [1e-100, 1e100] (default 1e-10; not with
+    /// --step for the explicit methods).
+    #[arg(long, allow_hyphen_values = true)]
+    pub atol: Option<f64>,
     /// Fixed step size: required for rk4; turns step-size control off for the others.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub step: Option<f64>,
     /// Newton iteration of radau5: auto (the formulation's choice), simplified, full.
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub radau_newton: String,
-    /// Budget on integrator steps (accepted plus rejected).
-    #[arg(long, default_value_t = 10_000_000)]
-    pub max_steps: usize,
+    /// Budget on integrator steps (accepted plus rejected): where the run
+    /// stops on it is the same on every machine.
+    #[arg(long, default_value_t = 10_000_000, allow_hyphen_values = true)]
+    pub max_steps: u64,
     /// Budget on wall-clock time in seconds (default: none).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub max_wall_time: Option<f64>,
     /// Move inconsistent initial data onto the constraints (nearest in the
     /// kinetic-energy metric) instead of refusing them.
     #[arg(long)]
     pub project_init: bool,
     /// Write the run to FILE.json, or FILE.csv plus FILE.csv.meta.json (status,
-    /// tolerances, options, diagnostics); default: a summary on stdout.
-    #[arg(long)]
+    /// tolerances, options, diagnostics); default: a summary on stdout. The
+    /// directory must exist.
+    #[arg(long, allow_hyphen_values = true)]
     pub out: Option<PathBuf>,
     /// Also write the file when the run fails part-way (status "failed"; JSON only).
     #[arg(long)]
@@ -83,29 +87,22 @@ pub fn pairs(flag: &str, items: &[String]) -> Result<Vec<(String, String)>, CliE
         .collect()
 }
 
-pub fn positive(flag: &str, v: f64) -> Result<f64, CliError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(CliError::Input(format!(
-            "{flag}: must be a positive finite number (got {v})"
-        )))
-    }
+/// `r`, or a refusal naming `flag`.
+pub fn flag<T>(flag: &str, r: Result<T, String>) -> Result<T, CliError> {
+    r.map_err(|e| CliError::Input(format!("{flag}: {e}")))
 }
 
-/// Most output points a run may ask for (each is a row of the result).
-pub const MAX_OUTPUT_POINTS: f64 = 1e6;
+/// Default tolerances of a run (`--rtol`, `--atol`, and an experiment's `rtol`, `atol`).
+pub const DEFAULT_TOL: f64 = 1e-10;
 
-/// Output grid `0, Δ, 2Δ, …` up to `t_end`, which is always the last point.
-pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
-    let count = (t_end / every).floor();
-    if count.is_nan() || count > MAX_OUTPUT_POINTS {
-        return Err(CliError::Input(format!(
-            "--output-every {every:e} over [0, {t_end:e}] gives {count:.3e} output points \
-             (limit {MAX_OUTPUT_POINTS:e})"
-        )));
-    }
-    let count = count as usize;
+/// Default step budget of a run (`--max-steps`, `max_steps`).
+pub const DEFAULT_MAX_STEPS: usize = 10_000_000;
+
+/// Output grid `0, Δ, 2Δ, …` up to `t_end`, which is always the last point
+/// (`every` checked by [`fields::output_every`]).
+pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, String> {
+    fields::output_every(every, t_end)?;
+    let count = (t_end / every).floor() as usize;
     let mut grid: Vec<f64> = (0..=count).map(|i| i as f64 * every).collect();
     if t_end - grid[count] > 1e-12 * t_end {
         grid.push(t_end);
@@ -115,62 +112,48 @@ pub fn output_grid(t_end: f64, every: f64) -> Result<Vec<f64>, CliError> {
     Ok(grid)
 }
 
-/// Smallest relative tolerance accepted: below ~100 ε double precision
-/// cannot deliver what is asked, and a result file would claim it did.
-pub const MIN_RTOL: f64 = 100.0 * f64::EPSILON;
-
-/// The Newton iteration of Radau IIA called `name`.
-pub fn radau_newton(name: &str) -> Result<RadauNewton, CliError> {
-    RadauNewton::from_name(name).ok_or_else(|| {
-        CliError::Input(format!(
-            "unknown Radau Newton iteration `{name}`; valid: auto, simplified, full"
-        ))
-    })
-}
-
-/// Integrator method and options from command-line values.
-pub fn integrator(
-    name: &str,
-    rtol: f64,
-    atol: f64,
-    step: Option<f64>,
-    max_steps: usize,
-) -> Result<(Method, Options), CliError> {
-    let method = Method::from_name(name).ok_or_else(|| {
-        CliError::Input(format!(
-            "unknown integrator `{name}`; valid names: {}",
-            Method::ALL.map(|m| m.name()).join(", ")
-        ))
-    })?;
-    let step = step.map(|h| positive("--step", h)).transpose()?;
+/// Integrator method and options from command-line values, checked by
+/// [`fields`] (the checks experiment files go through too).
+pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
+    let method = flag("--integrator", fields::method(&args.integrator))?;
+    let step = args
+        .step
+        .map(|h| flag("--step", fields::step(h)))
+        .transpose()?;
     if method.needs_fixed_step() && step.is_none() {
         return Err(CliError::Input(format!(
-            "integrator `{name}` has a fixed step: give --step"
+            "--integrator: `{}` has a fixed step: give --step",
+            args.integrator
         )));
     }
-    if max_steps == 0 {
-        return Err(CliError::Input("--max-steps: must be at least 1".into()));
+    if step.is_some() {
+        for (name, given) in [("--rtol", args.rtol), ("--atol", args.atol)] {
+            if given.is_some() {
+                flag(name, fields::tolerance_with_step(method, "--step"))?;
+            }
+        }
     }
-    let rtol = positive("--rtol", rtol)?;
-    if rtol < MIN_RTOL {
-        return Err(CliError::Input(format!(
-            "--rtol {rtol:e} is below what double precision can deliver (at least {MIN_RTOL:.1e})"
-        )));
-    }
-    Ok((
-        method,
-        Options {
-            rtol,
-            atol: positive("--atol", atol)?,
-            fixed_step: step,
-            max_steps,
-            // Samples come from each step's polynomial as the run passes the
-            // output times; keeping every polynomial is only needed for
-            // evaluation at arbitrary times afterwards.
-            dense: false,
-            ..Options::default()
-        },
-    ))
+    let max_steps = flag("--max-steps", fields::max_steps(args.max_steps))?;
+    let rtol = flag("--rtol", fields::rtol(args.rtol.unwrap_or(DEFAULT_TOL)))?;
+    let atol = flag("--atol", fields::atol(args.atol.unwrap_or(DEFAULT_TOL)))?;
+    let max_wall_time_s = args
+        .max_wall_time
+        .map(|s| flag("--max-wall-time", fields::max_wall_time(s)))
+        .transpose()?;
+    let mut options = Options {
+        rtol,
+        atol,
+        fixed_step: step,
+        max_steps,
+        max_wall_time_s,
+        // Samples come from each step's polynomial as the run passes the
+        // output times; keeping every polynomial is only needed for
+        // evaluation at arbitrary times afterwards.
+        dense: false,
+        ..Options::default()
+    };
+    options.radau5.newton = flag("--radau-newton", fields::radau_newton(&args.radau_newton))?;
+    Ok((method, options))
 }
 
 /// Everything one run needs, resolved to names and values: what `nonholo
@@ -215,25 +198,30 @@ pub fn execute(spec: &RunSpec) -> Result<(Run, Option<MatchReport>), CliError> {
     Ok((run, matching))
 }
 
-/// Builds and runs the simulation described by `args`; for formulation A
-/// also reports how its initial derivatives were matched with C.
-pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> {
-    let t_end = positive("--t-end", args.t_end)?;
-    let every = positive("--output-every", args.output_every.unwrap_or(t_end / 100.0))?;
-    let (method, mut options) = integrator(
-        &args.integrator,
-        args.rtol,
-        args.atol,
-        args.step,
-        args.max_steps,
+/// The run `args` describe, every value checked (nothing runs).
+pub fn spec(args: &SimulateArgs) -> Result<RunSpec, CliError> {
+    let scene = flag(
+        "--scene",
+        nonholo_scenes::info(&args.scene).map_err(|e| e.to_string()),
     )?;
-    options.output = output_grid(t_end, every)?;
-    options.radau5.newton = radau_newton(&args.radau_newton)?;
-    options.max_wall_time_s = args
-        .max_wall_time
-        .map(|s| positive("--max-wall-time", s))
-        .transpose()?;
-    execute(&RunSpec {
+    let f = flag(
+        "--formulation",
+        formulations::info(&args.formulation).map_err(|e| e.to_string()),
+    )?;
+    flag(
+        "--formulation",
+        (f.applicable)(scene).map_err(|reason| {
+            format!(
+                "formulation `{}` is not applicable to scene `{}`: {reason}",
+                f.name, scene.name
+            )
+        }),
+    )?;
+    let t_end = flag("--t-end", fields::t_end(args.t_end))?;
+    let every = args.output_every.unwrap_or(t_end / 100.0);
+    let (method, mut options) = integrator(args)?;
+    options.output = flag("--output-every", output_grid(t_end, every))?;
+    Ok(RunSpec {
         scene: args.scene.clone(),
         formulation: args.formulation.clone(),
         params: pairs("--param", &args.params)?,
@@ -244,6 +232,12 @@ pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> 
         t_end,
         project_init: args.project_init,
     })
+}
+
+/// Builds and runs the simulation described by `args`; for formulation A
+/// also reports how its initial derivatives were matched with C.
+pub fn run(args: &SimulateArgs) -> Result<(Run, Option<MatchReport>), CliError> {
+    execute(&spec(args)?)
 }
 
 /// Resolves `--init`-style values against a scene (coordinates, velocities,
@@ -260,31 +254,75 @@ impl nonholo_scenes::SceneVisitor for ResolveInit {
     }
 }
 
-/// Runs `nonholo simulate`; writes the file or prints the summary.
-pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
-    if let Some(path) = &args.out {
-        match path.extension().and_then(|e| e.to_str()) {
-            Some("json") => {}
-            Some("csv") if args.keep_partial => {
-                return Err(CliError::Input(
-                    "--keep-partial needs a .json output: a CSV cannot say that the run failed"
-                        .into(),
-                ));
-            }
-            Some("csv") => {}
-            _ => {
-                return Err(CliError::Input(format!(
-                    "--out {}: the file name must end in .json or .csv",
-                    path.display()
-                )));
-            }
+/// Where `--out` writes: the file, and for a CSV its `.meta.json`.
+struct OutFiles {
+    main: PathBuf,
+    meta: Option<PathBuf>,
+}
+
+/// The files `--out` names, checked before anything runs: a known format,
+/// an existing directory that takes files, no directory in the way.
+fn out_files(args: &SimulateArgs) -> Result<Option<OutFiles>, CliError> {
+    let Some(path) = &args.out else {
+        return Ok(None);
+    };
+    let csv = match path.extension().and_then(|e| e.to_str()) {
+        Some("json") => false,
+        Some("csv") if args.keep_partial => {
+            return Err(CliError::Input(
+                "--keep-partial needs a .json output: a CSV cannot say that the run failed".into(),
+            ));
         }
-    }
-    let (run, matching) = run(args)?;
-    let mut record = RunRecord::from_run(&run).map_err(CliError::Run)?;
-    record.matching = matching;
+        Some("csv") => true,
+        _ => {
+            return Err(CliError::Input(format!(
+                "--out {}: the file name must end in .json or .csv",
+                path.display()
+            )));
+        }
+    };
+    let check = |p: &Path| {
+        io::check_target(p)
+            .map_err(|e| CliError::Input(format!("--out {}: {e}", path.display())))?;
+        if let (Some(dir), Some(name)) = (p.parent(), p.file_name()) {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            io::clean_stale_temporaries(dir, Some(&name.to_string_lossy()));
+        }
+        Ok::<_, CliError>(p.to_path_buf())
+    };
+    let meta = csv
+        .then(|| {
+            let name = path
+                .file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default();
+            check(&path.with_file_name(format!("{name}.meta.json")))
+        })
+        .transpose()?;
+    Ok(Some(OutFiles {
+        main: check(path)?,
+        meta,
+    }))
+}
+
+fn pretty(value: &impl serde::Serialize) -> Result<Vec<u8>, CliError> {
+    let mut b = serde_json::to_vec_pretty(value).map_err(|e| CliError::Run(e.to_string()))?;
+    b.push(b'\n');
+    Ok(b)
+}
+
+/// Runs `nonholo simulate`; writes the file or prints the summary. Every
+/// value and the output files are checked before the run.
+pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
+    let spec = spec(args)?;
+    let out = out_files(args)?;
+    let (run, matching) = execute(&spec)?;
     if let Some(p) = &run.projection {
-        eprintln!(
+        crate::note!(
             "--project-init moved the initial data: |Δq| = {:.3e}, |Δq̇| = {:.3e} (velocity residual {:.3e} → {:.3e})",
             p.projection.dq_norm,
             p.projection.dqd_norm,
@@ -292,49 +330,61 @@ pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
             p.projection.velocity_residual.1
         );
     }
-    let write = run.completed() || args.keep_partial;
-    match (&args.out, write) {
-        (Some(path), true) => {
-            let bytes = if path.extension().and_then(|e| e.to_str()) == Some("csv") {
-                record
-                    .to_csv(&run.model.multiplier_names())
-                    .map_err(CliError::Run)?
-            } else {
-                let mut b =
-                    serde_json::to_vec_pretty(&record).map_err(|e| CliError::Run(e.to_string()))?;
-                b.push(b'\n');
-                b
-            };
-            write_atomic(path, &bytes)
-                .map_err(|e| CliError::Run(format!("cannot write {}: {e}", path.display())))?;
-            if path.extension().and_then(|e| e.to_str()) == Some("csv") {
-                let meta = path.with_file_name(format!(
-                    "{}.meta.json",
-                    path.file_name()
-                        .map(|n| n.to_string_lossy())
-                        .unwrap_or_default()
-                ));
-                let mut b = serde_json::to_vec_pretty(&record.metadata())
-                    .map_err(|e| CliError::Run(e.to_string()))?;
-                b.push(b'\n');
-                write_atomic(&meta, &b)
-                    .map_err(|e| CliError::Run(format!("cannot write {}: {e}", meta.display())))?;
-            }
-        }
-        (None, _) => crate::print_stdout(&summary(&run, &record)),
-        (Some(_), false) => {}
-    }
-    match &run.failure {
-        None => Ok(()),
-        Some(e) => Err(CliError::Run(format!(
-            "{}{}",
-            e,
+    let failure = run.failure.as_ref().map(|e| {
+        CliError::Run(format!(
+            "{e}{}",
             if args.out.is_some() && !args.keep_partial {
                 " (no file written; --keep-partial writes the trajectory up to the failure)"
             } else {
                 ""
             }
-        ))),
+        ))
+    });
+    let record = RunRecord::from_run(&run).map(|mut r| {
+        r.matching = matching;
+        r
+    });
+    match out {
+        Some(out) if run.completed() || args.keep_partial => {
+            let record = record.map_err(|e| match &failure {
+                Some(f) => CliError::Run(format!("{f} (no file written: {e})")),
+                None => CliError::Run(e),
+            })?;
+            let mut files = Vec::new();
+            match &out.meta {
+                Some(meta) => {
+                    let csv = record
+                        .to_csv(&run.model.multiplier_names())
+                        .map_err(CliError::Run)?;
+                    files.push((out.main.clone(), csv));
+                    files.push((meta.clone(), pretty(&record.metadata())?));
+                }
+                None => files.push((out.main.clone(), pretty(&record)?)),
+            }
+            let refs: Vec<(&Path, &[u8])> = files
+                .iter()
+                .map(|(p, b)| (p.as_path(), b.as_slice()))
+                .collect();
+            io::write_group(&refs).map_err(CliError::Output)?;
+        }
+        Some(_) => {}
+        None => match record {
+            Ok(record) => {
+                if let Err(e) = crate::print_stdout(&summary(&run, &record)) {
+                    match &failure {
+                        // The run's failure is what the exit status reports.
+                        Some(_) => crate::note!("{e}"),
+                        None => return Err(e),
+                    }
+                }
+            }
+            Err(e) if failure.is_none() => return Err(CliError::Run(e)),
+            Err(_) => {}
+        },
+    }
+    match failure {
+        None => Ok(()),
+        Some(f) => Err(f),
     }
 }
 
@@ -354,7 +404,7 @@ pub fn summary(run: &Run, r: &RunRecord) -> String {
         r.integrator.atol,
         r.integrator
             .fixed_step
-            .map(|h| format!(", step {h}"))
+            .map(|h| format!(", step {}", fields::num(h)))
             .unwrap_or_default()
     );
     let _ = writeln!(

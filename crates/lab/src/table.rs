@@ -12,10 +12,14 @@
 //!
 //! Numbers are written as the tables have always had them, which scripts
 //! rely on: a float as Rust's `Display` prints it, the shortest digits that
-//! round-trip in fixed notation (`0.00000000001`, never `1e-11`; `NaN`,
-//! `inf`), through [`plain`], [`plain_opt`] and [`plain_seq`] (the csv
-//! crate's own float format is exponential); integers as digits; `None` as
-//! an empty field.
+//! round-trip in fixed notation (`0.00000000001`, never `1e-11`), through
+//! [`plain`], [`plain_opt`] and [`plain_seq`] (the csv crate's own float
+//! format is exponential) — for magnitudes in `[1e-30, 1e21)` and zero;
+//! outside that range the shortest round-trip digits in exponent notation
+//! (`1e160`, `5e-324`), not hundreds of digits. A value that is not finite
+//! is never written: [`Plain`] refuses it, and the row with it (NaN or an
+//! infinity in a result file would be read as a number). Integers are
+//! written as digits; `None` as an empty field.
 
 use std::path::Path;
 
@@ -28,9 +32,32 @@ use crate::record::write_atomic;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plain(pub f64);
 
+/// Smallest magnitude written in fixed notation.
+const FIXED_MIN: f64 = 1e-30;
+/// Magnitudes from here on are written in exponent notation.
+const FIXED_MAX: f64 = 1e21;
+
+impl Plain {
+    /// The text of a finite value (see the module documentation).
+    pub fn text(v: f64) -> String {
+        let a = v.abs();
+        if v == 0.0 || (FIXED_MIN..FIXED_MAX).contains(&a) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    }
+}
+
 impl Serialize for Plain {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_str(&self.0)
+        if !self.0.is_finite() {
+            return Err(serde::ser::Error::custom(format!(
+                "refusing to write a value that is not finite ({})",
+                self.0
+            )));
+        }
+        s.collect_str(&Plain::text(self.0))
     }
 }
 
@@ -81,6 +108,8 @@ pub fn columns<R: Serialize + Default>() -> Result<Vec<String>, String> {
 /// A CSV table being built in memory.
 pub struct Table {
     w: csv::Writer<Vec<u8>>,
+    header: Vec<String>,
+    rows: usize,
 }
 
 impl Table {
@@ -93,11 +122,15 @@ impl Table {
         // Headers are written here, not derived by csv from the first row:
         // a row starts with the point and its swept values, which are not
         // struct fields.
+        let header: Vec<String> = header
+            .into_iter()
+            .map(|h| String::from_utf8_lossy(h.as_ref()).into_owned())
+            .collect();
         let mut w = csv::WriterBuilder::new()
             .has_headers(false)
             .from_writer(Vec::new());
-        w.write_record(header).map_err(|e| e.to_string())?;
-        Ok(Table { w })
+        w.write_record(&header).map_err(|e| e.to_string())?;
+        Ok(Table { w, header, rows: 0 })
     }
 
     /// A table whose rows are records `R` at sweep points:
@@ -112,9 +145,33 @@ impl Table {
         Table::new(header)
     }
 
-    /// Appends one row: the fields of `row` in order.
+    /// Appends one row: the fields of `row` in order. A value that is not
+    /// finite is refused, naming the row (the table is then not to be
+    /// written).
     pub fn push(&mut self, row: &impl Serialize) -> Result<(), String> {
-        self.w.serialize(row).map_err(|e| e.to_string())
+        self.w
+            .serialize(row)
+            .map_err(|e| format!("row {} of the table: {e}", self.rows + 1))?;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// Appends a sampled state, refusing (with the time and the column) a
+    /// value that is not finite.
+    pub fn push_state(&mut self, row: &StateRow) -> Result<(), String> {
+        let values = std::iter::once(row.t)
+            .chain(row.q.iter().copied())
+            .chain(row.q_dot.iter().copied())
+            .chain(row.more.iter().flat_map(|m| m.iter().copied()));
+        for (v, name) in values.zip(&self.header) {
+            if !v.is_finite() {
+                return Err(format!(
+                    "refusing to write a value that is not finite: `{name}` = {v} at t = {}",
+                    row.t
+                ));
+            }
+        }
+        self.push(row)
     }
 
     /// Appends `record` at the point `index` with swept `values`.
@@ -250,16 +307,12 @@ mod tests {
         let r = Record {
             label: "B",
             rtol: 1e-11,
-            inner: Inner { steps: 12, h: 1e21 },
+            inner: Inner { steps: 12, h: 1e20 },
             t_last: Some(0.1 + 0.2),
             error: Some("stopped, at t = 1"),
         };
         t.at_point(7, &values, &r).unwrap();
-        let empty = Record {
-            rtol: f64::NAN,
-            ..Record::default()
-        };
-        t.at_point(8, &values, &empty).unwrap();
+        t.at_point(8, &values, &Record::default()).unwrap();
         let text = String::from_utf8(t.into_bytes().unwrap()).unwrap();
         let by_hand = [
             "point,param.alpha,label,rtol,steps,h,t_last,error".to_string(),
@@ -269,15 +322,59 @@ mod tests {
                 "B".into(),
                 1e-11.to_string(),
                 12.to_string(),
-                1e21.to_string(),
+                1e20.to_string(),
                 (0.1 + 0.2).to_string(),
                 "\"stopped, at t = 1\"".into(),
             ]
             .join(","),
-            "8,0.3,,NaN,0,0,,".to_string(),
+            "8,0.3,,0,0,0,,".to_string(),
         ];
         assert_eq!(text, by_hand.join("\n") + "\n");
-        assert!(text.contains(",0.00000000001,12,1000000000000000000000,0.30000000000000004,"));
+        assert!(text.contains(",0.00000000001,12,100000000000000000000,0.30000000000000004,"));
+    }
+
+    /// Outside `[1e-30, 1e21)` a value is written in exponent notation with
+    /// the digits that round-trip, not as hundreds of digits.
+    #[test]
+    fn extreme_magnitudes_are_written_short_and_exact() {
+        for v in [1e21, 1e160, -9.800665778412416e159, 1e-31, 5e-324, f64::MAX] {
+            let s = Plain::text(v);
+            assert!(s.len() < 30, "{s}");
+            assert_eq!(s.parse::<f64>().unwrap().to_bits(), v.to_bits(), "{s}");
+        }
+        assert_eq!(Plain::text(1e160), "1e160");
+        assert_eq!(
+            Plain::text(2.710505431213761e-20),
+            "0.00000000000000000002710505431213761"
+        );
+        assert_eq!(Plain::text(0.0), "0");
+    }
+
+    /// NaN and infinities are refused with the row (and for states, the
+    /// column and time): no result file holds one.
+    #[test]
+    fn non_finite_values_are_refused() {
+        let mut t = Table::per_point::<Record>(["param.alpha"]).unwrap();
+        let nan = Record {
+            rtol: f64::NAN,
+            ..Record::default()
+        };
+        let e = t.at_point(8, &["0.3".into()], &nan).unwrap_err();
+        assert!(e.contains("row 1") && e.contains("not finite"), "{e}");
+        let mut t = Table::new(state_header(
+            ["x", "y"].into_iter(),
+            ["residual", "energy"].map(String::from),
+        ))
+        .unwrap();
+        let e = t
+            .push_state(&StateRow {
+                t: 0.5,
+                q: &[1.0, 2.0],
+                q_dot: &[0.0, 1e-3],
+                more: &[&[4.0, f64::INFINITY]],
+            })
+            .unwrap_err();
+        assert!(e.contains("`energy` = inf at t = 0.5"), "{e}");
     }
 
     #[test]
@@ -287,17 +384,17 @@ mod tests {
             ["lambda", "residual", "energy"].map(String::from),
         ))
         .unwrap();
-        t.push(&StateRow {
+        t.push_state(&StateRow {
             t: 0.5,
             q: &[1.0, -2e-7],
             q_dot: &[0.0, 1e-3],
-            more: &[&[], &[4.0], &[5.5, f64::NAN]],
+            more: &[&[], &[4.0], &[5.5, 1e160]],
         })
         .unwrap();
         let text = String::from_utf8(t.into_bytes().unwrap()).unwrap();
         assert_eq!(
             text,
-            "t,x,y,x_dot,y_dot,lambda,residual,energy\n0.5,1,-0.0000002,0,0.001,4,5.5,NaN\n"
+            "t,x,y,x_dot,y_dot,lambda,residual,energy\n0.5,1,-0.0000002,0,0.001,4,5.5,1e160\n"
         );
     }
 

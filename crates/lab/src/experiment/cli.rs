@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use super::spec::Kind;
-use super::{Experiment, RunOptions, default_dir, run};
-use crate::CliError;
+use super::{Experiment, ResultsDir, RunOptions, default_dir, run};
+use crate::{CliError, fields, io, note};
 
 #[derive(Debug, Clone, Args)]
 pub struct ExperimentArgs {
@@ -15,10 +15,14 @@ pub struct ExperimentArgs {
     /// Run every point again, even those whose results are stored.
     #[arg(long)]
     pub force: bool,
-    /// Worker threads (default: all cores). Results do not depend on it.
+    /// Worker threads, 1 to 1024 (default: all cores). Results do not
+    /// depend on it (a run stopped by a wall-time budget is recorded
+    /// without its machine-dependent values; step budgets stop the same
+    /// everywhere).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Results directory (default: results/<name> beside experiments/).
+    /// Results directory (default: results/<name> beside experiments/):
+    /// created if missing; an existing one must be empty or nonholo's.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// No progress output.
@@ -46,7 +50,7 @@ pub struct ReproduceArgs {
     /// Run every point again.
     #[arg(long)]
     pub force: bool,
-    /// Worker threads (default: all cores).
+    /// Worker threads, 1 to 1024 (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
 }
@@ -67,20 +71,58 @@ pub struct WorkPrecisionArgs {
     pub quiet: bool,
 }
 
+/// Every `*.toml` in `dir`, sorted.
+fn experiment_files(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| CliError::Input(format!("--experiments {}: {e}", dir.display())))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// Refuses two experiment files of one name: they would write one results
+/// directory.
+fn distinct_names<'a>(
+    experiments: impl IntoIterator<Item = (&'a Path, &'a Experiment)>,
+) -> Result<(), CliError> {
+    let mut seen: Vec<(&Path, &str)> = Vec::new();
+    for (f, exp) in experiments {
+        if let Some((g, _)) = seen.iter().find(|(_, n)| *n == exp.name) {
+            return Err(CliError::Input(format!(
+                "{} and {} are both named `{}`: they would write the same results directory",
+                g.display(),
+                f.display(),
+                exp.name
+            )));
+        }
+        seen.push((f, &exp.name));
+    }
+    Ok(())
+}
+
+/// The results directory of `exp` (`--out`, or `results/<name>`), opened
+/// and locked for writing.
+fn open_dir(exp: &Experiment, out: Option<&Path>, create: bool) -> Result<ResultsDir, CliError> {
+    let (dir, what) = match out {
+        Some(d) => (d.to_path_buf(), "--out"),
+        None => (default_dir(exp), "results directory"),
+    };
+    let dir = ResultsDir::open(&dir, what, create)?;
+    dir.check_experiment(&exp.name, what)?;
+    Ok(dir)
+}
+
 /// `nonholo work-precision [FILE...]`: runs work-precision experiments (the
 /// given files, or every one in `experiments/`); exit 3 if runs failed.
+/// Every file is read and checked, and every results directory locked,
+/// before anything runs.
 pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
-    // Each file is loaded (and its points checked) once.
     let experiments: Vec<(PathBuf, Experiment)> = if args.files.is_empty() {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&args.experiments)
-            .map_err(|e| CliError::Input(format!("{}: {e}", args.experiments.display())))?
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-            .collect();
-        files.sort();
         let mut wp = Vec::new();
-        for f in files {
+        for f in experiment_files(&args.experiments)? {
             let exp = load(&f)?;
             if exp.kind == Kind::WorkPrecision {
                 wp.push((f, exp));
@@ -99,26 +141,33 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
             .map(|f| Ok((f.clone(), load(f)?)))
             .collect::<Result<_, CliError>>()?
     };
+    if let Some((f, _)) = experiments
+        .iter()
+        .find(|(_, e)| e.kind != Kind::WorkPrecision)
+    {
+        return Err(CliError::Input(format!(
+            "{}: experiment.kind is not \"work-precision\" (run it with `nonholo experiment`)",
+            f.display()
+        )));
+    }
+    distinct_names(experiments.iter().map(|(f, e)| (f.as_path(), e)))?;
+    let dirs = experiments
+        .iter()
+        .map(|(_, exp)| open_dir(exp, None, true))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut failed = 0;
     let mut runs = 0;
-    for (f, exp) in &experiments {
-        if exp.kind != Kind::WorkPrecision {
-            return Err(CliError::Input(format!(
-                "{}: experiment.kind is not \"work-precision\" (run it with `nonholo experiment`)",
-                f.display()
-            )));
-        }
+    for ((_, exp), dir) in experiments.iter().zip(dirs) {
         let o = run(
             exp,
             &RunOptions {
-                out_dir: default_dir(exp),
                 force: args.force,
                 threads: Some(1),
                 quiet: args.quiet,
             },
-        )
-        .map_err(CliError::Run)?;
-        eprintln!(
+            dir,
+        )?;
+        note!(
             "{}: {} points ({} reused), {} runs ({} failed); results in {}",
             exp.name,
             o.points,
@@ -139,10 +188,8 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
 }
 
 fn threads(n: Option<usize>) -> Result<Option<usize>, CliError> {
-    match n {
-        Some(0) => Err(CliError::Input("--threads: must be at least 1".into())),
-        other => Ok(other),
-    }
+    n.map(|n| crate::simulate::flag("--threads", fields::threads(n)))
+        .transpose()
 }
 
 fn load(path: &Path) -> Result<Experiment, CliError> {
@@ -152,19 +199,19 @@ fn load(path: &Path) -> Result<Experiment, CliError> {
 /// `nonholo experiment FILE`: exit 0 if every run completed or stopped where
 /// its formulation stops by design, 3 if some failed.
 pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
+    let threads = threads(args.threads)?;
     let exp = load(&args.file)?;
-    let out = args.out.clone().unwrap_or_else(|| default_dir(&exp));
+    let out = open_dir(&exp, args.out.as_deref(), true)?;
     let o = run(
         &exp,
         &RunOptions {
-            out_dir: out,
             force: args.force,
-            threads: threads(args.threads)?,
+            threads,
             quiet: args.quiet,
         },
-    )
-    .map_err(CliError::Run)?;
-    eprintln!(
+        out,
+    )?;
+    note!(
         "{}: {} points ({} reused), {} runs: {} completed, {} stopped at a singular set, {} failed; results in {}",
         exp.name,
         o.points,
@@ -191,23 +238,28 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// `nonholo plot FILE`: redraws the figures and the page from stored results.
+/// `nonholo plot FILE`: redraws the figures and the page from stored
+/// results. Results that are missing, unreadable or stale (computed for
+/// another version of the experiment file) are refused before anything is
+/// drawn.
 pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
     let exp = load(&args.file)?;
-    let dir = args.out.clone().unwrap_or_else(|| default_dir(&exp));
-    if exp.kind == Kind::WorkPrecision {
-        let plots = super::wp::redraw(&exp, &dir).map_err(CliError::Run)?;
-        eprintln!(
-            "{} plots redrawn in {}",
-            plots.len(),
-            dir.join("plots").display()
-        );
-        return Ok(());
-    }
-    let results = super::files::load_points(&exp, &dir).map_err(CliError::Run)?;
-    let plots = super::plots::draw(&exp, &dir, &results).map_err(CliError::Run)?;
-    super::output::write_html(&exp, &dir, &results, &plots).map_err(CliError::Run)?;
-    eprintln!(
+    let out = open_dir(&exp, args.out.as_deref(), false)?;
+    out.prepare(&["plots"])?;
+    let dir = out.path().to_path_buf();
+    let plots = if exp.kind == Kind::WorkPrecision {
+        super::wp::redraw(&exp, out)?
+    } else {
+        let results: Vec<super::PointResult> =
+            super::files::load_points(&exp, &dir, super::point::POINT_SCHEMA)
+                .map_err(CliError::Input)?;
+        super::plots::trajectories(&exp, &dir, &results).map_err(CliError::Input)?;
+        let plots = super::plots::draw(&exp, &dir, &results).map_err(CliError::Output)?;
+        super::output::write_html(&exp, &dir, &results, &plots).map_err(CliError::Output)?;
+        out.finish();
+        plots
+    };
+    note!(
         "{} plots redrawn in {}",
         plots.len(),
         dir.join("plots").display()
@@ -220,31 +272,47 @@ const END: &str = "<!-- figures:end -->";
 
 /// `nonholo reproduce`: runs every experiment marked `figure = true` and
 /// rebuilds the table of `docs/figures.md` (figure, claim, command, status).
+/// Every experiment file is read and checked, the figures page's directory
+/// and every results directory are checked and locked, before anything
+/// runs.
 pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&args.experiments)
-        .map_err(|e| CliError::Input(format!("{}: {e}", args.experiments.display())))?
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    files.sort();
-    let mut rows = Vec::new();
-    let mut broken = Vec::new();
+    let threads = threads(args.threads)?;
+    let figures = io::check_target(&args.figures)
+        .map_err(|e| CliError::Input(format!("--figures {}: {e}", args.figures.display())))?;
+    let files = experiment_files(&args.experiments)?;
+    let mut experiments = Vec::new();
     for f in &files {
         let exp = load(f)?;
-        if !exp.figure {
-            continue;
+        if exp.figure {
+            experiments.push((f, exp));
         }
-        let dir = default_dir(&exp);
-        eprintln!("== {} ({})", exp.name, f.display());
+    }
+    distinct_names(experiments.iter().map(|(f, e)| (f.as_path(), e)))?;
+    let dirs = experiments
+        .iter()
+        .map(|(_, exp)| open_dir(exp, None, true))
+        .collect::<Result<Vec<_>, _>>()?;
+    let figures_dir = figures
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    if let Some(name) = figures.file_name() {
+        io::clean_stale_temporaries(&figures_dir, Some(&name.to_string_lossy()));
+    }
+    let mut rows = Vec::new();
+    let mut broken = Vec::new();
+    for ((f, exp), out) in experiments.iter().zip(dirs) {
+        let dir = out.path().to_path_buf();
+        note!("== {} ({})", exp.name, f.display());
         let status = match run(
-            &exp,
+            exp,
             &RunOptions {
-                out_dir: dir.clone(),
                 force: args.force,
-                threads: threads(args.threads)?,
+                threads,
                 quiet: false,
             },
+            out,
         ) {
             Ok(o) => {
                 let plural =
@@ -259,13 +327,13 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
                 s
             }
             Err(e) => {
+                note!("error: {e}");
                 broken.push(exp.name.clone());
                 format!("**not run**: {e}")
             }
         };
-        let figures_dir = args.figures.parent().unwrap_or(Path::new("."));
-        let rel = |p: &Path| relative(figures_dir, p);
-        let main_plot = main_plot(&exp, &dir);
+        let rel = |p: &Path| relative(&figures_dir, p);
+        let main_plot = main_plot(exp, &dir);
         let figure = match &main_plot {
             Some(p) => format!(
                 "[![{}]({})]({})",
@@ -285,14 +353,23 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
         "{BEGIN}\n\n| figure | claim | command | status |\n|---|---|---|---|\n{}\n\n{END}",
         rows.join("\n")
     );
-    let page = std::fs::read_to_string(&args.figures).unwrap_or_default();
+    let page = match std::fs::read_to_string(&figures) {
+        Ok(p) => p,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+        Err(e) => {
+            return Err(CliError::Output(format!(
+                "--figures {}: {e}",
+                args.figures.display()
+            )));
+        }
+    };
     let new = match (page.find(BEGIN), page.find(END)) {
         (Some(a), Some(b)) if a < b => format!("{}{}{}", &page[..a], table, &page[b + END.len()..]),
         _ => format!("# Figures\n\n{table}\n\n{page}"),
     };
-    crate::record::write_atomic(&args.figures, new.as_bytes())
-        .map_err(|e| CliError::Run(format!("cannot write {}: {e}", args.figures.display())))?;
-    eprintln!(
+    io::write_atomic(&args.figures, new.as_bytes())
+        .map_err(|e| CliError::Output(format!("cannot write {}: {e}", args.figures.display())))?;
+    note!(
         "{} figure experiments; table rebuilt in {}",
         rows.len(),
         args.figures.display()
@@ -333,13 +410,45 @@ fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
         .find(|p| p.exists())
 }
 
-/// `p` relative to directory `from` (both relative to the working directory).
-fn relative(from: &Path, p: &Path) -> String {
-    let depth = from
-        .components()
-        .filter(|c| !matches!(c, std::path::Component::CurDir))
-        .count();
-    let mut s = "../".repeat(depth);
-    s.push_str(&p.display().to_string());
-    s
+/// `p` as a link from a page in directory `from`: a relative path through
+/// the nearest common directory of the two (both made absolute, symbolic
+/// links resolved where they exist), `/`-separated.
+pub fn relative(from: &Path, p: &Path) -> String {
+    let absolute = |q: &Path| {
+        std::fs::canonicalize(q)
+            .or_else(|_| std::path::absolute(q))
+            .unwrap_or_else(|_| q.to_path_buf())
+    };
+    let (from, to) = (absolute(from), absolute(p));
+    let a: Vec<_> = from.components().collect();
+    let b: Vec<_> = to.components().collect();
+    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut parts: Vec<String> = vec!["..".to_string(); a.len() - common];
+    parts.extend(
+        b[common..]
+            .iter()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
+    parts.join("/")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::relative;
+    use std::path::Path;
+
+    #[test]
+    fn links_are_relative_whatever_the_paths() {
+        let root = std::env::temp_dir().join(format!("nonholo-rel-{}", std::process::id()));
+        let docs = root.join("docs");
+        let plot = root.join("results/x/plots/a.png");
+        std::fs::create_dir_all(&docs).unwrap();
+        std::fs::create_dir_all(plot.parent().unwrap()).unwrap();
+        std::fs::write(&plot, b"").unwrap();
+        assert_eq!(relative(&docs, &plot), "../results/x/plots/a.png");
+        let dotted = docs.join("../results/x/plots/a.png");
+        assert_eq!(relative(&docs, &dotted), "../results/x/plots/a.png");
+        assert_eq!(relative(&root, &plot), "results/x/plots/a.png");
+        assert_eq!(relative(Path::new("/"), Path::new("/a/b")), "a/b");
+    }
 }

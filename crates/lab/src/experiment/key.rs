@@ -124,6 +124,13 @@ struct RefKey<'a> {
     check_integrator: &'a str,
     check_rtol: Bits,
     max_wall_time: Option<Bits>,
+    /// Left out at its default, so that keys from before it existed hold.
+    #[serde(skip_serializing_if = "is_default_steps")]
+    max_steps: usize,
+}
+
+fn is_default_steps(n: &usize) -> bool {
+    *n == crate::simulate::DEFAULT_MAX_STEPS
 }
 
 impl<'a> From<&'a RefSpec> for RefKey<'a> {
@@ -135,6 +142,7 @@ impl<'a> From<&'a RefSpec> for RefKey<'a> {
             check_integrator,
             check_rtol,
             max_wall_time,
+            max_steps,
         } = r;
         RefKey {
             closed_form: *closed_form,
@@ -143,6 +151,7 @@ impl<'a> From<&'a RefSpec> for RefKey<'a> {
             check_integrator,
             check_rtol: Bits(*check_rtol),
             max_wall_time: max_wall_time.map(Bits),
+            max_steps: *max_steps,
         }
     }
 }

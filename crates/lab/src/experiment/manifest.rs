@@ -90,7 +90,7 @@ fn versions(root: &Path) -> Json {
     if let Ok(text) = std::fs::read_to_string(root.join("Cargo.lock")) {
         match locked_versions(&text) {
             Ok(v) => map.extend(v.into_iter().map(|(k, v)| (k, Json::from(v)))),
-            Err(e) => eprintln!("warning: {e}; manifest.json lists no dependency versions"),
+            Err(e) => crate::note!("warning: {e}; manifest.json lists no dependency versions"),
         }
     }
     Json::Object(map)

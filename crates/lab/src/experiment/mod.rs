@@ -10,12 +10,13 @@
 //! | `points/<i>.json` | one point: swept values, every formulation's status, counters, diagnostics, every pair's divergence |
 //! | `runs.csv` | one row per (point, formulation): swept values, status, counters, diagnostics, divergence from the reference formulation |
 //! | `pairs.csv` | one row per (point, pair): divergence measures |
-//! | `timing.csv` | wall times (kept apart: the other tables are identical whatever the thread count) |
+//! | `timing.csv` | wall times, and the time reached by runs a wall-time budget stopped (kept apart: the other tables are identical whatever the thread count and however the sweep was interrupted) |
 //! | `trajectories/<i>-<label>.csv` | samples of the plotted point (of all points with `plots.all_trajectories`) |
 //! | `summary.json`, `config.json`, `manifest.json` | aggregates; the resolved configuration; command, file hash, git revision, versions, machine, times |
 //! | `plots/*.png`, `plots/*.svg`, `index.html` | the figures and a page showing them with the tables |
 //!
-//! Every file is written atomically. A point whose result file exists with
+//! Every file is written atomically, and the directory is locked while one
+//! process writes it ([`dir`]). A point whose result file exists with
 //! the same resume key ([`key`]: a hash of everything the point's results
 //! depend on) is not run again (unless `--force`), so a sweep killed
 //! half-way finishes with every point exactly once.
@@ -28,6 +29,7 @@
 //! trajectories and summary), [`plots`].
 
 pub mod cli;
+pub mod dir;
 pub mod files;
 pub mod key;
 pub mod manifest;
@@ -47,8 +49,23 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
+pub use dir::ResultsDir;
 pub use point::{Comparison, FormResult, PairResult, PointResult};
 pub use spec::{Experiment, SpecError};
+
+use crate::CliError;
+
+/// The error of a run stopped by its wall-time budget, as result files give
+/// it: where such a run stops depends on the machine and its load, so the
+/// time reached and the counters are left out (docs/schema.md).
+pub fn wall_time_stop(seconds: f64) -> String {
+    format!(
+        "wall-time budget of {} s used up (a machine-dependent stop: the time reached and \
+         the counters are left out of the results; a step budget, max_steps, stops at the \
+         same place on every machine)",
+        crate::fields::num(seconds)
+    )
+}
 
 impl Experiment {
     /// Checks that `p` can be set up (called for every point at load).
@@ -57,11 +74,9 @@ impl Experiment {
     }
 }
 
-/// How to run an experiment.
+/// How to run an experiment (where: the [`ResultsDir`] given to [`run`]).
 #[derive(Debug, Clone)]
 pub struct RunOptions {
-    /// Where results go (default `results/<name>` beside `experiments/`).
-    pub out_dir: PathBuf,
     /// Run every point again even if its result is stored.
     pub force: bool,
     /// Worker threads (default: all cores).
@@ -145,7 +160,7 @@ impl Progress {
             let mut lines = self.lines.lock().unwrap_or_else(|e| e.into_inner());
             if done == self.total || done / every > *lines {
                 *lines = done / every;
-                eprintln!(
+                crate::note!(
                     "{done}/{} points done ({failed} failed runs){}",
                     self.total,
                     if reused {
@@ -161,31 +176,6 @@ impl Progress {
     fn finish(&self) {
         if let Some(b) = &self.bar {
             b.finish();
-        }
-    }
-}
-
-/// Deletes temporary files a killed run may have left in `dir`.
-/// Creates `dir` and its `subs`, removing temporaries (`.NAME.PID.tmp`) that a
-/// killed run left in them.
-pub(crate) fn prepare_dir(dir: &Path, subs: &[&str]) -> Result<(), String> {
-    for sub in subs {
-        let d = dir.join(sub);
-        std::fs::create_dir_all(&d).map_err(|e| format!("cannot create {}: {e}", d.display()))?;
-        clean_temporaries(&d);
-    }
-    clean_temporaries(dir);
-    Ok(())
-}
-
-fn clean_temporaries(dir: &Path) {
-    if let Ok(entries) = std::fs::read_dir(dir) {
-        for e in entries.flatten() {
-            let name = e.file_name();
-            let name = name.to_string_lossy();
-            if name.starts_with('.') && name.ends_with(".tmp") {
-                let _ = std::fs::remove_file(e.path());
-            }
         }
     }
 }
@@ -210,13 +200,13 @@ fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> O
 
 /// Runs `exp` and writes its results (see the module documentation; a
 /// work-precision experiment: [`wp`]).
-pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
+pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outcome, CliError> {
     if exp.kind == spec::Kind::WorkPrecision {
-        return wp::run(exp, opts);
+        return wp::run(exp, opts, out);
     }
     let started = std::time::SystemTime::now();
-    let dir = &opts.out_dir;
-    prepare_dir(dir, &["points", "trajectories", "plots"])?;
+    let dir = &out.path().to_path_buf();
+    out.prepare(&["points", "trajectories", "plots"])?;
     let points = exp.points();
     let threads = opts.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
@@ -226,7 +216,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| format!("cannot start {threads} worker threads: {e}"))?;
+        .map_err(|e| CliError::Run(format!("cannot start {threads} worker threads: {e}")))?;
     let progress = Progress::new(points.len(), opts.quiet, &exp.name);
     let reused = AtomicUsize::new(0);
 
@@ -269,13 +259,17 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
             .collect()
     });
     progress.finish();
-    let results: Vec<PointResult> = results.into_iter().collect::<Result<_, _>>()?;
+    let results: Vec<PointResult> = results
+        .into_iter()
+        .collect::<Result<_, _>>()
+        .map_err(CliError::Output)?;
 
-    output::write_tables(exp, dir, &results)?;
-    let plots = plots::draw(exp, dir, &results)?;
-    output::write_summary(exp, dir, &results, &plots)?;
-    output::write_html(exp, dir, &results, &plots)?;
-    manifest::write_manifest(exp, dir, started, threads)?;
+    output::write_tables(exp, dir, &results).map_err(CliError::Output)?;
+    let plots = plots::draw(exp, dir, &results).map_err(CliError::Output)?;
+    output::write_summary(exp, dir, &results, &plots).map_err(CliError::Output)?;
+    output::write_html(exp, dir, &results, &plots).map_err(CliError::Output)?;
+    manifest::write_manifest(exp, dir, started, threads).map_err(CliError::Output)?;
+    out.finish();
 
     let runs = results.iter().map(|r| r.body.formulations.len()).sum();
     let count = |status: &str| {

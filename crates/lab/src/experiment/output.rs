@@ -33,8 +33,12 @@ pub fn write_trajectory(dir: &Path, index: usize, s: &Samples) -> Result<(), Str
         more,
     ))?;
     for (i, o) in s.obs.iter().enumerate() {
-        let (residual, energy) = s.physics.get(i).copied().unwrap_or((f64::NAN, f64::NAN));
-        table.push(&StateRow {
+        let (residual, energy) = s
+            .physics
+            .get(i)
+            .copied()
+            .ok_or_else(|| format!("{}: no residual and energy at sample {i}", s.label))?;
+        table.push_state(&StateRow {
             t: s.t[i],
             q: &o.q,
             q_dot: &o.qd,
@@ -51,18 +55,33 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
+    /// Reads a trajectory file; a field that is not a number is an error
+    /// naming the file, line and column.
     pub fn read(path: &Path) -> Result<Trajectory, String> {
         let mut r = csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let header = r
+        let header: Vec<String> = r
             .headers()
-            .map_err(|e| e.to_string())?
+            .map_err(|e| format!("{}: {e}", path.display()))?
             .iter()
             .map(String::from)
             .collect();
         let mut rows = Vec::new();
-        for rec in r.records() {
+        for (i, rec) in r.records().enumerate() {
             let rec = rec.map_err(|e| format!("{}: {e}", path.display()))?;
-            rows.push(rec.iter().map(|v| v.parse().unwrap_or(f64::NAN)).collect());
+            let row = rec
+                .iter()
+                .zip(&header)
+                .map(|(v, h)| {
+                    v.parse::<f64>().map_err(|_| {
+                        format!(
+                            "{}:{}: column `{h}`: `{v}` is not a number",
+                            path.display(),
+                            i + 2
+                        )
+                    })
+                })
+                .collect::<Result<Vec<f64>, String>>()?;
+            rows.push(row);
         }
         Ok(Trajectory { header, rows })
     }
@@ -171,13 +190,16 @@ struct PairRow<'a> {
     divergence: Divergence,
 }
 
-/// A row of `timing.csv`.
+/// A row of `timing.csv`: what depends on the machine.
 #[derive(Default, Serialize)]
 struct TimingRow<'a> {
     point: usize,
     label: &'a str,
     #[serde(serialize_with = "plain")]
     wall_time_s: f64,
+    /// The time reached by a run its wall-time budget stopped.
+    #[serde(serialize_with = "plain_opt")]
+    wall_time_stop_t: Option<f64>,
 }
 
 /// `runs.csv`, `pairs.csv`, `timing.csv` and `config.json`.
@@ -197,6 +219,7 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
                 point: r.index,
                 label: &f.label,
                 wall_time_s: f.wall_time_s,
+                wall_time_stop_t: f.wall_time_stop_t,
             })?;
         }
         for p in &r.body.pairs {

@@ -89,6 +89,47 @@ fn axis_label(exp: &Experiment, name: &str) -> String {
     }
 }
 
+/// The trajectories of the plotted point: one for every formulation that
+/// has samples there (a `t_last`). A missing or unreadable one is an error
+/// naming the file: a figure is drawn from all of its data or not at all.
+pub fn trajectories(
+    exp: &Experiment,
+    dir: &Path,
+    results: &[PointResult],
+) -> Result<Vec<(String, Trajectory)>, String> {
+    let point = exp.plot_point;
+    let Some(r) = results.iter().find(|r| r.index == point) else {
+        return Ok(Vec::new());
+    };
+    r.body
+        .formulations
+        .iter()
+        .filter(|f| f.t_last.is_some())
+        .map(|f| {
+            let p = trajectory_path(dir, point, &f.label);
+            if !p.exists() {
+                return Err(format!(
+                    "{}: missing (trajectories are not committed: run `nonholo experiment {}` \
+                     to compute the plotted point again)",
+                    p.display(),
+                    exp.path.display()
+                ));
+            }
+            let t = Trajectory::read(&p)?;
+            let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+            let needed = ["t", "residual", "energy"]
+                .into_iter()
+                .chain(info.coordinates.iter().map(|c| c.name));
+            for c in needed {
+                if t.column(c).is_none() {
+                    return Err(format!("{}: no column `{c}`", p.display()));
+                }
+            }
+            Ok((f.label.clone(), t))
+        })
+        .collect()
+}
+
 /// Draws every figure of `exp` into `dir/plots/`; returns the files written.
 pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec<PathBuf>, String> {
     let plots = dir.join("plots");
@@ -102,14 +143,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         .collect();
     let angle: Vec<bool> = info.coordinates.iter().map(|c| c.unit == "rad").collect();
 
-    let trajectories: Vec<(String, Trajectory)> = exp
-        .formulations
-        .iter()
-        .filter_map(|f| {
-            let p = trajectory_path(dir, point, &f.label);
-            Trajectory::read(&p).ok().map(|t| (f.label.clone(), t))
-        })
-        .collect();
+    let trajectories = trajectories(exp, dir, results)?;
     let describe = |label: &str| {
         exp.formulations
             .iter()

@@ -3,6 +3,7 @@
 
 use nonholo_core::consistency::check_or_project;
 use nonholo_core::init;
+use nonholo_core::integrate::IntegrateError;
 use nonholo_core::monitor::state_measures;
 use nonholo_core::{Observation, Run, Scene};
 use nonholo_scenes::SceneVisitor;
@@ -41,6 +42,11 @@ pub struct FormResult {
     pub energy_drift_max: Option<f64>,
     /// What the formulation found setting up (A: rank_w, hidden constraints…).
     pub report: Vec<(String, f64)>,
+    /// The time reached by a run that its wall-time budget stopped: it
+    /// depends on the machine, so it goes to `timing.csv` only, and the
+    /// run's other measures are left out (see [`super::wall_time_stop`]).
+    #[serde(default)]
+    pub wall_time_stop_t: Option<f64>,
 }
 
 impl FormResult {
@@ -69,6 +75,7 @@ impl FormResult {
             energy_initial: None,
             energy_drift_max: None,
             report: Vec::new(),
+            wall_time_stop_t: None,
         }
     }
 }
@@ -239,7 +246,72 @@ fn from_run(r: &PointRun, run: &Run) -> FormResult {
             .filter(|(_, v)| v.is_finite())
             .map(|(k, v)| (k.to_string(), v))
             .collect(),
+        wall_time_stop_t: None,
     }
+}
+
+/// A run its wall-time budget stopped: failed, with no time, counter or
+/// measure, since they depend on the machine (the time reached is kept
+/// for `timing.csv`).
+fn wall_time_stopped(r: &PointRun, run: &Run, seconds: f64) -> FormResult {
+    let mut res = failed(r, None, super::wall_time_stop(seconds));
+    res.wall_time_s = run.solution.stats.wall_time_s;
+    res.wall_time_stop_t = Some(run.solution.t_last);
+    res
+}
+
+/// The first sample at which a value that would be written is not finite:
+/// its index, the column and the value.
+fn first_non_finite(s: &Samples) -> Option<(usize, String, f64)> {
+    for (i, o) in s.obs.iter().enumerate() {
+        let named = s
+            .coordinates
+            .iter()
+            .map(|(c, _)| c.clone())
+            .zip(&o.q)
+            .chain(
+                s.coordinates
+                    .iter()
+                    .map(|(c, _)| format!("{c}_dot"))
+                    .zip(&o.qd),
+            )
+            .chain(s.multipliers.iter().cloned().zip(&o.multipliers));
+        for (name, v) in named {
+            if !v.is_finite() {
+                return Some((i, name, *v));
+            }
+        }
+        if let Some((residual, energy)) = s.physics.get(i) {
+            for (name, v) in [("residual", residual), ("energy", energy)] {
+                if !v.is_finite() {
+                    return Some((i, name.to_string(), *v));
+                }
+            }
+        }
+    }
+    None
+}
+
+/// Cuts `samples` before the first value that is not finite, so that no
+/// result file holds one; a run that had not failed by then fails there,
+/// with the time and the column.
+fn cut_at_non_finite(res: &mut FormResult, samples: &mut Samples) {
+    let Some((i, column, v)) = first_non_finite(samples) else {
+        return;
+    };
+    let t = samples.t[i];
+    samples.t.truncate(i);
+    samples.obs.truncate(i);
+    samples.physics.truncate(i);
+    if res.status != "failed" {
+        res.status = "failed".into();
+        res.error_t = Some(t);
+        res.error = Some(format!(
+            "at t = {t}: `{column}` is not finite ({v}): the state overflowed or left the domain \
+             of the scene's functions; the samples from there on are left out"
+        ));
+    }
+    res.t_last = samples.t.last().copied();
 }
 
 /// Runs every formulation of `point`; a failure of one is recorded and the
@@ -354,30 +426,35 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                 });
                 res.constraint_residual_max =
                     Some(physics.iter().fold(0.0, |m: f64, p| m.max(p.0)));
-                (
-                    res,
-                    Some(Samples {
-                        label: r.label.clone(),
-                        coordinates,
-                        multipliers: Vec::new(),
-                        t,
-                        obs,
-                        physics,
-                    }),
-                )
+                let mut samples = Samples {
+                    label: r.label.clone(),
+                    coordinates,
+                    multipliers: Vec::new(),
+                    t,
+                    obs,
+                    physics,
+                };
+                cut_at_non_finite(&mut res, &mut samples);
+                res.energy_initial = res.energy_initial.and_then(finite);
+                res.energy_drift_max = res.energy_drift_max.and_then(finite);
+                res.constraint_residual_max = res.constraint_residual_max.and_then(finite);
+                with_samples(res, samples)
             }
         };
     }
     match execute(&r.spec) {
         Err(e) => (failed(r, None, e.to_string()), None),
         Ok((run, _matching)) => {
-            let res = from_run(r, &run);
+            if let Some(IntegrateError::TimeBudgetExceeded { seconds, .. }) = &run.failure {
+                return (wall_time_stopped(r, &run, *seconds), None);
+            }
+            let mut res = from_run(r, &run);
             let t = run.solution.t[..run.samples.len()].to_vec();
             let physics = scene.visit(Physics {
                 t: &t,
                 obs: &run.samples,
             });
-            let samples = Samples {
+            let mut samples = Samples {
                 label: r.label.clone(),
                 coordinates,
                 multipliers: run.model.multiplier_names(),
@@ -385,8 +462,20 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                 obs: run.samples,
                 physics,
             };
-            (res, Some(samples))
+            cut_at_non_finite(&mut res, &mut samples);
+            with_samples(res, samples)
         }
+    }
+}
+
+/// A result and its samples, if it has any: a trajectory file is written
+/// for (and expected of) exactly the results with a `t_last`.
+fn with_samples(mut res: FormResult, samples: Samples) -> (FormResult, Option<Samples>) {
+    if samples.t.is_empty() {
+        res.t_last = None;
+        (res, None)
+    } else {
+        (res, Some(samples))
     }
 }
 

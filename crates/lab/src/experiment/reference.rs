@@ -59,19 +59,16 @@ pub fn q_error(a: &Observation, b: &Observation, coordinates: &[(String, String)
         .fold(0.0, f64::max)
 }
 
-/// The run behind a computed reference: `spec` with `method` at `rtol = atol`.
-fn tight(
-    spec: &RunSpec,
-    method: &str,
-    rtol: f64,
-    max_wall_time: Option<f64>,
-) -> Result<Run, String> {
+/// The run behind a computed reference: `spec` with `method` at `rtol =
+/// atol`, within the reference's budgets.
+fn tight(spec: &RunSpec, method: &str, rtol: f64, r: &RefSpec) -> Result<Run, String> {
     let mut s = spec.clone();
     s.method = Method::from_name(method).ok_or_else(|| format!("unknown integrator `{method}`"))?;
     s.integrator.rtol = rtol;
     s.integrator.atol = rtol;
     s.integrator.fixed_step = None;
-    s.integrator.max_wall_time_s = max_wall_time;
+    s.integrator.max_wall_time_s = r.max_wall_time;
+    s.integrator.max_steps = r.max_steps;
     // Samples at step end points, not interpolated: the continuous extension
     // of Radau IIA (degree 3) would add ~1e-10 at tolerance 1e-13.
     s.integrator.hit_output = true;
@@ -79,11 +76,16 @@ fn tight(
     Ok(run)
 }
 
-/// A run is usable as a reference if it completed or stopped by design.
+/// A run is usable as a reference if it completed or stopped by design. A
+/// stop on the wall-time budget is reported without the time reached,
+/// which depends on the machine.
 fn usable(run: &Run) -> Result<Option<String>, String> {
     match &run.failure {
         None => Ok(None),
         Some(IntegrateError::Stopped { t, reason }) => Ok(Some(format!("at t = {t}: {reason}"))),
+        Some(IntegrateError::TimeBudgetExceeded { seconds, .. }) => {
+            Err(super::wall_time_stop(*seconds))
+        }
         Some(e) => Err(e.to_string()),
     }
 }
@@ -118,7 +120,7 @@ pub fn compute(
             obs,
         });
     }
-    let primary = tight(spec, &r.integrator, r.rtol, r.max_wall_time).map_err(|e| {
+    let primary = tight(spec, &r.integrator, r.rtol, r).map_err(|e| {
         format!(
             "reference run ({} at {:e}) could not start: {e}",
             r.integrator, r.rtol
@@ -132,6 +134,17 @@ pub fn compute(
     })?;
     let n = primary.samples.len();
     let t = primary.solution.t[..n].to_vec();
+    if let Some((i, _)) = primary
+        .samples
+        .iter()
+        .enumerate()
+        .find(|(_, o)| !o.q.iter().chain(&o.qd).all(|v| v.is_finite()))
+    {
+        return Err(format!(
+            "reference run ({} at {:e}) failed: at t = {}: its state is not finite",
+            r.integrator, r.rtol, t[i]
+        ));
+    }
     let mut info = ReferenceInfo {
         kind: "computed".into(),
         integrator: Some(r.integrator.clone()),
@@ -145,9 +158,7 @@ pub fn compute(
         stop,
         wall_time_s: 0.0,
     };
-    match tight(spec, &r.check_integrator, r.check_rtol, r.max_wall_time)
-        .and_then(|c| usable(&c).map(|_| c))
-    {
+    match tight(spec, &r.check_integrator, r.check_rtol, r).and_then(|c| usable(&c).map(|_| c)) {
         Ok(check) => {
             let common = super::point::common_len(&t, &check.solution.t).min(check.samples.len());
             let errs: Vec<f64> = (0..common)

@@ -1,8 +1,9 @@
 //! Sweep points and their resolution into run specifications.
 
-use nonholo_core::integrate::{Method, Options, Radau5Options, RadauNewton};
+use nonholo_core::integrate::{Method, Options, Radau5Options};
 
 use super::spec::{CLOSED_FORM, Experiment, FormulationSpec, SweepMode, apply};
+use crate::fields;
 use crate::simulate::{RunSpec, output_grid};
 
 /// One point of a sweep: its index and the value of every axis (as text).
@@ -126,7 +127,7 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
         init,
         forms,
     } = apply_point(exp, point)?;
-    let grid = output_grid(exp.t_end, exp.output_every).map_err(|e| e.to_string())?;
+    let grid = output_grid(exp.t_end, exp.output_every)?;
     forms
         .iter()
         .map(|f| {
@@ -143,8 +144,7 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
             let method = if f.formulation == CLOSED_FORM {
                 Method::Dop853
             } else {
-                Method::from_name(&s.integrator)
-                    .ok_or_else(|| format!("{}: unknown integrator `{}`", f.label, s.integrator))?
+                fields::method(&s.integrator).map_err(|m| format!("{}: {m}", f.label))?
             };
             if method.needs_fixed_step() && s.step.is_none() {
                 return Err(format!(
@@ -152,14 +152,10 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                     f.label, s.integrator
                 ));
             }
-            if s.rtol < crate::simulate::MIN_RTOL {
-                return Err(format!(
-                    "{}: rtol {:e} is below what double precision can deliver ({:.1e})",
-                    f.label,
-                    s.rtol,
-                    crate::simulate::MIN_RTOL
-                ));
-            }
+            // Checked where the values were read; again for experiments
+            // built in code.
+            fields::rtol(s.rtol).map_err(|m| format!("{}: rtol: {m}", f.label))?;
+            fields::atol(s.atol).map_err(|m| format!("{}: atol: {m}", f.label))?;
             Ok(PointRun {
                 label: f.label.clone(),
                 spec: RunSpec {
@@ -176,12 +172,8 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                         max_steps: s.max_steps,
                         max_wall_time_s: s.max_wall_time,
                         radau5: Radau5Options {
-                            newton: RadauNewton::from_name(&s.radau_newton).ok_or_else(|| {
-                                format!(
-                                    "{}: unknown radau_newton `{}`; valid: auto, simplified, full",
-                                    f.label, s.radau_newton
-                                )
-                            })?,
+                            newton: fields::radau_newton(&s.radau_newton)
+                                .map_err(|m| format!("{}: radau_newton: {m}", f.label))?,
                             ..Radau5Options::default()
                         },
                         output: grid.clone(),

@@ -34,6 +34,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use nonholo_core::RunStatus;
+use nonholo_core::integrate::IntegrateError;
 use serde::{Deserialize, Serialize};
 
 pub use self::output::{MIN_COST_SPREAD, Slopes, log_slope, slopes};
@@ -45,7 +46,8 @@ use super::output::median;
 use super::reference::{Reference, ReferenceInfo, compute, q_error};
 use super::spec::{Experiment, Ladder, RefSpec, compact};
 use super::sweep::{Point, resolve};
-use super::{Outcome, RunOptions};
+use super::{Outcome, ResultsDir, RunOptions};
+use crate::CliError;
 use crate::record::Counters;
 use crate::simulate::{RunSpec, execute};
 use crate::table::{StateRow, Table, state_header};
@@ -223,6 +225,11 @@ fn measure(
     row.repeats = walls.len();
     row.wall_time_min_s = walls.iter().copied().reduce(f64::min);
     row.wall_time_median_s = median(walls);
+    if let Some(IntegrateError::TimeBudgetExceeded { seconds, .. }) = &run.failure {
+        // Where it stopped depends on the machine: no time, no counter.
+        row.error = Some(super::wall_time_stop(*seconds));
+        return row;
+    }
     if run.config.method.is_implicit() {
         row.radau_newton = Some(run.config.options.radau5.newton.name().into());
     }
@@ -263,8 +270,8 @@ fn measure(
     row.t_common_end = Some(reference.t[common - 1]);
     row.err_end = Some(err_end);
     row.err_max = Some(err_max);
-    row.rel_err_end = Some(err_end / scale);
-    row.rel_err_max = Some(err_max / scale);
+    row.rel_err_end = finite(err_end / scale);
+    row.rel_err_max = finite(err_max / scale);
     let scd = |e: f64| finite(-(e / scale).log10());
     row.scd_end = scd(err_end);
     row.scd_max = scd(err_max);
@@ -275,7 +282,7 @@ fn measure(
 fn write_reference(path: &Path, r: &Reference, coords: &[(String, String)]) -> Result<(), String> {
     let mut table = Table::new(state_header(coords.iter().map(|c| c.0.as_str()), []))?;
     for (t, o) in r.t.iter().zip(&r.obs) {
-        table.push(&StateRow {
+        table.push_state(&StateRow {
             t: *t,
             q: &o.q,
             q_dot: &o.qd,
@@ -334,7 +341,7 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
                 &coords,
             );
             if !quiet {
-                eprintln!(
+                crate::note!(
                     "  {at}{} {}: {} {}, err_max {}, {} rhs, {:.3e} s",
                     r.label,
                     value
@@ -383,10 +390,10 @@ fn physics_key(spec: &RunSpec, r: &RefSpec) -> String {
 }
 
 /// Runs a work-precision experiment (see the module documentation).
-pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
+pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outcome, CliError> {
     let started = std::time::SystemTime::now();
-    let dir = &opts.out_dir;
-    super::prepare_dir(dir, &["points", "references", "plots"])?;
+    let dir = &out.path().to_path_buf();
+    out.prepare(&["points", "references", "plots"])?;
     let mut points = Vec::new();
     let mut reused = 0;
     let all = exp.points();
@@ -399,17 +406,22 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
             continue;
         }
         if !opts.quiet {
-            eprintln!("{}: point {} of {}", exp.name, p.index + 1, all.len());
+            crate::note!("{}: point {} of {}", exp.name, p.index + 1, all.len());
         }
-        let r = run_point(exp, p, dir, opts.quiet)?;
-        write_json(&point_path(dir, p.index), &r)?;
+        let r = run_point(exp, p, dir, opts.quiet).map_err(CliError::Output)?;
+        write_json(&point_path(dir, p.index), &r).map_err(CliError::Output)?;
         points.push(r);
     }
-    output::write_tables(exp, dir, &points)?;
-    let plots = draw(exp, dir, &points)?;
-    output::write_summary(exp, dir, &points)?;
-    output::write_html(exp, dir, &points, &plots)?;
-    write_manifest(exp, dir, started, 1)?;
+    let written = (|| {
+        output::write_tables(exp, dir, &points)?;
+        let plots = draw(exp, dir, &points)?;
+        output::write_summary(exp, dir, &points)?;
+        output::write_html(exp, dir, &points, &plots)?;
+        write_manifest(exp, dir, started, 1)?;
+        Ok::<_, String>(plots)
+    })();
+    let plots = written.map_err(CliError::Output)?;
+    out.finish();
     let rows = points.iter().flat_map(|p| &p.body.rows);
     let count = |s: &str| rows.clone().filter(|r| r.status == s).count();
     Ok(Outcome {
@@ -425,13 +437,20 @@ pub fn run(exp: &Experiment, opts: &RunOptions) -> Result<Outcome, String> {
 
 /// The stored points of `exp` in `dir` (for `nonholo plot`).
 pub fn load(exp: &Experiment, dir: &Path) -> Result<Vec<WpPoint>, String> {
-    load_points(exp, dir)
+    load_points(exp, dir, WP_SCHEMA)
 }
 
-/// Redraws the figures and the page from stored points (`nonholo plot`).
-pub fn redraw(exp: &Experiment, dir: &Path) -> Result<Vec<PathBuf>, String> {
-    let points = load(exp, dir)?;
-    let plots = draw(exp, dir, &points)?;
-    output::write_html(exp, dir, &points, &plots)?;
+/// Redraws the figures and the page from stored points (`nonholo plot`):
+/// stale or missing results are refused (exit 2) before anything is drawn.
+pub fn redraw(exp: &Experiment, out: ResultsDir) -> Result<Vec<PathBuf>, CliError> {
+    let dir = &out.path().to_path_buf();
+    let points = load(exp, dir).map_err(CliError::Input)?;
+    let written = (|| {
+        let plots = draw(exp, dir, &points)?;
+        output::write_html(exp, dir, &points, &plots)?;
+        Ok::<_, String>(plots)
+    })();
+    let plots = written.map_err(CliError::Output)?;
+    out.finish();
     Ok(plots)
 }

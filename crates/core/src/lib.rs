@@ -36,7 +36,7 @@ pub use binding::{Binding, Equations, EvalError};
 pub use complex::C64;
 pub use error::{Error, Level};
 pub use init::Initial;
-pub use model::{Description, FormulationInfo, Model, Observation};
+pub use model::{CrossingRecord, Description, FormulationInfo, Model, Observation};
 pub use monitor::Diagnostics;
 pub use param::{Bound, Kind, ParamSpec, Params, Value};
 pub use run::{Run, RunConfig, RunStatus, simulate};

@@ -2,7 +2,7 @@
 //! `docs/schema.md`).
 
 use nonholo_core::integrate::{Radau5Options, Stats};
-use nonholo_core::{Params, Run, RunStatus, Value};
+use nonholo_core::{CrossingRecord, Params, Run, RunStatus, Value};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value as Json};
 
@@ -30,6 +30,8 @@ pub struct IntegratorRecord {
     pub hit_output: bool,
     /// radau5's settings in their serde form; absent for explicit methods.
     pub radau5: Option<Radau5Options>,
+    /// Whether an explicit run stops where its stiffness test keeps firing.
+    pub stiff_stop: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -112,6 +114,45 @@ pub struct StatsRecord {
     pub stiffness_detected: Option<[f64; 2]>,
 }
 
+/// One crossing of a singular set (formulation A across a reversal of the
+/// sleigh, see docs/embedding.md §6), as `nonholo_core::CrossingRecord`.
+#[derive(Debug, Clone, Serialize)]
+pub struct CrossingJson {
+    pub number: usize,
+    pub t_stop: f64,
+    pub t_singular: f64,
+    pub t_resume: f64,
+    pub clearance: f64,
+    pub gap_error: f64,
+    pub return_residual: f64,
+    pub restart_change: f64,
+}
+
+impl From<&CrossingRecord> for CrossingJson {
+    fn from(c: &CrossingRecord) -> Self {
+        let CrossingRecord {
+            number,
+            t_stop,
+            t_singular,
+            t_resume,
+            clearance,
+            gap_error,
+            return_residual,
+            restart_change,
+        } = *c;
+        CrossingJson {
+            number,
+            t_stop,
+            t_singular,
+            t_resume,
+            clearance,
+            gap_error,
+            return_residual,
+            restart_change,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct ErrorRecord {
     pub t: Option<f64>,
@@ -141,6 +182,9 @@ pub struct RunRecord {
     pub nu: Option<Vec<Vec<f64>>>,
     pub diagnostics: DiagnosticsRecord,
     pub stats: StatsRecord,
+    /// The crossings of singular sets the run made, in order (empty for
+    /// every formulation but A with a continuation).
+    pub crossings: Vec<CrossingJson>,
     /// `completed` or `failed`.
     pub status: &'static str,
     pub error: Option<ErrorRecord>,
@@ -230,6 +274,17 @@ impl RunRecord {
                 inv.drift_max,
             ));
         }
+        for c in &run.crossings {
+            for (name, v) in [
+                ("t_singular", c.t_singular),
+                ("clearance", c.clearance),
+                ("gap_error", c.gap_error),
+                ("return_residual", c.return_residual),
+                ("restart_change", c.restart_change),
+            ] {
+                scalars.push((format!("crossings[{}].{name}", c.number), v));
+            }
+        }
         for (k, v) in run.model.init_report() {
             scalars.push((format!("init.report.{k}"), v));
         }
@@ -277,6 +332,7 @@ impl RunRecord {
                 dense: cfg.options.dense,
                 hit_output: cfg.options.hit_output,
                 radau5: cfg.method.is_implicit().then_some(cfg.options.radau5),
+                stiff_stop: cfg.options.stiff_stop,
             },
             params: params_json(run.model.scene_params()),
             options: params_json(run.model.options()),
@@ -346,6 +402,7 @@ impl RunRecord {
                 wall_time_s: st.wall_time_s,
                 stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
             },
+            crossings: run.crossings.iter().map(CrossingJson::from).collect(),
             // Schema run/1 (docs/schema.md) knows `completed` and `failed`
             // only: a stop by design is a `failed` run whose error says so.
             status: match run.status() {

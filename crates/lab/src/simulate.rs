@@ -64,6 +64,11 @@ pub struct SimulateArgs {
     /// kinetic-energy metric) instead of refusing them.
     #[arg(long)]
     pub project_init: bool,
+    /// Stop an explicit run (dopri5, dop853) where Hairer's stiffness test
+    /// has fired 15 times in a row: stability, not accuracy, would limit its
+    /// steps from there on (default: a warning only).
+    #[arg(long)]
+    pub stiff_stop: bool,
     /// Write the run to FILE.json, or FILE.csv plus FILE.csv.meta.json (status,
     /// tolerances, options, diagnostics); default: a summary on stdout. The
     /// directory must exist.
@@ -146,6 +151,7 @@ pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
         fixed_step: step,
         max_steps,
         max_wall_time_s,
+        stiff_stop: args.stiff_stop,
         // Samples come from each step's polynomial as the run passes the
         // output times; keeping every polynomial is only needed for
         // evaluation at arbitrary times afterwards.
@@ -455,6 +461,22 @@ pub fn summary(run: &Run, r: &RunRecord) -> String {
         let _ = writeln!(
             s,
             "stiffness detected at t = {t} (h·|λ| ≈ {hl:.2}): consider an implicit method"
+        );
+    }
+    if !r.crossings.is_empty() {
+        let max = |f: fn(&crate::record::CrossingJson) -> f64| {
+            r.crossings.iter().map(f).fold(0.0, f64::max)
+        };
+        let _ = writeln!(
+            s,
+            "{} crossings of a singular set (first at t = {:.6}, last at t = {:.6}); \
+             gap interpolation error ≤ {:.1e}, return residual ≤ {:.1e}, restart change ≤ {:.1e}",
+            r.crossings.len(),
+            r.crossings[0].t_singular,
+            r.crossings[r.crossings.len() - 1].t_singular,
+            max(|c| c.gap_error),
+            max(|c| c.return_residual),
+            max(|c| c.restart_change),
         );
     }
     s

@@ -139,3 +139,40 @@ fn regular_constraints_and_huge_singular_tol_read_right() {
         "{text}"
     );
 }
+
+/// Item 11: with `--stiff-stop`, the stiff case ends where the stiffness
+/// test of DOP853 keeps firing (a few thousand steps in), naming radau5,
+/// and the run's JSON records the setting.
+#[test]
+fn stiff_stop_ends_an_explicit_run_on_a_stiff_problem() {
+    let dir = std::env::temp_dir().join(format!("nonholo-stiff-stop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("run.json");
+    let (code, text, _) = simulate(&[
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "visc",
+        "--option",
+        "k=1e9",
+        "--integrator",
+        "dop853",
+        "--stiff-stop",
+        "--max-steps",
+        "100000",
+        "--keep-partial",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0, "{text}");
+    assert!(
+        text.contains("the problem is stiff for this explicit method") && text.contains("radau5"),
+        "{text}"
+    );
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(run["integrator"]["stiff_stop"], true);
+    let steps = run["stats"]["steps"].as_u64().unwrap();
+    assert!(steps < 10_000, "{steps} steps");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

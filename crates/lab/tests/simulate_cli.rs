@@ -754,6 +754,72 @@ fn embedding_applicability_and_integrator() {
     );
 }
 
+/// A runs across the sleigh's reversals (docs/embedding.md §6): each
+/// crossing is recorded in the run's JSON, and the motion stays on C's
+/// (matched by λ0) through them.
+#[test]
+fn embedding_records_its_crossings_and_follows_c_through_them() {
+    let dir = tmpdir("crossings");
+    let mut runs = Vec::new();
+    for f in ["embedding", "vakonomic"] {
+        let out = dir.join(format!("{f}.json"));
+        let o = nonholo(&[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            f,
+            "--init",
+            "lambda=0.5",
+            "--t-end",
+            "3",
+            "--output-every",
+            "0.25",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{f}: {}", stderr(&o));
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        runs.push(j);
+    }
+    let (a, c) = (&runs[0], &runs[1]);
+    assert_eq!(c["crossings"], serde_json::json!([]));
+    let crossings = a["crossings"].as_array().unwrap();
+    // C's heading speed u = ẋ cos φ + ẏ sin φ changes sign between the 1 ms
+    // samples at 1.179|1.180, 1.822|1.823, 2.305|2.306, 2.706|2.707 s: one
+    // crossing each, at the singular instant.
+    assert_eq!(crossings.len(), 4, "{crossings:?}");
+    let mut last = 0.0;
+    for (i, x) in crossings.iter().enumerate() {
+        let f = |k: &str| x[k].as_f64().unwrap();
+        assert_eq!(x["number"], i + 1);
+        assert!(last <= f("t_stop") && f("t_stop") < f("t_singular"));
+        assert!(f("t_singular") < f("t_resume"));
+        assert!(f("gap_error") < 1e-8 && f("return_residual") < 1e-7, "{x}");
+        assert!(f("restart_change") < 1e-12, "{x}");
+        // The instant estimated before the crossing: inside the bracket, to
+        // 0.1 ms.
+        let lo = [1.179, 1.822, 2.305, 2.706][i];
+        assert!(
+            f("t_singular") > lo - 1e-4 && f("t_singular") < lo + 1.1e-3,
+            "{x}"
+        );
+        last = f("t_resume");
+    }
+    let d = a["q"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(c["q"].as_array().unwrap())
+        .map(|(p, r)| {
+            let g = |v: &serde_json::Value, i: usize| v[i].as_f64().unwrap();
+            (g(p, 0) - g(r, 0)).hypot(g(p, 1) - g(r, 1))
+        })
+        .fold(0.0, f64::max);
+    assert!(d < 1e-8, "A and C differ by {d:e} m");
+}
+
 /// The realisations as the issue writes them: `visc` with `k`, `mass` with
 /// `N` and `λ0`; their multiplier column; their options checked by name.
 #[test]

@@ -74,6 +74,14 @@ struct SettingsKey<'a> {
     max_wall_time: Option<Bits>,
     project_init: bool,
     radau_newton: &'a str,
+    /// Left out when off, so that keys made before the setting existed
+    /// still name the same runs.
+    #[serde(skip_serializing_if = "is_false")]
+    stiff_stop: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl<'a> From<&'a Settings> for SettingsKey<'a> {
@@ -87,6 +95,7 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             max_wall_time,
             project_init,
             radau_newton,
+            stiff_stop,
         } = s;
         SettingsKey {
             integrator,
@@ -97,6 +106,7 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             max_wall_time: max_wall_time.map(Bits),
             project_init: *project_init,
             radau_newton,
+            stiff_stop: *stiff_stop,
         }
     }
 }

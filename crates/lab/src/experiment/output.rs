@@ -254,6 +254,7 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
             "max_steps": f.settings.max_steps,
             "max_wall_time": f.settings.max_wall_time,
             "project_init": f.settings.project_init,
+            "stiff_stop": f.settings.stiff_stop,
             "options": f.options,
             "init": f.init,
             "params": f.params,

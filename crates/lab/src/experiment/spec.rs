@@ -22,7 +22,8 @@
 //! label = "B"
 //! formulation = "chetaev"            # or vakonomic, embedding, closed-form
 //! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init,
-//!                                    # radau_newton = "auto" | "simplified" | "full"
+//!                                    # radau_newton = "auto" | "simplified" | "full",
+//!                                    # stiff_stop = true (end where the stiffness test keeps firing)
 //! options = { stab = "none" }
 //! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
 //! params = {}                        # scene parameters overridden for this formulation
@@ -131,6 +132,8 @@ struct FormulationFile {
     #[serde(default)]
     project_init: bool,
     #[serde(default)]
+    stiff_stop: bool,
+    #[serde(default)]
     options: Entries,
     #[serde(default)]
     init: Entries,
@@ -208,6 +211,8 @@ pub struct Settings {
     pub project_init: bool,
     /// Newton iteration of radau5: `auto`, `simplified`, `full`.
     pub radau_newton: String,
+    /// Stop an explicit run where its stiffness test keeps firing.
+    pub stiff_stop: bool,
 }
 
 /// One formulation of an experiment, with everything given as text (the
@@ -703,6 +708,7 @@ impl Experiment {
                             v.get_ref().clone()
                         }
                     },
+                    stiff_stop: f.stiff_stop,
                 },
                 options: entries(&ctx, "formulation.options", &f.options)?,
                 init: entries(&ctx, "formulation.init", &f.init)?,

@@ -171,6 +171,7 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                         fixed_step: s.step,
                         max_steps: s.max_steps,
                         max_wall_time_s: s.max_wall_time,
+                        stiff_stop: s.stiff_stop,
                         radau5: Radau5Options {
                             newton: fields::radau_newton(&s.radau_newton)
                                 .map_err(|m| format!("{}: radau_newton: {m}", f.label))?,

@@ -34,6 +34,7 @@ fn args(
         max_steps: 10_000_000,
         max_wall_time: None,
         project_init: false,
+        stiff_stop: false,
         out: None,
         keep_partial: false,
     }

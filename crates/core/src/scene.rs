@@ -105,6 +105,27 @@ pub fn atan2<D: Scalar>(y: D, x: D) -> D {
     }
 }
 
+/// The branch of `arctan(y/x)` nearest to `near` (its branches differ by
+/// multiples of π): [`atan2`]'s value plus the multiple of π that brings its
+/// real part nearest to `near`; `atan2`'s own branch `(−π, π]` if `near` is
+/// `None` or not finite. A heading continued through a reversal of the
+/// motion (where `atan2` turns it by π) is the branch nearest to its last
+/// value.
+pub fn atan2_near<D: Scalar>(y: D, x: D, near: Option<f64>) -> D {
+    let principal = atan2(y, x);
+    match near {
+        Some(r) if r.is_finite() => {
+            let k = ((r - principal.re()) / std::f64::consts::PI).round();
+            if k == 0.0 {
+                principal
+            } else {
+                principal + k * std::f64::consts::PI
+            }
+        }
+        _ => principal,
+    }
+}
+
 /// A named quantity: coordinate, convenience value or invariant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Named {
@@ -142,6 +163,11 @@ pub struct EmbeddingInfo {
     pub independent: &'static [usize],
     /// Indices of the dependent coordinates `q_D` in `q`.
     pub dependent: &'static [usize],
+    /// The dependent coordinates (a subset of `dependent`) of which the map
+    /// gives only the velocity `q̇_c = φ_c(q_I, q̇_I, t)`: cyclic ones,
+    /// absent from `L`, `f` and `g` (the rolling disk's angle `ψ`).
+    /// Formulation A integrates them as quadratures of their rates.
+    pub cyclic: &'static [usize],
     /// The map, as a formula.
     pub formula: &'static str,
     /// Where the map is singular.
@@ -261,7 +287,9 @@ pub trait Scene: Send + Sync + 'static {
         0
     }
 
-    /// The embedding map `q_D = φ(q_I, q̇_I, t)` into `q_dep` (length `s`).
+    /// The embedding map `q_D = φ(q_I, q̇_I, t)` into `q_dep` (length `s`,
+    /// in the order of [`EmbeddingInfo::dependent`]); for a cyclic dependent
+    /// coordinate ([`EmbeddingInfo::cyclic`]) its velocity `q̇_c`.
     ///
     /// A map that is many-valued (the sleigh's `φ = arctan(ẏ/ẋ)`, eq. 21,
     /// whose branches differ by multiples of π) gives the branch nearest to

@@ -39,7 +39,7 @@ use nonholo_core::integrate::{Method, OdeSystem, Options, Stats, SystemError, so
 use nonholo_core::model::{Crossed, CrossingRecord, GapFill};
 use num_complex::Complex64;
 
-use crate::elo::{MAX_DOF, reconstruct};
+use crate::elo::{MAX_DOF, cyclic_rates, reconstruct};
 use crate::ode::{Field, ODE_RESOLUTION, Reduction};
 
 /// Where the explicit form leaves the real axis when it continues: `q⁗`
@@ -113,19 +113,23 @@ impl HalfCircle {
 
 /// A's explicit form along a path in complex time, as a real ODE in the
 /// path parameter `s`: `Z` holds the real and imaginary parts of
-/// `z = (q_I, q̇_I, q̈_I, q⃛_I)`, `dz/ds = γ'(s) (z₁, z₂, z₃, w(z))`.
+/// `y = (z, q_c)`, `z = (q_I, q̇_I, q̈_I, q⃛_I)` and `q_c` the cyclic
+/// dependent coordinates, `dy/ds = γ'(s) (z₁, z₂, z₃, w(z), φ_c(z))`.
 pub struct Path<'a, S: Scene> {
     pub scene: &'a S,
     pub e: &'a nonholo_core::scene::EmbeddingInfo,
     pub path: HalfCircle,
     pub m: usize,
+    /// Cyclic dependent coordinates.
+    pub c: usize,
     pub reduction: &'a mut Reduction<C64>,
     /// The branch reference (the real parts of the dependent coordinates at
     /// the last accepted step), updated as the path turns.
     pub near: Vec<f64>,
-    /// `(s, z)` at every accepted step.
-    pub states: Vec<(f64, Vec<C64>)>,
     z: Vec<C64>,
+    /// Scratch for the map's value and the cyclic rates.
+    dep: Vec<C64>,
+    rates: Vec<C64>,
 }
 
 impl<'a, S: Scene> Path<'a, S> {
@@ -136,16 +140,18 @@ impl<'a, S: Scene> Path<'a, S> {
         reduction: &'a mut Reduction<C64>,
         near: Vec<f64>,
     ) -> Self {
-        let m = e.independent.len();
+        let (m, c) = (e.independent.len(), e.cyclic.len());
         Path {
             scene,
             e,
             path,
             m,
+            c,
             reduction,
             near,
-            states: Vec::new(),
-            z: vec![C64::from(0.0); 4 * m],
+            z: vec![C64::from(0.0); 4 * m + c],
+            dep: vec![C64::from(0.0); e.dependent.len()],
+            rates: vec![C64::from(0.0); c],
         }
     }
 
@@ -174,12 +180,10 @@ impl<'a, S: Scene> Path<'a, S> {
             &mut q[..n],
             &mut qd[..n],
         );
-        let turned = self
-            .e
-            .dependent
-            .iter()
-            .enumerate()
-            .any(|(j, &i)| (q[i].re() - self.near[j]).abs() > std::f64::consts::FRAC_PI_4);
+        let turned = self.e.dependent.iter().enumerate().any(|(j, &i)| {
+            !self.e.cyclic.contains(&i)
+                && (q[i].re() - self.near[j]).abs() > std::f64::consts::FRAC_PI_4
+        });
         if turned {
             for (j, &i) in self.e.dependent.iter().enumerate() {
                 self.near[j] = q[i].re();
@@ -191,7 +195,7 @@ impl<'a, S: Scene> Path<'a, S> {
 
 impl<S: Scene> OdeSystem for Path<'_, S> {
     fn dim(&self) -> usize {
-        8 * self.m
+        2 * (4 * self.m + self.c)
     }
 
     fn rhs(&mut self, s: f64, y: &[f64], dy: &mut [f64]) -> Result<(), SystemError> {
@@ -210,6 +214,23 @@ impl<S: Scene> OdeSystem for Path<'_, S> {
             }) * rate;
             dy[2 * k] = dz.re();
             dy[2 * k + 1] = dz.im();
+        }
+        if self.c > 0 {
+            cyclic_rates(
+                self.scene,
+                self.e,
+                t,
+                &self.z[..m],
+                &self.z[m..2 * m],
+                &self.near,
+                &mut self.dep,
+                &mut self.rates,
+            );
+            for (k, r) in self.rates.iter().enumerate() {
+                let dq = *r * rate;
+                dy[2 * (4 * m + k)] = dq.re();
+                dy[2 * (4 * m + k) + 1] = dq.im();
+            }
         }
         if dy.iter().all(|v| v.is_finite()) {
             Ok(())
@@ -233,7 +254,6 @@ impl<S: Scene> OdeSystem for Path<'_, S> {
             y[2 * k + 1] = z.im();
         }
         self.track_branch(t);
-        self.states.push((s, self.z.clone()));
         Ok(true)
     }
 
@@ -381,7 +401,8 @@ impl CircleInterpolant {
 pub struct Stop<'a, S: Scene> {
     pub scene: &'a S,
     pub e: &'a nonholo_core::scene::EmbeddingInfo,
-    /// The stop and the state there (with `u = (q⁗, q⁽⁵⁾, q⁽⁶⁾)` of its solve).
+    /// The stop and the state `y = (z, q_c)` there (with
+    /// `u = (q⁗, q⁽⁵⁾, q⁽⁶⁾)` of its solve).
     pub t: f64,
     pub z: &'a [f64],
     pub u: &'a [f64],
@@ -413,6 +434,7 @@ pub fn cross<S: Scene>(
     opts: &Options,
 ) -> Result<Across, String> {
     let m = stop.e.independent.len();
+    let dim = 4 * m + stop.e.cyclic.len();
     let t_a = stop.t;
     // Derivatives 0..4 of q_I at the stop.
     let mut at_a: Vec<Vec<f64>> = (0..4)
@@ -428,13 +450,13 @@ pub fn cross<S: Scene>(
     };
     // The complex solve starts from the real consistent point.
     let mut d = vec![C64::from(0.0); 7 * m];
-    for (x, &v) in d.iter_mut().zip(stop.z.iter().chain(stop.u)) {
+    for (x, &v) in d.iter_mut().zip(stop.z[..4 * m].iter().chain(stop.u)) {
         *x = C64::from(v);
     }
     reduction.set_branch(stop.near);
     reduction.reset(stop.scene, stop.e, C64::from(t_a), &d)?;
     let mut sys = Path::new(stop.scene, stop.e, path, reduction, stop.near.to_vec());
-    let mut y0 = vec![0.0; 8 * m];
+    let mut y0 = vec![0.0; 2 * dim];
     for (k, &v) in stop.z.iter().enumerate() {
         y0[2 * k] = v;
     }
@@ -458,7 +480,7 @@ pub fn cross<S: Scene>(
         )
     })?;
     let t_b = t_a + 3.0 * tau;
-    let z_b: Vec<C64> = (0..4 * m)
+    let z_b: Vec<C64> = (0..dim)
         .map(|k| C64(Complex64::new(sol.y_last[2 * k], sol.y_last[2 * k + 1])))
         .collect();
     let w_b: Vec<C64> = sys
@@ -486,8 +508,8 @@ pub fn cross<S: Scene>(
         .as_ref()
         .ok_or_else(|| "the path kept no continuous extension".to_string())?;
     let n = CIRCLE_POINTS;
-    let mut zs = vec![0.0; 8 * m];
-    let mut values = vec![vec![Complex64::new(0.0, 0.0); 4 * m]; n];
+    let mut zs = vec![0.0; 2 * dim];
+    let mut values = vec![vec![Complex64::new(0.0, 0.0); dim]; n];
     for j in 0..=n / 2 {
         // t_j = c + r e^{iθ}, θ = 2πj/N = π(1 − s).
         let s = 1.0 - 2.0 * j as f64 / n as f64;
@@ -496,7 +518,7 @@ pub fn cross<S: Scene>(
                 "the path's continuous extension has no value at s = {s}"
             ));
         }
-        for k in 0..4 * m {
+        for k in 0..dim {
             let z = Complex64::new(zs[2 * k], zs[2 * k + 1]);
             values[j][k] = z;
             if j > 0 && j < n / 2 {
@@ -505,12 +527,12 @@ pub fn cross<S: Scene>(
         }
     }
     // The ends lie on the real axis: there the states are real.
-    for k in 0..4 * m {
+    for k in 0..dim {
         values[n / 2][k] = Complex64::new(stop.z[k], 0.0);
         values[0][k] = Complex64::new(z_b[k].re(), 0.0);
     }
     let interpolant = CircleInterpolant::new(path.centre, path.radius, &values);
-    let scale: Vec<f64> = (0..4 * m)
+    let scale: Vec<f64> = (0..dim)
         .map(|k| stop.z[k].abs().max(z_b[k].norm()).max(1.0))
         .collect();
     let gap_error = interpolant.tail(&scale);

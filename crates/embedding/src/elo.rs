@@ -47,7 +47,10 @@ pub fn theta<S: Scene, D: Scalar>(
 
 /// The full coordinates `(q, q̇)` from `(q_I, q̇_I, q̈_I)`: `q_D = φ`,
 /// `q̇_D = dφ/dt` (`φ` on the branch nearest to `near`, see
-/// [`Scene::embedding`]).
+/// [`Scene::embedding`]). A cyclic dependent coordinate
+/// ([`EmbeddingInfo::cyclic`]) gets its velocity `q̇_c = φ_c`; its value
+/// `q[c]` is left as it is (`L` does not depend on it; A integrates it as
+/// a quadrature of `φ_c`).
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct<S: Scene, D: Scalar>(
     scene: &S,
@@ -81,8 +84,37 @@ pub fn reconstruct<S: Scene, D: Scalar>(
         qd[i] = qdi[k];
     }
     for (j, &i) in e.dependent.iter().enumerate() {
-        q[i] = dep[j].re;
-        qd[i] = dep[j].eps;
+        if e.cyclic.contains(&i) {
+            qd[i] = dep[j].re;
+        } else {
+            q[i] = dep[j].re;
+            qd[i] = dep[j].eps;
+        }
+    }
+}
+
+/// The rates `φ_c(t, q_I, q̇_I)` of the cyclic dependent coordinates
+/// ([`EmbeddingInfo::cyclic`], in that order) into `out`, the map on the
+/// branch nearest to `near`; `dep` is scratch of length `s`.
+#[allow(clippy::too_many_arguments)]
+pub fn cyclic_rates<S: Scene, D: Scalar>(
+    scene: &S,
+    e: &EmbeddingInfo,
+    t: D,
+    qi: &[D],
+    qdi: &[D],
+    near: &[f64],
+    dep: &mut [D],
+    out: &mut [D],
+) {
+    scene.embedding(t, qi, qdi, near, dep);
+    for (o, c) in out.iter_mut().zip(e.cyclic) {
+        let j = e
+            .dependent
+            .iter()
+            .position(|i| i == c)
+            .expect("cyclic coordinates are dependent ones");
+        *o = dep[j];
     }
 }
 

@@ -1,5 +1,6 @@
 //! A's explicit form `ż = (z₁, z₂, z₃, w(z))`, `w = q_I⁗` from the
-//! derivative array (the solve is [`crate::ode::Reduction`]), for RK4,
+//! derivative array, and `q̇_c = φ_c(z)` for the cyclic dependent
+//! coordinates (the solve is [`crate::ode::Reduction`]), for RK4,
 //! DOPRI5 and DOP853 (Radau integrates the implicit form).
 //!
 //! Option `stab = projection` moves `q⃛` back onto A's hidden constraints
@@ -187,7 +188,7 @@ impl<S: Scene> Explicit<S> {
 
 impl<S: Scene> OdeSystem for Explicit<S> {
     fn dim(&self) -> usize {
-        4 * self.shared.m
+        self.shared.dim()
     }
 
     /// Stages beyond the singular set are refused as in the implicit form;
@@ -200,7 +201,10 @@ impl<S: Scene> OdeSystem for Explicit<S> {
         }
         dy[..3 * m].copy_from_slice(&y[m..4 * m]);
         let w = self.fourth_derivative(t, y)?;
-        dy[3 * m..].copy_from_slice(w);
+        dy[3 * m..4 * m].copy_from_slice(w);
+        if self.shared.c > 0 {
+            dy[4 * m..].copy_from_slice(self.shared.cyclic_rates(t, y));
+        }
         if dy.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
@@ -363,7 +367,7 @@ impl<S: Scene> Crossing for Explicit<S> {
         let change = {
             let sh = &self.shared;
             self.reduction
-                .project(&*sh.scene, &sh.e, t_b, &mut z)
+                .project(&*sh.scene, &sh.e, t_b, &mut z[..4 * m])
                 .map_err(fail)?
         };
         let d = self.reduction.state().to_vec();

@@ -1,7 +1,8 @@
-//! A's implicit form: `F(t, z, ż) = 0` in `z = (q_I, q̇_I, q̈_I, q⃛_I)`,
+//! A's implicit form: `F(t, y, ẏ) = 0` in `y = (z, q_c)`,
+//! `z = (q_I, q̇_I, q̈_I, q⃛_I)`, `q_c` the cyclic dependent coordinates,
 //!
 //! ```text
-//! F = [ ż₀ − z₁ ;  ż₁ − z₂ ;  ż₂ − z₃ ;  E(z, ż₃) ]        (E: eq. 19)
+//! F = [ ż₀ − z₁ ;  ż₁ − z₂ ;  ż₂ − z₃ ;  E(z, ż₃) ;  q̇_c − φ_c(z) ]   (E: eq. 19)
 //! ```
 //!
 //! integrated by Radau IIA as a differential-algebraic system. `∂F/∂z` and
@@ -13,7 +14,7 @@ use nonholo_core::integrate::{ImplicitSystem, SystemError};
 use num_dual::{Dual2, Dual2_64, Dual64};
 
 use crate::analysis::svd_of;
-use crate::elo::elo_array;
+use crate::elo::{cyclic_rates, elo_array};
 use crate::shared::Shared;
 
 /// A's implicit form bound to a scene.
@@ -24,17 +25,22 @@ pub struct Implicit<S: Scene> {
     d_dual: Vec<Dual64>,
     e_out: Vec<f64>,
     e_dual: Vec<Dual64>,
+    /// Scratch for the cyclic rates' derivatives.
+    dep_dual: Vec<Dual64>,
+    rates_dual: Vec<Dual64>,
 }
 
 impl<S: Scene> Implicit<S> {
     pub fn new(shared: Shared<S>) -> Self {
-        let m = shared.m;
+        let (m, s, c) = (shared.m, shared.e.dependent.len(), shared.c);
         Implicit {
             shared,
             d: vec![0.0; 5 * m],
             d_dual: vec![Dual64::from_re(0.0); 5 * m],
             e_out: vec![0.0; m],
             e_dual: vec![Dual64::from_re(0.0); m],
+            dep_dual: vec![Dual64::from_re(0.0); s],
+            rates_dual: vec![Dual64::from_re(0.0); c],
         }
     }
 
@@ -99,7 +105,7 @@ impl<S: Scene> Implicit<S> {
 
 impl<S: Scene> ImplicitSystem for Implicit<S> {
     fn dim(&self) -> usize {
-        4 * self.shared.m
+        self.shared.dim()
     }
 
     fn residual(
@@ -114,10 +120,14 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         for i in 0..3 * m {
             res[i] = yp[i] - y[m + i];
         }
-        self.d[..4 * m].copy_from_slice(y);
-        self.d[4 * m..].copy_from_slice(&yp[3 * m..]);
+        self.d[..4 * m].copy_from_slice(&y[..4 * m]);
+        self.d[4 * m..].copy_from_slice(&yp[3 * m..4 * m]);
         self.evaluate(t);
-        res[3 * m..].copy_from_slice(&self.e_out);
+        res[3 * m..4 * m].copy_from_slice(&self.e_out);
+        let rates = self.shared.cyclic_rates(t, y);
+        for (k, r) in rates.iter().enumerate() {
+            res[4 * m + k] = yp[4 * m + k] - r;
+        }
         if res.iter().all(|v| v.is_finite()) {
             Ok(())
         } else {
@@ -134,7 +144,7 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         jyp: &mut [f64],
     ) -> Result<(), SystemError> {
         let m = self.shared.m;
-        let dim = 4 * m;
+        let dim = self.shared.dim();
         jy.fill(0.0);
         jyp.fill(0.0);
         for i in 0..3 * m {
@@ -155,6 +165,32 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
                 }
             }
         }
+        // The cyclic rows: q̇_c − φ_c(q_I, q̇_I), one dual pass of the map
+        // per component of (q_I, q̇_I).
+        let c = self.shared.c;
+        for k in 0..c {
+            jyp[(4 * m + k) * dim + 4 * m + k] = 1.0;
+        }
+        for j in 0..2 * m {
+            for (v, &x) in self.d_dual.iter_mut().zip(&y[..2 * m]) {
+                *v = Dual64::from_re(x);
+            }
+            self.d_dual[j].eps = 1.0;
+            let sh = &self.shared;
+            cyclic_rates(
+                &*sh.scene,
+                &sh.e,
+                Dual64::from_re(t),
+                &self.d_dual[..m],
+                &self.d_dual[m..2 * m],
+                &sh.near,
+                &mut self.dep_dual,
+                &mut self.rates_dual,
+            );
+            for k in 0..c {
+                jy[(4 * m + k) * dim + j] = -self.rates_dual[k].eps;
+            }
+        }
         Ok(())
     }
 
@@ -163,6 +199,10 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
     fn component_name(&self, i: usize) -> String {
         let sh = &self.shared;
         let m = sh.m;
+        if i >= 4 * m {
+            let coord = sh.scene.info().coordinates[sh.e.cyclic[i - 4 * m]].name;
+            return format!("{coord}: its rate from the embedding map");
+        }
         let coord = sh.scene.info().coordinates[sh.e.independent[i % m]].name;
         let suffix = ["", "_dot", "_ddot", "_dddot"][i / m];
         if i >= 3 * m {
@@ -172,8 +212,8 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         }
     }
 
-    /// Index classes for Radau's error estimate: `q_I, q̇_I` → 1, `q̈_I` → 2,
-    /// `q⃛_I` → 3. The hidden constraints tie `q⃛_I` to `(q, q̇, q̈)` over two
+    /// Index classes for Radau's error estimate: `q_I, q̇_I` and the cyclic
+    /// coordinates → 1, `q̈_I` → 2, `q⃛_I` → 3. The hidden constraints tie `q⃛_I` to `(q, q̇, q̈)` over two
     /// differentiation levels, so the chain `q̈ → q⃛` carries the algebraic
     /// part (with `q̈` as index 1 the error estimate of the unscaled `q̈`
     /// stays O(1) as h → 0 and the step size collapses; `docs/embedding.md`,
@@ -182,7 +222,8 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         let m = self.shared.m;
         index[..2 * m].fill(1);
         index[2 * m..3 * m].fill(2);
-        index[3 * m..].fill(3);
+        index[3 * m..4 * m].fill(3);
+        index[4 * m..].fill(1);
     }
 
     /// The implicit form has nothing to stabilise: the collocation equations

@@ -1,7 +1,9 @@
 //! Formulation A as a model: its options, its two forms over one scene,
 //! the initial data they start from, and the physical reading.
 //!
-//! The state is `z = (q_I, q̇_I, q̈_I, q⃛_I)`. Radau IIA integrates the
+//! The state is `y = (z, q_c)`, `z = (q_I, q̇_I, q̈_I, q⃛_I)` and `q_c` the
+//! cyclic dependent coordinates (quadratures of their rates from the map).
+//! Radau IIA integrates the
 //! implicit form ([`crate::implicit`]: the equations (19) as a
 //! differential-algebraic system), the explicit methods the explicit form
 //! ([`crate::explicit`]: `ż = (z₁, z₂, z₃, q⁗(z))` with `q⁗` from the
@@ -105,6 +107,9 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
     }
     if e.dependent.len() != scene.s() {
         return Err("the embedding map must solve every nonholonomic constraint".into());
+    }
+    if e.cyclic.iter().any(|c| !e.dependent.contains(c)) {
+        return Err("the map's cyclic coordinates must be dependent ones".into());
     }
     Ok(())
 }
@@ -283,8 +288,11 @@ impl<S: Scene> Model for Embedding<S> {
                 msg,
             )
         })?;
-        self.implicit.shared.start(t0, &d[..4 * m], &init.q);
-        self.explicit.shared.start(t0, &d[..4 * m], &init.q);
+        // y = (z, q_c): the cyclic coordinates start where given.
+        let mut y0 = d[..4 * m].to_vec();
+        y0.extend(self.implicit.shared.e.cyclic.iter().map(|&i| init.q[i]));
+        self.implicit.shared.start(t0, &y0, &init.q);
+        self.explicit.shared.start(t0, &y0, &init.q);
         // The analytic continuation follows the map's branch from the start.
         if self.continuation == Continuation::Analytic {
             let sh = &mut self.explicit.shared;
@@ -293,13 +301,15 @@ impl<S: Scene> Model for Embedding<S> {
             self.explicit.follow_from(&near);
         }
         self.yp0 = d[m..5 * m].to_vec();
+        let rates = self.implicit.shared.cyclic_rates(t0, &y0).to_vec();
+        self.yp0.extend(rates);
         self.report = Some(report);
-        Ok(d[..4 * m].to_vec())
+        Ok(y0)
     }
 
     fn observe(&mut self, t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
         let shared = self.shared();
-        shared.physical(t, y);
+        shared.read(t, y);
         obs.q.copy_from_slice(&shared.q);
         obs.qd.copy_from_slice(&shared.qd);
         Ok(())
@@ -314,7 +324,7 @@ impl<S: Scene> Model for Embedding<S> {
             ("rank_w", r.structure.rank_w as f64),
             ("hidden_constraints", r.structure.hidden_constraints as f64),
             ("free_initial_data", r.structure.free_initial_data as f64),
-            ("state_dimension", (4 * m) as f64),
+            ("state_dimension", (4 * m + self.implicit.shared.c) as f64),
             (
                 "third_derivatives_given",
                 if r.third_given { 1.0 } else { 0.0 },

@@ -154,8 +154,10 @@ fn away_from_singular_set<S: Scene>(
 }
 
 /// The dependent coordinates are the map's: checks the given ones against
-/// it (and their rates against eq. 15); returns `map − given` per dependent
-/// coordinate (non-zero only with `branch_map`).
+/// it (and their rates against eq. 15; of a cyclic coordinate only its rate,
+/// which is what the map gives); returns `map − given` per dependent
+/// coordinate (of a cyclic one, of its rate; non-zero only with
+/// `branch_map`).
 fn dependent_coordinates<S: Scene>(
     scene: &S,
     e: &EmbeddingInfo,
@@ -180,6 +182,19 @@ fn dependent_coordinates<S: Scene>(
     );
     let mut branch_shift = Vec::new();
     for &i in e.dependent {
+        if e.cyclic.contains(&i) {
+            // Only the rate is the map's; the coordinate itself is free.
+            let dd = qd[i] - init.qd[i];
+            if dd.abs() > 1e-8 * (1.0 + init.qd[i].abs()) && !branch_map {
+                return Err(inconsistent(format!(
+                    "the embedding map {} gives {}_dot = {:.12} but {}_dot = {} was given \
+                     (difference {dd:.6}); {} — pass --option branch=map to study that branch",
+                    e.formula, coords[i].name, qd[i], coords[i].name, init.qd[i], e.branch_note
+                )));
+            }
+            branch_shift.push(dd);
+            continue;
+        }
         let mut diff = q[i] - init.q[i];
         if coords[i].unit == "rad" {
             diff -= (diff / std::f64::consts::TAU).round() * std::f64::consts::TAU;

@@ -242,7 +242,10 @@ fn base_command(rng: &mut Rng) -> Vec<(String, Option<String>)> {
             "sleigh-incline",
             &["chetaev", "vakonomic", "embedding", "visc", "mass"],
         ),
-        ("rolling-disk", &["chetaev", "vakonomic", "visc"]),
+        (
+            "rolling-disk",
+            &["chetaev", "vakonomic", "embedding", "visc"],
+        ),
         ("appell-hamel", &["chetaev", "vakonomic"]),
         ("pendulum", &["chetaev"]),
     ];
@@ -273,7 +276,13 @@ fn base_command(rng: &mut Rng) -> Vec<(String, Option<String>)> {
         ),
     ];
     if *formulation == "embedding" {
-        cmd.push(p("--init", "lambda=0.5"));
+        // The disk's λ₁ follows from P_ψ = 0 (crates/lab/src/matching.rs).
+        let lambda = if *scene == "rolling-disk" {
+            "lambda2=0.1"
+        } else {
+            "lambda=0.5"
+        };
+        cmd.push(p("--init", lambda));
     }
     cmd
 }

@@ -677,20 +677,6 @@ fn embedding_applicability_and_integrator() {
         &[
             "simulate",
             "--scene",
-            "rolling-disk",
-            "--formulation",
-            "embedding",
-        ],
-        2,
-        &[
-            "formulation `embedding` is not applicable to scene `rolling-disk`",
-            "no embedding map",
-        ],
-    );
-    fails_with(
-        &[
-            "simulate",
-            "--scene",
             "appell-hamel",
             "--formulation",
             "embedding",

@@ -2,7 +2,10 @@
 
 use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
-use nonholo_core::scene::{ClosedFormInfo, ConstraintKind, Named, Scalar, Scene, SceneInfo};
+use nonholo_core::scene::{
+    ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
+    atan2_near,
+};
 
 /// Contact point `(x, y)`, heading `θ`, rolling angle `ψ`; radius `R`.
 #[derive(Debug, Clone)]
@@ -54,7 +57,8 @@ pub const INFO: SceneInfo = SceneInfo {
     title: "Vertical rolling disk",
     description: "A disk kept vertical, rolling without slipping: contact point (x, y), heading θ, \
                   rolling angle ψ. Under B, θ̈ = ψ̈ = 0; the vakonomic motions reproduce it only \
-                  for particular initial multipliers (Fernandez & Bloch).",
+                  for particular initial multipliers (Fernandez & Bloch). A embeds the heading \
+                  θ = atan2(ẏ, ẋ) and the rolling rate ψ̇ = ±|v|/R (ψ is cyclic).",
     coordinates: &[
         Named::new("x", "m", "contact point"),
         Named::new("y", "m", "contact point"),
@@ -66,7 +70,20 @@ pub const INFO: SceneInfo = SceneInfo {
     nonholonomic: &["ẋ − R ψ̇ cos θ = 0", "ẏ − R ψ̇ sin θ = 0"],
     constraint_kind: ConstraintKind::Linear,
     constraint_singular_set: None,
-    embedding: None,
+    // θ from the direction of the contact point's velocity, like the
+    // sleigh's heading; ψ is cyclic, and the constraint gives its rate.
+    embedding: Some(EmbeddingInfo {
+        independent: &[0, 1],
+        dependent: &[2, 3],
+        cyclic: &[3],
+        formula: "θ = atan2(ẏ, ẋ), ψ̇ = (ẋ cos θ + ẏ sin θ)/R",
+        singular_set: "zero speed ẋ² + ẏ² = 0, where the heading is undefined",
+        branch_note: "for the disk this is rolling backwards (ψ̇ < 0), where the map turns the \
+                      heading by π",
+        undetermined_note: "for the disk this is zero turning rate θ̇ = 0, where the hidden \
+                            constraints no longer fix q⃛ (rolling along a straight line, the \
+                            rate at which it starts to turn is free)",
+    }),
     velocity_chart: &[
         Named::new("omega_theta", "rad/s", "turning rate θ̇"),
         Named::new(
@@ -116,6 +133,38 @@ impl Scene for RollingDisk {
         let (s, c) = q[2].sin_cos();
         out[0] = qd[0] - qd[3] * c * self.r;
         out[1] = qd[1] - qd[3] * s * self.r;
+    }
+
+    /// `θ = atan2(ẏ, ẋ)` on the branch nearest to `near[0]` (its principal
+    /// branch without `near`), and the rate of the cyclic `ψ` from the
+    /// constraint, `ψ̇ = (ẋ cos θ + ẏ sin θ)/R`: `|v|/R` on the principal
+    /// branch, the signed speed over `R` where the heading is continued
+    /// through a reversal.
+    fn embedding<D: Scalar>(
+        &self,
+        _t: D,
+        _q_ind: &[D],
+        qd_ind: &[D],
+        near: &[f64],
+        q_dep: &mut [D],
+    ) {
+        let theta = atan2_near(qd_ind[1], qd_ind[0], near.first().copied());
+        let (s, c) = theta.sin_cos();
+        q_dep[0] = theta;
+        q_dep[1] = (qd_ind[0] * c + qd_ind[1] * s) / self.r;
+    }
+
+    /// The velocity `(ẋ, ẏ)`: the heading has no value at zero speed.
+    fn embedding_singularity(
+        &self,
+        _t: f64,
+        _q_ind: &[f64],
+        qd_ind: &[f64],
+        r: &mut [f64; MAX_SINGULAR],
+    ) -> usize {
+        r[0] = qd_ind[0];
+        r[1] = qd_ind[1];
+        2
     }
 
     fn velocities_from<D: Scalar>(&self, q: &[D], chart: &[D], qd: &mut [D]) {

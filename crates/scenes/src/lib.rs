@@ -3,7 +3,7 @@
 //! | name | coordinates | constraints | embedding (A) | closed form |
 //! |---|---|---|---|---|
 //! | `sleigh-incline` | x, y, φ | 1 linear nonholonomic | φ = atan2(ẏ, ẋ) | B, a = 0 |
-//! | `rolling-disk` | x, y, θ, ψ | 2 linear nonholonomic | — | B |
+//! | `rolling-disk` | x, y, θ, ψ | 2 linear nonholonomic | θ = atan2(ẏ, ẋ), ψ̇ = ±speed/R (ψ cyclic) | B |
 //! | `appell-hamel` | x, y, z | 1 nonlinear nonholonomic | — | B |
 //! | `pendulum` | x, y | 1 holonomic | — | — |
 //!

@@ -7,7 +7,7 @@ use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{
     ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
-    atan2,
+    atan2_near,
 };
 
 /// Which potential energy the Lagrangian carries.
@@ -100,6 +100,7 @@ pub const INFO: SceneInfo = SceneInfo {
     embedding: Some(EmbeddingInfo {
         independent: &[0, 1],
         dependent: &[2],
+        cyclic: &[],
         formula: "φ = atan2(ẏ, ẋ) (eq. 21, in the form regular for ẋ < 0)",
         singular_set: "zero speed ẋ² + ẏ² = 0, where the heading is undefined",
         branch_note: "for the sleigh this is backward motion, where the map turns the heading by π",
@@ -194,18 +195,7 @@ impl Scene for Sleigh {
         near: &[f64],
         q_dep: &mut [D],
     ) {
-        let principal = atan2(qd_ind[1], qd_ind[0]);
-        q_dep[0] = match near.first() {
-            Some(&r) if r.is_finite() => {
-                let k = ((r - principal.re()) / std::f64::consts::PI).round();
-                if k == 0.0 {
-                    principal
-                } else {
-                    principal + k * std::f64::consts::PI
-                }
-            }
-            _ => principal,
-        };
+        q_dep[0] = atan2_near(qd_ind[1], qd_ind[0], near.first().copied());
     }
 
     /// The velocity `(ẋ, ẏ)`: atan2 has no value at zero speed.

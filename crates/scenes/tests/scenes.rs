@@ -306,3 +306,57 @@ fn registry_builds_every_scene() {
         other => panic!("{other:?}"),
     }
 }
+
+/// The disk's embedding map: the heading is the direction of the contact
+/// point's velocity, `ψ̇` its speed over `R` (signed by the branch), so that
+/// `(θ, ψ̇)` satisfy the rolling condition; `ψ` is cyclic — absent from `L`
+/// and `g` (their derivatives in `ψ` vanish at states in every quadrant).
+#[test]
+fn rolling_disk_embedding_map_and_cyclic_angle() {
+    use num_dual::Dual64;
+    let d: RollingDisk = scene(&[("m", "2"), ("I", "0.3"), ("Jr", "0.6"), ("R", "0.7")]).unwrap();
+    let e = RollingDisk::INFO.embedding.unwrap();
+    assert_eq!(
+        (e.independent, e.dependent, e.cyclic),
+        (&[0, 1][..], &[2, 3][..], &[3][..])
+    );
+    for (v, heading) in [
+        ([0.5f64, 0.2], 0.2f64.atan2(0.5)),
+        ([-0.3, 0.8], 0.8f64.atan2(-0.3)),
+        ([-1.1, -0.4], (-0.4f64).atan2(-1.1)),
+        ([0.2, -2.0], (-2.0f64).atan2(0.2)),
+    ] {
+        let speed = v[0].hypot(v[1]);
+        // Principal branch, then the branch continued through a reversal
+        // (heading turned by π: the disk rolls backwards).
+        for (near, sign, shift) in [(vec![], 1.0, 0.0), (vec![heading + 3.0], -1.0, 1.0)] {
+            let mut dep = [0.0; 2];
+            d.embedding(0.0, &[0.1, -0.2], &v, &near, &mut dep);
+            let theta = heading + shift * std::f64::consts::PI;
+            assert!((dep[0] - theta).abs() < 1e-14, "{dep:?} {theta}");
+            assert!((dep[1] - sign * speed / 0.7).abs() < 1e-14, "{dep:?}");
+            let mut g = [0.0; 2];
+            d.nonholonomic(
+                0.0,
+                &[0.1, -0.2, dep[0], 0.0],
+                &[v[0], v[1], 0.4, dep[1]],
+                &mut g,
+            );
+            assert!(g[0].abs() < 1e-15 && g[1].abs() < 1e-15, "{g:?}");
+        }
+        let mut r = [0.0; MAX_SINGULAR];
+        assert_eq!(d.embedding_singularity(0.0, &[0.0, 0.0], &v, &mut r), 2);
+        assert_eq!((r[0], r[1]), (v[0], v[1]));
+        // ∂L/∂ψ = ∂g/∂ψ = 0.
+        for psi in [-2.0, 0.3, 7.0] {
+            let q = [0.3, v[0], heading, psi].map(Dual64::from_re);
+            let mut qs = q;
+            qs[3].eps = 1.0;
+            let qd = [v[0], v[1], 0.9, -1.3].map(Dual64::from_re);
+            assert_eq!(d.lagrangian(Dual64::from_re(0.0), &qs, &qd).eps, 0.0);
+            let mut g = [Dual64::from_re(0.0); 2];
+            d.nonholonomic(Dual64::from_re(0.0), &qs, &qd, &mut g);
+            assert_eq!((g[0].eps, g[1].eps), (0.0, 0.0));
+        }
+    }
+}

@@ -335,6 +335,15 @@ pub trait Scene: Send + Sync + 'static {
     /// frame, and their rate along the motion).
     fn velocities_from<D: Scalar>(&self, _q: &[D], _chart: &[D], _qd: &mut [D]) {}
 
+    /// The convenience values of [`SceneInfo::velocity_chart`] at `(q, q̇)`,
+    /// in chart order, into `chart`: the inverse of
+    /// [`Scene::velocities_from`] on the constraints, for tables and plots
+    /// (the sleigh's signed forward speed `u`, whose sign changes are its
+    /// reversals). NaN where the scene gives none.
+    fn chart_from(&self, _q: &[f64], _qd: &[f64], chart: &mut [f64]) {
+        chart.fill(f64::NAN);
+    }
+
     /// The closed-form motion from `(q0, q̇0)` at `t0 = 0`, evaluated at `t`;
     /// `Err` says why it does not apply to these parameters or initial data.
     fn closed_form(

@@ -474,9 +474,12 @@ pub fn cross<S: Scene>(
         ..Options::default()
     };
     let sol = solve(method, &mut sys, 0.0, &y0, 1.0, &path_opts).map_err(|f| {
+        // The integrator's "t" is the path parameter s ∈ [0, 1].
+        let why = f.error.to_string();
         format!(
             "the path in complex time did not reach its end: {}",
-            f.error
+            why.strip_prefix("at t = ")
+                .map_or(why.clone(), |rest| format!("at path parameter s = {rest}"))
         )
     })?;
     let t_b = t_a + 3.0 * tau;

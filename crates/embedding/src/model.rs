@@ -295,9 +295,7 @@ impl<S: Scene> Model for Embedding<S> {
         self.explicit.shared.start(t0, &y0, &init.q);
         // The analytic continuation follows the map's branch from the start.
         if self.continuation == Continuation::Analytic {
-            let sh = &mut self.explicit.shared;
-            sh.near = sh.e.dependent.iter().map(|&i| sh.q[i]).collect();
-            let near = sh.near.clone();
+            let near = self.explicit.shared.follow_current();
             self.explicit.follow_from(&near);
         }
         self.yp0 = d[m..5 * m].to_vec();

@@ -174,6 +174,17 @@ impl<S: Scene> Shared<S> {
         }
     }
 
+    /// Follows the branch of the last reading from now on (`near` set to its
+    /// dependent coordinates, the log's last entry marked as following);
+    /// returns `near`.
+    pub fn follow_current(&mut self) -> Vec<f64> {
+        self.near = self.e.dependent.iter().map(|&i| self.q[i]).collect();
+        if let Some(last) = self.log_following.last_mut() {
+            *last = true;
+        }
+        self.near.clone()
+    }
+
     /// Logs the branch at `t` (after [`Shared::physical`] there).
     fn log(&mut self, t: f64) {
         self.log_t.push(t);

@@ -175,6 +175,12 @@ impl Scene for RollingDisk {
         qd[3] = chart[1];
     }
 
+    /// `(θ̇, ψ̇)`.
+    fn chart_from(&self, _q: &[f64], qd: &[f64], chart: &mut [f64]) {
+        chart[0] = qd[2];
+        chart[1] = qd[3];
+    }
+
     fn closed_form(
         &self,
         q0: &[f64],

@@ -106,4 +106,9 @@ impl Scene for Pendulum {
         qd[0] = -chart[0] * q[1];
         qd[1] = chart[0] * q[0];
     }
+
+    /// `ω = (x ẏ − y ẋ)/(x² + y²)`.
+    fn chart_from(&self, q: &[f64], qd: &[f64], chart: &mut [f64]) {
+        chart[0] = (q[0] * qd[1] - q[1] * qd[0]) / (q[0] * q[0] + q[1] * q[1]);
+    }
 }

@@ -360,3 +360,33 @@ fn rolling_disk_embedding_map_and_cyclic_angle() {
         }
     }
 }
+
+/// `chart_from` inverts `velocities_from` on the constraints, for every
+/// scene, at chart values of both signs (the sleigh's `u < 0` is a motion
+/// backwards; Appell–Hamel's `ρ ≥ 0` by its definition).
+#[test]
+fn every_chart_reading_inverts_the_chart() {
+    fn check<S: Scene>(s: &S, q: &[f64], charts: &[&[f64]]) {
+        for chart in charts {
+            let mut qd = vec![0.0; q.len()];
+            s.velocities_from(q, chart, &mut qd);
+            let mut back = vec![0.0; chart.len()];
+            s.chart_from(q, &qd, &mut back);
+            for (a, b) in chart.iter().zip(&back) {
+                assert!(
+                    (a - b).abs() < 1e-14,
+                    "{}: {chart:?} → {back:?}",
+                    s.info().name
+                );
+            }
+        }
+    }
+    let sleigh: Sleigh = scene(&[]).unwrap();
+    check(&sleigh, &[0.3, 1.0, 2.5], &[&[1.5, -0.4], &[-0.7, 2.0]]);
+    let disk: RollingDisk = scene(&[]).unwrap();
+    check(&disk, &[0.3, 1.0, -2.0, 4.0], &[&[0.5, 1.0], &[-0.2, -3.0]]);
+    let appell: AppellHamel = scene(&[]).unwrap();
+    check(&appell, &[0.3, 1.0, 0.2], &[&[1.5, 0.4], &[0.2, -2.8]]);
+    let pendulum: Pendulum = scene(&[]).unwrap();
+    check(&pendulum, &[0.6, -0.8], &[&[1.5], &[-0.3]]);
+}

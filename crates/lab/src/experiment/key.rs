@@ -11,8 +11,9 @@
 //!   text they are given as, in their order), every integration setting,
 //!   the time span and output spacing, and for a work-precision line its
 //!   ladder and reference;
-//! - the kind's measures: the divergence threshold of a comparison, the
-//!   timed repeats of a work-precision experiment.
+//! - the kind's measures: the divergence threshold of a comparison (and
+//!   the quantity whose sign changes it counts, if any), the timed repeats
+//!   of a work-precision experiment.
 //!
 //! Floats are written as their IEEE-754 bits in hex, so values one ulp
 //! apart (or `0` and `−0`) give different keys and nothing depends on how a
@@ -46,8 +47,16 @@ struct PointKey<'a> {
 
 #[derive(Serialize)]
 enum Measures {
-    Compare { threshold: Bits },
-    WorkPrecision { repeats: usize },
+    Compare {
+        threshold: Bits,
+        /// Left out when not asked for, so that keys made before it existed
+        /// stay valid.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        reversals: Option<String>,
+    },
+    WorkPrecision {
+        repeats: usize,
+    },
 }
 
 #[derive(Serialize)]
@@ -193,6 +202,7 @@ pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String
     let measures = match exp.kind {
         Kind::Compare => Measures::Compare {
             threshold: Bits(exp.threshold),
+            reversals: exp.reversals.clone(),
         },
         Kind::WorkPrecision => Measures::WorkPrecision {
             repeats: exp.repeats,

@@ -21,13 +21,15 @@ pub fn trajectory_path(dir: &Path, index: usize, label: &str) -> PathBuf {
         .join(format!("{index}-{label}.csv"))
 }
 
-/// Writes one formulation's samples: `t, q…, q_dot…, multipliers…, residual, energy`.
+/// Writes one formulation's samples: `t, q…, q_dot…, multipliers…,
+/// residual, energy, chart…` (the scene's velocity-chart values).
 pub fn write_trajectory(dir: &Path, index: usize, s: &Samples) -> Result<(), String> {
     let more = s
         .multipliers
         .iter()
         .cloned()
-        .chain(["residual".into(), "energy".into()]);
+        .chain(["residual".into(), "energy".into()])
+        .chain(s.chart_names.iter().cloned());
     let mut table = Table::new(state_header(
         s.coordinates.iter().map(|(c, _)| c.as_str()),
         more,
@@ -42,7 +44,11 @@ pub fn write_trajectory(dir: &Path, index: usize, s: &Samples) -> Result<(), Str
             t: s.t[i],
             q: &o.q,
             q_dot: &o.qd,
-            more: &[&o.multipliers, &[residual, energy]],
+            more: &[
+                &o.multipliers,
+                &[residual, energy],
+                s.chart.get(i).map_or(&[][..], Vec::as_slice),
+            ],
         })?;
     }
     table.write(&trajectory_path(dir, index, &s.label))
@@ -154,6 +160,10 @@ struct RunRow<'a> {
     energy_drift_max: Option<f64>,
     reference: Option<&'a str>,
     divergence: Divergence,
+    /// Crossings of a singular set (A past its map's singular set).
+    crossings: Option<usize>,
+    /// Sign changes of the quantity `[measures] reversals` names.
+    reversals: Option<usize>,
 }
 
 impl<'a> RunRow<'a> {
@@ -176,6 +186,8 @@ impl<'a> RunRow<'a> {
             divergence: vs_reference
                 .map(|(_, p)| Divergence::from(p))
                 .unwrap_or_default(),
+            crossings: f.crossings,
+            reversals: f.reversals,
         }
     }
 }
@@ -263,7 +275,7 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
             "mode": format!("{:?}", exp.mode),
             "axes": exp.axes.iter().map(|a| json!({"name": a.name, "values": a.values})).collect::<Vec<_>>(),
         },
-        "measures": {"threshold": exp.threshold, "reference": exp.reference},
+        "measures": {"threshold": exp.threshold, "reference": exp.reference, "reversals": exp.reversals},
         "plots": {"point": exp.plot_point, "all_trajectories": exp.all_trajectories},
     });
     write_json(&dir.join("config.json"), &config)

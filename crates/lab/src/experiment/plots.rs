@@ -32,6 +32,16 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 "Energy drift |E(t) − E(0)|, E = q̇·∂L/∂q̇ − L, the largest up to each output time, {point}."
             )
         }
+        s if s.starts_with("series-") => format!(
+            "{} against time on the output grid (every {} s){}, every formulation, {point}; \
+             a curve ends where its run stopped, and covers the curves listed before it in \
+             the legend where they agree.",
+            &s["series-".len()..],
+            exp.output_every,
+            exp.series_span
+                .map(|[a, b]| format!(" from t = {a} to {b} s"))
+                .unwrap_or_default()
+        ),
         "sweep-cost" => format!(
             "Wall time of every formulation over the sweep ({}); failed runs left out (their reasons are in runs.csv).",
             exp.axes
@@ -50,6 +60,28 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 .join(" × ")
         ),
         other => other.to_string(),
+    }
+}
+
+/// `name [unit]` of a velocity-chart value, coordinate or velocity.
+fn quantity_label(exp: &Experiment, name: &str) -> String {
+    let Ok(info) = nonholo_scenes::info(&exp.scene) else {
+        return name.to_string();
+    };
+    let unit = info
+        .velocity_chart
+        .iter()
+        .chain(info.coordinates)
+        .find(|c| c.name == name)
+        .map(|c| c.unit.to_string())
+        .or_else(|| {
+            let c = name.strip_suffix("_dot")?;
+            let u = info.coordinates.iter().find(|x| x.name == c)?.unit;
+            Some(format!("{u}/s"))
+        });
+    match unit {
+        Some(u) if !u.is_empty() => format!("{name} [{u}]"),
+        _ => name.to_string(),
     }
 }
 
@@ -294,6 +326,36 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
             },
             &plots.join("energy"),
         )?);
+        for name in &exp.series {
+            let series = trajectories
+                .iter()
+                .filter_map(|(l, t)| {
+                    let (x, y): (Vec<f64>, Vec<f64>) = t
+                        .column("t")?
+                        .into_iter()
+                        .zip(t.column(name)?)
+                        .filter(|(x, _)| exp.series_span.is_none_or(|[a, b]| *x >= a && *x <= b))
+                        .unzip();
+                    Some(Series {
+                        label: describe(l),
+                        x,
+                        y,
+                    })
+                })
+                .collect();
+            files.extend(line_plot(
+                &LinePlot {
+                    title: titled(&format!("{name} against time")),
+                    x_label: "t [s]".into(),
+                    y_label: quantity_label(exp, name),
+                    log_x: false,
+                    log_y: false,
+                    equal_aspect: false,
+                    series,
+                },
+                &plots.join(format!("series-{name}")),
+            )?);
+        }
     }
 
     files.extend(sweep_plots(exp, &plots, results)?);

@@ -47,6 +47,14 @@ pub struct FormResult {
     /// run's other measures are left out (see [`super::wall_time_stop`]).
     #[serde(default)]
     pub wall_time_stop_t: Option<f64>,
+    /// Crossings of a singular set the run made (formulation A past its
+    /// map's singular set; 0 for the others; none without a run).
+    #[serde(default)]
+    pub crossings: Option<usize>,
+    /// Sign changes of the quantity `[measures] reversals` names on the
+    /// output grid (none unless asked for).
+    #[serde(default)]
+    pub reversals: Option<usize>,
 }
 
 impl FormResult {
@@ -76,6 +84,8 @@ impl FormResult {
             energy_drift_max: None,
             report: Vec::new(),
             wall_time_stop_t: None,
+            crossings: None,
+            reversals: None,
         }
     }
 }
@@ -117,6 +127,10 @@ pub struct Samples {
     pub obs: Vec<Observation>,
     /// `(residual, energy)` per sample.
     pub physics: Vec<(f64, f64)>,
+    /// The scene's velocity-chart names ([`Scene::chart_from`]) and their
+    /// values per sample (the sleigh's `u`, `omega`).
+    pub chart_names: Vec<String>,
+    pub chart: Vec<Vec<f64>>,
 }
 
 /// Checks that every formulation of `point` can be set up (names, ranges,
@@ -191,14 +205,35 @@ struct Physics<'a> {
 }
 
 impl SceneVisitor for Physics<'_> {
-    type Output = Vec<(f64, f64)>;
+    /// `(residual, energy)` and the chart values per sample.
+    type Output = (Vec<(f64, f64)>, Vec<Vec<f64>>);
     fn visit<S: Scene>(self, scene: S) -> Self::Output {
-        self.t
+        let measures = self
+            .t
             .iter()
             .zip(self.obs)
             .map(|(t, o)| state_measures(&scene, *t, &o.q, &o.qd))
-            .collect()
+            .collect();
+        let width = scene.info().velocity_chart.len();
+        let chart = self
+            .obs
+            .iter()
+            .map(|o| {
+                let mut c = vec![0.0; width];
+                scene.chart_from(&o.q, &o.qd, &mut c);
+                c
+            })
+            .collect();
+        (measures, chart)
     }
+}
+
+/// The velocity-chart names of a scene.
+fn chart_names(info: &nonholo_core::SceneInfo) -> Vec<String> {
+    info.velocity_chart
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect()
 }
 
 fn failed(r: &PointRun, error_t: Option<f64>, error: String) -> FormResult {
@@ -247,6 +282,8 @@ fn from_run(r: &PointRun, run: &Run) -> FormResult {
             .map(|(k, v)| (k.to_string(), v))
             .collect(),
         wall_time_stop_t: None,
+        crossings: Some(run.crossings.len()),
+        reversals: None,
     }
 }
 
@@ -288,6 +325,13 @@ fn first_non_finite(s: &Samples) -> Option<(usize, String, f64)> {
                 }
             }
         }
+        if let Some(chart) = s.chart.get(i) {
+            for (name, v) in s.chart_names.iter().zip(chart) {
+                if !v.is_finite() {
+                    return Some((i, name.clone(), *v));
+                }
+            }
+        }
     }
     None
 }
@@ -303,6 +347,7 @@ fn cut_at_non_finite(res: &mut FormResult, samples: &mut Samples) {
     samples.t.truncate(i);
     samples.obs.truncate(i);
     samples.physics.truncate(i);
+    samples.chart.truncate(i);
     if res.status != "failed" {
         res.status = "failed".into();
         res.error_t = Some(t);
@@ -312,6 +357,32 @@ fn cut_at_non_finite(res: &mut FormResult, samples: &mut Samples) {
         ));
     }
     res.t_last = samples.t.last().copied();
+}
+
+/// Sign changes of the column `name` (a velocity-chart value, a coordinate
+/// or a velocity `<coord>_dot`) over the samples: a sample that is exactly
+/// zero counts with the next non-zero one.
+fn sign_changes(s: &Samples, name: &str) -> Option<usize> {
+    let values: Vec<f64> = if let Some(k) = s.chart_names.iter().position(|c| c == name) {
+        s.chart.iter().map(|c| c[k]).collect()
+    } else if let Some(k) = s.coordinates.iter().position(|(c, _)| c == name) {
+        s.obs.iter().map(|o| o.q[k]).collect()
+    } else {
+        let k = s
+            .coordinates
+            .iter()
+            .position(|(c, _)| name.strip_suffix("_dot") == Some(c.as_str()))?;
+        s.obs.iter().map(|o| o.qd[k]).collect()
+    };
+    let mut last = 0.0f64;
+    let mut count = 0;
+    for v in values.into_iter().filter(|v| *v != 0.0) {
+        if last != 0.0 && (v > 0.0) != (last > 0.0) {
+            count += 1;
+        }
+        last = v;
+    }
+    Some(count)
 }
 
 /// Runs every formulation of `point`; a failure of one is recorded and the
@@ -370,6 +441,10 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
                 )
             }
         };
+        let mut res = res;
+        if let (Some(name), Some(s)) = (&exp.reversals, &smp) {
+            res.reversals = sign_changes(s, name);
+        }
         results.push(res);
         if let Some(s) = smp {
             samples.push(s);
@@ -407,7 +482,7 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
         return match scene.clone().visit(ClosedForm { spec: &r.spec }) {
             Err(e) => (failed(r, Some(0.0), e), None),
             Ok((t, obs, stop)) => {
-                let physics = scene.visit(Physics { t: &t, obs: &obs });
+                let (physics, chart) = scene.clone().visit(Physics { t: &t, obs: &obs });
                 let mut res = failed(r, None, String::new());
                 res.error = None;
                 res.status = "completed".into();
@@ -433,6 +508,8 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                     t,
                     obs,
                     physics,
+                    chart_names: chart_names(info),
+                    chart,
                 };
                 cut_at_non_finite(&mut res, &mut samples);
                 res.energy_initial = res.energy_initial.and_then(finite);
@@ -450,7 +527,7 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
             }
             let mut res = from_run(r, &run);
             let t = run.solution.t[..run.samples.len()].to_vec();
-            let physics = scene.visit(Physics {
+            let (physics, chart) = scene.clone().visit(Physics {
                 t: &t,
                 obs: &run.samples,
             });
@@ -461,6 +538,8 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                 t,
                 obs: run.samples,
                 physics,
+                chart_names: chart_names(info),
+                chart,
             };
             cut_at_non_finite(&mut res, &mut samples);
             with_samples(res, samples)

@@ -36,10 +36,14 @@
 //! [measures]
 //! threshold = 1e-6                   # divergence level whose first crossing is reported
 //! reference = "B"                    # runs.csv reports divergence from this one
+//! reversals = "u"                    # runs.csv counts its sign changes on the output grid
+//!                                    # (a velocity-chart value, coordinate or `<coord>_dot`)
 //!
 //! [plots]
 //! point = 0                          # sweep point whose time series are drawn
 //! main = "divergence"                # the figure shown for it in docs/figures.md
+//! series = ["u"]                     # quantities drawn against time (series-<name>)
+//! series_span = [0.0, 5.0]           # their time window (default: the whole span)
 //!
 //! [work_precision]                   # experiments of kind = "work-precision" only
 //! tolerances = [1e-4, 1e-6, 1e-8]    # rtol = atol ladder (steps = [...] for rk4); per line too
@@ -185,6 +189,7 @@ struct SweepFile {
 struct MeasuresFile {
     threshold: Option<Spanned<f64>>,
     reference: Option<Spanned<String>>,
+    reversals: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -194,6 +199,9 @@ struct PlotsFile {
     #[serde(default)]
     all_trajectories: bool,
     main: Option<String>,
+    #[serde(default)]
+    series: Vec<Spanned<String>>,
+    series_span: Option<Spanned<[f64; 2]>>,
 }
 
 /// The pseudo-formulation that samples a scene's closed-form solution.
@@ -361,10 +369,17 @@ pub struct Experiment {
     pub axes: Vec<Axis>,
     pub threshold: f64,
     pub reference: String,
+    /// The quantity whose sign changes on the output grid `runs.csv`
+    /// counts (`reversals`): a velocity-chart value, coordinate or velocity.
+    pub reversals: Option<String>,
     pub plot_point: usize,
     pub all_trajectories: bool,
     /// The plot that stands for the experiment in docs/figures.md (file stem).
     pub main_plot: Option<String>,
+    /// Quantities drawn against time for every formulation (`series-<name>`),
+    /// over `series_span` (default: the whole span).
+    pub series: Vec<String>,
+    pub series_span: Option<[f64; 2]>,
     pub kind: Kind,
     /// Work-precision: timed repeats of every run (the median is reported).
     pub repeats: usize,
@@ -906,6 +921,60 @@ impl Experiment {
             }
         };
 
+        // Quantities a measure or a plot may name: the velocity-chart
+        // values, coordinates and velocities of the scene.
+        let quantities: Vec<String> = nonholo_scenes::info(&scene)
+            .map(|i| {
+                i.velocity_chart
+                    .iter()
+                    .map(|c| c.name.to_string())
+                    .chain(i.coordinates.iter().map(|c| c.name.to_string()))
+                    .chain(i.coordinates.iter().map(|c| format!("{}_dot", c.name)))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let quantity = |q: &Spanned<String>, key: &str| -> Result<String, SpecError> {
+            if quantities.contains(q.get_ref()) {
+                Ok(q.get_ref().clone())
+            } else {
+                Err(ctx.err(
+                    q.span(),
+                    key,
+                    format!(
+                        "scene `{scene}` has no quantity `{}`; valid: {}",
+                        q.get_ref(),
+                        quantities.join(", ")
+                    ),
+                ))
+            }
+        };
+        let reversals = file
+            .measures
+            .reversals
+            .as_ref()
+            .map(|q| quantity(q, "measures.reversals"))
+            .transpose()?;
+        let series = file
+            .plots
+            .series
+            .iter()
+            .map(|q| quantity(q, "plots.series"))
+            .collect::<Result<Vec<_>, _>>()?;
+        let series_span = match &file.plots.series_span {
+            None => None,
+            Some(s) => {
+                let [a, b] = *s.get_ref();
+                if !(a.is_finite() && b.is_finite() && a >= 0.0 && a < b) {
+                    return Err(ctx.err(
+                        s.span(),
+                        "plots.series_span",
+                        "must be [start, end] with 0 ≤ start < end",
+                    ));
+                }
+                Some([a, b])
+            }
+        };
+
         let exp = Experiment {
             name,
             title: file.experiment.title.clone(),
@@ -924,6 +993,7 @@ impl Experiment {
             axes,
             threshold,
             reference,
+            reversals,
             plot_point: file
                 .plots
                 .point
@@ -932,6 +1002,8 @@ impl Experiment {
                 .unwrap_or(0),
             all_trajectories: file.plots.all_trajectories,
             main_plot: file.plots.main.clone(),
+            series,
+            series_span,
             kind,
             repeats,
         };
@@ -1220,6 +1292,12 @@ pub fn compact(axes: &[Axis], values: &[String]) -> String {
                 .unwrap_or(v.clone());
             format!("{name} = {v}")
         })
-        .collect::<Vec<_>>()
+        .fold(Vec::<String>::new(), |mut seen, item| {
+            // A value swept for several formulations at once reads once.
+            if !seen.contains(&item) {
+                seen.push(item);
+            }
+            seen
+        })
         .join(", ")
 }

@@ -137,11 +137,13 @@ fn convergence_plot() -> LinePlot {
                 label: "Chetaev".into(),
                 x: t.clone(),
                 y: decay,
+                pen: None,
             },
             Series {
                 label: "vakonomic".into(),
                 x: t,
                 y: drift,
+                pen: None,
             },
         ],
     }
@@ -310,6 +312,7 @@ fn single(label: &str, x: Vec<f64>, y: Vec<f64>, log_y: bool) -> LinePlot {
             label: label.into(),
             x,
             y,
+            pen: None,
         }],
     }
 }
@@ -409,6 +412,7 @@ fn edge_cases_do_not_panic() {
             label: format!("h = 1e-{k}"),
             x: (1..=50).map(f64::from).collect(),
             y: (1..=50).map(|i| 10f64.powi(-k) / f64::from(i)).collect(),
+            pen: None,
         })
         .collect();
     many.log_x = true;
@@ -497,4 +501,22 @@ fn heatmap_edge_cases_do_not_panic() {
             .unwrap_err()
             .contains("strictly")
     );
+}
+
+/// A series with a pen is drawn in its colour, whatever its position: the
+/// vermillion of palette entry 1 as the first series, and the blue of entry
+/// 0 (the first series' default) nowhere.
+#[test]
+fn a_pen_sets_the_colour_of_its_series() {
+    use nonholo_lab::plot::{Dash, Pen};
+    let dir = out_dir("pen");
+    let mut p = single("A", vec![0.0, 1.0, 2.0], vec![1.0, 2.0, 1.5], false);
+    p.series[0].pen = Some(Pen {
+        colour: 1,
+        dash: Dash::Dashed,
+    });
+    let paths = line_plot(&p, &dir.join("pen")).unwrap();
+    let svg = std::fs::read_to_string(&paths[1]).unwrap().to_uppercase();
+    assert!(svg.contains("#D55E00"), "vermillion missing");
+    assert!(!svg.contains("#0072B2"), "blue drawn");
 }

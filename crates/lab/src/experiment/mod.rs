@@ -35,6 +35,7 @@ pub mod key;
 pub mod manifest;
 pub mod output;
 pub mod page;
+pub mod pens;
 pub mod plots;
 pub mod point;
 pub mod reference;

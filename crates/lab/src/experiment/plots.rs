@@ -10,6 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use super::output::{Trajectory, trajectory_path};
+use super::pens;
 use super::point::PointResult;
 use super::spec::{Experiment, SweepMode};
 use crate::plot::{Heatmap, LinePlot, Series, heatmap, line_plot};
@@ -176,6 +177,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
     let angle: Vec<bool> = info.coordinates.iter().map(|c| c.unit == "rad").collect();
 
     let trajectories = trajectories(exp, dir, results)?;
+    let pens = pens::of_experiment(exp);
     let describe = |label: &str| {
         exp.formulations
             .iter()
@@ -213,6 +215,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
             .iter()
             .filter_map(|(l, t)| {
                 Some(Series {
+                    pen: pens::find(&pens, l),
                     label: describe(l),
                     x: t.column(&coords[0])?,
                     y: t.column(&coords[1])?,
@@ -232,8 +235,10 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
             &plots.join("trajectories"),
         )?);
 
-        // Divergence of every pair from the trajectories on the common grid.
+        // Divergence of every pair from the trajectories on the common grid,
+        // in the colour of the second of the two.
         let mut series = Vec::new();
+        let mut pair_pens = pens::Pens::default();
         for (i, (la, ta)) in trajectories.iter().enumerate() {
             for (lb, tb) in &trajectories[i + 1..] {
                 let (Some(t_a), Some(t_b)) = (ta.column("t"), tb.column("t")) else {
@@ -255,7 +260,9 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                             .sqrt()
                     })
                     .collect();
+                let line = exp.formulations.iter().find(|f| &f.label == lb);
                 series.push(Series {
+                    pen: line.map(|f| pair_pens.take(&f.formulation, &f.settings.integrator)),
                     label: format!("{la} vs {lb}"),
                     x: t_a[..n].to_vec(),
                     y,
@@ -284,6 +291,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
             .iter()
             .filter_map(|(l, t)| {
                 Some(Series {
+                    pen: pens::find(&pens, l),
                     label: describe(l),
                     x: t.column("t")?,
                     y: running_max(&t.column("residual")?),
@@ -308,6 +316,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 let e = t.column("energy")?;
                 let e0 = *e.first()?;
                 Some(Series {
+                    pen: pens::find(&pens, l),
                     label: describe(l),
                     x: t.column("t")?,
                     y: running_max(&e.iter().map(|v| (v - e0).abs()).collect::<Vec<_>>()),
@@ -337,6 +346,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                         .filter(|(x, _)| exp.series_span.is_none_or(|[a, b]| *x >= a && *x <= b))
                         .unzip();
                     Some(Series {
+                        pen: pens::find(&pens, l),
                         label: describe(l),
                         x,
                         y,
@@ -431,6 +441,7 @@ fn sweep_plots(
         .filter(|l| *l != exp.reference)
         .collect();
     let mut files = Vec::new();
+    let pens = pens::of_experiment(exp);
     if results.len() < 2 || others.is_empty() {
         return Ok(files);
     }
@@ -458,6 +469,7 @@ fn sweep_plots(
                         label,
                         x: px,
                         y: py,
+                        pen: pens::find(&pens, l),
                     }
                 })
                 .collect();
@@ -508,6 +520,7 @@ fn sweep_plots(
                         ),
                         x: px,
                         y: py,
+                        pen: pens::find(&pens, &f.label),
                     }
                 })
                 .collect();

@@ -10,8 +10,8 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::axis::{Axis, Chart, build_chart, draw_axes, draw_note, label_areas, to_plot};
 use super::style::{
-    LEGEND_MARGIN_PX, LEGEND_PX, LEGEND_SAMPLE_PX, LINE_PX, MARKER_MAX_POINTS, MARKER_PX, SIZE,
-    TICK_PX, draw_err, series_colour, series_dashed, text, title_text,
+    LEGEND_MARGIN_PX, LEGEND_PX, LEGEND_SAMPLE_PX, LINE_PX, MARKER_MAX_POINTS, MARKER_PX, Pen,
+    SIZE, TICK_PX, draw_err, text, title_text,
 };
 use super::write_outputs;
 
@@ -29,6 +29,8 @@ pub struct Series {
     pub x: Vec<f64>,
     /// Ordinates, same length as `x`.
     pub y: Vec<f64>,
+    /// Colour and dash (default: by the series' position in the plot).
+    pub pen: Option<Pen>,
 }
 
 /// A line plot: one or more [`Series`] on shared axes, with a legend.
@@ -47,8 +49,9 @@ pub struct LinePlot {
     /// One data unit has the same length on both axes (for trajectories in
     /// the plane). Ignored when either axis is logarithmic.
     pub equal_aspect: bool,
-    /// The curves, drawn in order; colours follow the Okabe–Ito palette, and
-    /// from the eighth series on the colours repeat with dashed lines.
+    /// The curves, drawn in order; each in its [`Series::pen`], or else in
+    /// the Okabe–Ito palette by position (from the eighth series on the
+    /// colours repeat with dashed lines).
     pub series: Vec<Series>,
 }
 
@@ -71,6 +74,7 @@ pub fn line_plot(p: &LinePlot, stem: &Path) -> Result<Vec<PathBuf>, String> {
 struct SeriesData {
     /// Legend text, with a note on points left out.
     label: String,
+    pen: Pen,
     /// Maximal runs of drawable points, in plot coordinates (see [`Axis`]).
     runs: Vec<Vec<(f64, f64)>>,
     markers: bool,
@@ -121,6 +125,7 @@ impl LineData {
             };
             series.push(SeriesData {
                 label,
+                pen: s.pen.unwrap_or_else(|| Pen::by_position(series.len())),
                 runs,
                 markers: s.x.len() <= MARKER_MAX_POINTS,
             });
@@ -207,8 +212,8 @@ fn draw_line_plot<DB: DrawingBackend>(
     }
     draw_axes(&mut chart, &xa, &ya, &p.x_label, &p.y_label, true)?;
 
-    for (k, s) in data.series.iter().enumerate() {
-        let colour = series_colour(k);
+    for s in &data.series {
+        let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
         for run in &s.runs {
             let run: Vec<(f64, f64)> = run
@@ -216,9 +221,9 @@ fn draw_line_plot<DB: DrawingBackend>(
                 .map(|&(x, y)| (xa.value(x), ya.value(y)))
                 .collect();
             if run.len() >= 2 {
-                if series_dashed(k) {
+                if let Some((dash, gap)) = s.pen.dash.on_plot() {
                     chart
-                        .draw_series(DashedLineSeries::new(run.iter().copied(), 14, 8, style))
+                        .draw_series(DashedLineSeries::new(run.iter().copied(), dash, gap, style))
                         .map_err(draw_err)?;
                 } else {
                     chart
@@ -237,8 +242,8 @@ fn draw_line_plot<DB: DrawingBackend>(
         }
     }
     // Legend entries, one per series even if nothing of it could be drawn.
-    for (k, s) in data.series.iter().enumerate() {
-        let colour = series_colour(k);
+    for s in &data.series {
+        let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
         let r = if s.markers { MARKER_PX } else { 0 };
         let len = LEGEND_SAMPLE_PX as i32 - 14;
@@ -246,10 +251,10 @@ fn draw_line_plot<DB: DrawingBackend>(
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(draw_err)?;
         anno.label(s.label.clone());
-        if series_dashed(k) {
+        if let Some((dash, gap)) = s.pen.dash.in_legend() {
             anno.legend(move |(x, y)| {
                 EmptyElement::at((x, y))
-                    + DashedPathElement::new(vec![(0, 0), (len, 0)], 9, 5, style)
+                    + DashedPathElement::new(vec![(0, 0), (len, 0)], dash, gap, style)
                     + Circle::new((len / 2, 0), r, colour.filled())
             });
         } else {
@@ -300,13 +305,13 @@ fn draw_outside_legend<DB: DrawingBackend>(
     for (k, s) in data.series.iter().enumerate() {
         let y = top + (k % per_column) as i32 * row;
         let x0 = 4 + (k / per_column) as i32 * col_w;
-        let colour = series_colour(k);
+        let colour = s.pen.rgb();
         let line = colour.stroke_width(LINE_PX);
-        if series_dashed(k) {
+        if let Some((dash, gap)) = s.pen.dash.in_legend() {
             area.draw(&DashedPathElement::new(
                 vec![(x0, y), (x0 + len, y)],
-                9,
-                5,
+                dash,
+                gap,
                 line,
             ))
             .map_err(draw_err)?;

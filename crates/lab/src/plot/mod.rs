@@ -45,6 +45,7 @@ pub use self::grid::{Cell, CellStatus, StatusGrid, status_grid};
 pub use self::heatmap::{Heatmap, heatmap};
 pub use self::line::{LinePlot, Series, line_plot};
 use self::style::ensure_font;
+pub use self::style::{Dash, Pen};
 
 /// `<stem><ext>`, appending rather than replacing an extension.
 fn with_suffix(stem: &Path, ext: &str) -> PathBuf {

@@ -44,12 +44,68 @@ pub(super) const MISSING_FILL: RGBColor = RGBColor(170, 170, 170);
 /// Cross drawn over heatmap cells without a drawable value.
 pub(super) const MISSING_CROSS: RGBColor = RGBColor(90, 90, 90);
 
-pub(super) fn series_colour(k: usize) -> RGBColor {
-    PALETTE[k % PALETTE.len()]
+/// A line's dash pattern.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Dash {
+    #[default]
+    Solid,
+    Dashed,
+    Dotted,
+    LongDash,
 }
 
-pub(super) fn series_dashed(k: usize) -> bool {
-    (k / PALETTE.len()) % 2 == 1
+impl Dash {
+    /// Every pattern, in the order they are handed out.
+    pub const ALL: [Dash; 4] = [Dash::Solid, Dash::Dashed, Dash::Dotted, Dash::LongDash];
+
+    /// `(dash, gap)` in pixels on the plot (`None`: solid).
+    pub(super) fn on_plot(self) -> Option<(u32, u32)> {
+        match self {
+            Dash::Solid => None,
+            Dash::Dashed => Some((14, 8)),
+            Dash::Dotted => Some((4, 7)),
+            Dash::LongDash => Some((30, 9)),
+        }
+    }
+
+    /// `(dash, gap)` in pixels in a legend sample (shorter than on the plot,
+    /// so that the sample shows the pattern).
+    pub(super) fn in_legend(self) -> Option<(u32, u32)> {
+        match self {
+            Dash::Solid => None,
+            Dash::Dashed => Some((9, 5)),
+            Dash::Dotted => Some((3, 5)),
+            Dash::LongDash => Some((18, 5)),
+        }
+    }
+}
+
+/// How a series is drawn: a colour of [`PALETTE`] (by index) and a dash
+/// pattern. Callers that give a meaning to colours (one per formulation)
+/// set it; without one a series is drawn by its position.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pen {
+    pub colour: usize,
+    pub dash: Dash,
+}
+
+impl Pen {
+    /// The pen of the `k`-th series without a pen of its own: the palette
+    /// in order, then again dashed.
+    pub(super) fn by_position(k: usize) -> Pen {
+        Pen {
+            colour: k % PALETTE.len(),
+            dash: if (k / PALETTE.len()) % 2 == 1 {
+                Dash::Dashed
+            } else {
+                Dash::Solid
+            },
+        }
+    }
+
+    pub(super) fn rgb(self) -> RGBColor {
+        PALETTE[self.colour % PALETTE.len()]
+    }
 }
 
 pub(super) fn text(px: f64) -> TextStyle<'static> {

@@ -22,6 +22,7 @@ type PlotSpec<'a> = (
 /// against tolerance.
 pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
+    let pens = crate::experiment::pens::of_experiment(exp);
     for p in points {
         let at = compact(&exp.axes, &p.values);
         let series = |x: &dyn Fn(&WpRow) -> Option<f64>,
@@ -56,6 +57,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                         label,
                         x: pts.iter().map(|q| q.0).collect(),
                         y: pts.iter().map(|q| q.1).collect(),
+                        pen: crate::experiment::pens::find(&pens, &f.label),
                     }
                 })
                 .collect::<Vec<_>>()

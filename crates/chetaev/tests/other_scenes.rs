@@ -350,6 +350,7 @@ mod degenerate {
         holonomic: &[],
         nonholonomic: &["x ẏ = 0"],
         constraint_kind: ConstraintKind::Linear,
+        nonholonomic_unit: "",
         constraint_singular_set: None,
         embedding: None,
         velocity_chart: &[],

@@ -204,6 +204,10 @@ pub struct SceneInfo {
     /// Nonholonomic constraints `g(q, q̇, t) = 0`, as formulas (their number is `s`).
     pub nonholonomic: &'static [&'static str],
     pub constraint_kind: ConstraintKind,
+    /// Unit of the values of the nonholonomic constraints `g` (`m/s` for
+    /// constraints on velocities; empty without them): it fixes the units of
+    /// their multipliers (`J` over it) and of the realisations' gains.
+    pub nonholonomic_unit: &'static str,
     /// Where the constraints themselves stop being differentiable, if anywhere.
     pub constraint_singular_set: Option<&'static str>,
     pub embedding: Option<EmbeddingInfo>,

@@ -48,6 +48,7 @@ const INFO: SceneInfo = SceneInfo {
     holonomic: &[],
     nonholonomic: &[],
     constraint_kind: ConstraintKind::Linear,
+    nonholonomic_unit: "",
     constraint_singular_set: None,
     embedding: None,
     velocity_chart: &[],

@@ -31,6 +31,7 @@ const INFO: SceneInfo = SceneInfo {
     holonomic: &["a² + b sin t − 1 = 0"],
     nonholonomic: &["ċ + sin(a) ḃ² + t b = 0"],
     constraint_kind: ConstraintKind::Nonlinear,
+    nonholonomic_unit: "",
     constraint_singular_set: None,
     embedding: None,
     velocity_chart: &[],

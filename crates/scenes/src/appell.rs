@@ -58,6 +58,7 @@ pub const INFO: SceneInfo = SceneInfo {
     holonomic: &[],
     nonholonomic: &["ż + c √(ẋ² + ẏ²) = 0"],
     constraint_kind: ConstraintKind::Nonlinear,
+    nonholonomic_unit: "m/s",
     constraint_singular_set: Some(
         "zero horizontal speed ρ = √(ẋ² + ẏ²) = 0, where the constraint is not differentiable",
     ),

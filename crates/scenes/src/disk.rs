@@ -69,6 +69,7 @@ pub const INFO: SceneInfo = SceneInfo {
     holonomic: &[],
     nonholonomic: &["ẋ − R ψ̇ cos θ = 0", "ẏ − R ψ̇ sin θ = 0"],
     constraint_kind: ConstraintKind::Linear,
+    nonholonomic_unit: "m/s",
     constraint_singular_set: None,
     // θ from the direction of the contact point's velocity, like the
     // sleigh's heading; ψ is cyclic, and the constraint gives its rate.

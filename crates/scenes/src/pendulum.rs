@@ -57,6 +57,7 @@ pub const INFO: SceneInfo = SceneInfo {
     holonomic: &["x² + y² − l² = 0"],
     nonholonomic: &[],
     constraint_kind: ConstraintKind::Linear,
+    nonholonomic_unit: "",
     constraint_singular_set: None,
     embedding: None,
     velocity_chart: &[Named::new(

@@ -96,6 +96,7 @@ pub const INFO: SceneInfo = SceneInfo {
     holonomic: &[],
     nonholonomic: &["ẏ cos φ − ẋ sin φ = 0"],
     constraint_kind: ConstraintKind::Linear,
+    nonholonomic_unit: "m/s",
     constraint_singular_set: None,
     embedding: Some(EmbeddingInfo {
         independent: &[0, 1],

@@ -97,28 +97,60 @@ fn coordinate_label(exp: &Experiment, k: usize) -> String {
         .unwrap_or_else(|| format!("q{k}"))
 }
 
-/// Axis label of a swept name: a scene parameter or initial value shows its
-/// unit (`alpha [rad]`); formulation-specific names keep their path.
+/// Axis label of a swept name, from the quantity's name and unit: a scene
+/// parameter or initial value shows its unit (`alpha [rad]`); a
+/// formulation's own value says whose it is (`lambda of C [N·s]`), with the
+/// unit that follows from the unit of the constraints (multipliers `J`
+/// over it, the realisations' gains `k`, `N` by their definition).
 fn axis_label(exp: &Experiment, name: &str) -> String {
     let info = nonholo_scenes::info(&exp.scene).ok();
-    let unit = |n: &str| -> Option<&'static str> {
-        let info = info?;
-        if let Some(p) = name.strip_prefix("param.") {
-            return info.params.iter().find(|s| s.name == p).map(|s| s.unit);
-        }
-        info.coordinates
-            .iter()
-            .chain(info.velocity_chart)
-            .find(|c| c.name == n)
-            .map(|c| c.unit)
+    let (owner, rest) = match name.split_once('.') {
+        Some((l, r)) if exp.formulations.iter().any(|f| f.label == l) => (Some(l), r),
+        _ => (None, name),
     };
-    let short = name
+    let short = rest
         .strip_prefix("param.")
-        .or_else(|| name.strip_prefix("init."))
-        .unwrap_or(name);
-    match unit(short) {
-        Some(u) if !u.is_empty() => format!("{short} [{u}]"),
-        _ => short.to_string(),
+        .or_else(|| rest.strip_prefix("init."))
+        .or_else(|| rest.strip_prefix("option."))
+        .unwrap_or(rest);
+    let g_unit = info.map_or("", |i| i.nonholonomic_unit);
+    let per_g = |numerator: &str| match g_unit {
+        "" => String::new(),
+        "m/s" => numerator.to_string(),
+        u => format!("J/({u})"),
+    };
+    let unit: String = if rest.starts_with("init.") && short.starts_with("lambda") {
+        per_g("N·s")
+    } else if rest == "option.k" {
+        per_g("kg/s")
+    } else if rest == "option.N" {
+        per_g("kg")
+    } else if rest.starts_with("option.") {
+        crate::formulations::ALL
+            .iter()
+            .flat_map(|f| f.options)
+            .find(|o| o.name == short)
+            .map_or("", |o| o.unit)
+            .to_string()
+    } else {
+        info.and_then(|info| {
+            if rest.starts_with("param.") {
+                return info.params.iter().find(|p| p.name == short).map(|p| p.unit);
+            }
+            info.coordinates
+                .iter()
+                .chain(info.velocity_chart)
+                .find(|c| c.name == short)
+                .map(|c| c.unit)
+        })
+        .unwrap_or("")
+        .to_string()
+    };
+    let whose = owner.map(|l| format!(" of {l}")).unwrap_or_default();
+    if unit.is_empty() {
+        format!("{short}{whose}")
+    } else {
+        format!("{short}{whose} [{unit}]")
     }
 }
 
@@ -573,4 +605,54 @@ fn sweep_plots(
         _ => {}
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    /// Every swept name of the experiment files gets its quantity and unit.
+    #[test]
+    fn axis_labels_carry_units() {
+        let text = r#"[experiment]
+name = "labels"
+title = "t"
+claim = "c"
+scene = "sleigh-incline"
+
+[init]
+u = 2
+
+[time]
+t_end = 1.0
+output_every = 0.1
+
+[[formulation]]
+label = "C"
+formulation = "vakonomic"
+
+[[formulation]]
+label = "V"
+formulation = "visc"
+
+[[formulation]]
+label = "M"
+formulation = "mass"
+"#;
+        let exp = Experiment::parse(Path::new("experiments/labels.toml"), text).unwrap();
+        for (name, label) in [
+            ("param.alpha", "alpha [rad]"),
+            ("init.u", "u [m/s]"),
+            ("C.init.lambda", "lambda of C [N·s]"),
+            ("V.option.k", "k of V [kg/s]"),
+            ("M.option.N", "N of M [kg]"),
+            ("option.k", "k [kg/s]"),
+            ("C.rtol", "rtol of C"),
+            ("case", "case"),
+        ] {
+            assert_eq!(axis_label(&exp, name), label, "{name}");
+        }
+    }
 }

@@ -1277,17 +1277,19 @@ pub fn describe(axes: &[Axis], values: &[String]) -> String {
 }
 
 /// A point's coordinates for titles and legends: `alpha = 0.3, a = 0.4`
-/// (axis names without their `param.`/`init.`/`option.` prefix, numbers in
-/// their shortest form; empty without a sweep).
+/// (axis names without their `param.`/`init.`/`option.` prefix, numbers to
+/// four significant digits in their shortest form; empty without a sweep).
 pub fn compact(axes: &[Axis], values: &[String]) -> String {
     axes.iter()
         .zip(values)
         .map(|(a, v)| {
             let name = a.name.rsplit('.').next().unwrap_or(&a.name);
+            // Four significant digits: a title reads `phi = 3.142`.
             let v = v
                 .parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
+                .and_then(|x| format!("{x:.3e}").parse::<f64>().ok())
                 .map(crate::table::Plain::text)
                 .unwrap_or(v.clone());
             format!("{name} = {v}")

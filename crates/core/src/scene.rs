@@ -343,9 +343,10 @@ pub trait Scene: Send + Sync + 'static {
     /// in chart order, into `chart`: the inverse of
     /// [`Scene::velocities_from`] on the constraints, for tables and plots
     /// (the sleigh's signed forward speed `u`, whose sign changes are its
-    /// reversals). NaN where the scene gives none.
-    fn chart_from(&self, _q: &[f64], _qd: &[f64], chart: &mut [f64]) {
-        chart.fill(f64::NAN);
+    /// reversals). Returns whether the scene reads its chart (default: no,
+    /// `chart` untouched).
+    fn chart_from(&self, _q: &[f64], _qd: &[f64], _chart: &mut [f64]) -> bool {
+        false
     }
 
     /// The closed-form motion from `(q0, q̇0)` at `t0 = 0`, evaluated at `t`;

@@ -12,7 +12,8 @@
 use nonholo_core::Scene;
 use nonholo_core::complex::C64;
 use nonholo_core::integrate::{Method, OdeSystem, Options, SystemError};
-use nonholo_core::model::{Crossed, Crossing};
+use nonholo_core::model::{Crossed, Crossing, GapFill};
+use nonholo_core::scene::EmbeddingInfo;
 
 use crate::crossing::{APPROACH_FACTOR, CROSS_RESOLUTION, Continuation, Stop, cross, crossed};
 use crate::ode::{ODE_RESOLUTION, Reduction, ReductionStats, Resolution};
@@ -363,6 +364,23 @@ impl<S: Scene> Crossing for Explicit<S> {
             _ => across.near.clone(),
         };
         self.reduction.set_branch(&self.shared.near);
+        let mut across = across;
+        if self.continuation == Continuation::Map && self.shared.c > 0 {
+            // The map's principal branch from the stop on: its cyclic rates
+            // (the disk's |v|/R), not the analytic ones the path carried.
+            let sh = &self.shared;
+            let gap = principal_cyclic(
+                sh.scene.clone(),
+                sh.e,
+                std::mem::replace(&mut across.gap, Box::new(|_, _| {})),
+                (t, across.record.t_singular),
+                y[4 * m..].to_vec(),
+            );
+            let mut at_b = across.z.clone();
+            gap(t_b, &mut at_b);
+            across.z[4 * m..].copy_from_slice(&at_b[4 * m..]);
+            across.gap = gap;
+        }
         let mut z = across.z.clone();
         let change = {
             let sh = &self.shared;
@@ -388,8 +406,101 @@ impl<S: Scene> Crossing for Explicit<S> {
             )));
         }
         self.crossings = number;
-        let mut across = across;
         across.z = z;
         Ok(crossed(across, change))
+    }
+}
+
+/// The gap of a crossing with the cyclic coordinates on the map's principal
+/// branch: `q_c(t) = q_c(t_a) + ∫ φ_c` from the stop `t_a`, `φ_c` evaluated
+/// at the gap's own `(q_I, q̇_I)` without a branch reference, by
+/// Gauss–Legendre quadrature on each side of the singular instant `t*`
+/// (where the principal branch's rate has a kink, the disk's `|v|/R`); the
+/// other components as `gap` gives them.
+fn principal_cyclic<S: Scene>(
+    scene: std::sync::Arc<S>,
+    e: EmbeddingInfo,
+    gap: GapFill,
+    (t_a, t_s): (f64, f64),
+    start: Vec<f64>,
+) -> GapFill {
+    let m = e.independent.len();
+    let (nodes, weights) = gauss_legendre(GAP_QUADRATURE);
+    Box::new(move |t, out| {
+        gap(t, out);
+        let mut tmp = vec![0.0; out.len()];
+        let (mut dep, mut rates) = (vec![0.0; e.dependent.len()], vec![0.0; start.len()]);
+        let mut integral = start.clone();
+        let pieces = [(t_a, t.min(t_s)), (t_s, t)];
+        for (a, b) in pieces.into_iter().filter(|(a, b)| b > a) {
+            let (mid, half) = ((a + b) / 2.0, (b - a) / 2.0);
+            for (x, w) in nodes.iter().zip(&weights) {
+                let tau = mid + half * x;
+                gap(tau, &mut tmp);
+                crate::elo::cyclic_rates(
+                    &*scene,
+                    &e,
+                    tau,
+                    &tmp[..m],
+                    &tmp[m..2 * m],
+                    &[],
+                    &mut dep,
+                    &mut rates,
+                );
+                for (acc, r) in integral.iter_mut().zip(&rates) {
+                    *acc += half * w * r;
+                }
+            }
+        }
+        out[4 * m..].copy_from_slice(&integral);
+    })
+}
+
+/// Nodes of the Gauss–Legendre rule for a gap's cyclic coordinates: exact
+/// for polynomials of degree 39 on each side of the singular instant.
+const GAP_QUADRATURE: usize = 20;
+
+/// Nodes and weights of the `n`-point Gauss–Legendre rule on `[−1, 1]`
+/// (Newton on the Legendre polynomial from Tricomi's estimate of each root).
+fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let (mut nodes, mut weights) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for i in 1..=n {
+        let mut x = (std::f64::consts::PI * (i as f64 - 0.25) / (n as f64 + 0.5)).cos();
+        let mut dp = 0.0;
+        for _ in 0..100 {
+            // P_n(x) and P_n'(x) by the three-term recurrence.
+            let (mut p0, mut p1) = (1.0, x);
+            for k in 2..=n {
+                let k = k as f64;
+                (p0, p1) = (p1, ((2.0 * k - 1.0) * x * p1 - (k - 1.0) * p0) / k);
+            }
+            dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+            let step = p1 / dp;
+            x -= step;
+            if step.abs() < 1e-16 {
+                break;
+            }
+        }
+        nodes.push(x);
+        weights.push(2.0 / ((1.0 - x * x) * dp * dp));
+    }
+    (nodes, weights)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The rule integrates polynomials up to degree 2n − 1 exactly and
+    /// its weights sum to 2.
+    #[test]
+    fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
+        let (x, w) = super::gauss_legendre(super::GAP_QUADRATURE);
+        assert!((w.iter().sum::<f64>() - 2.0).abs() < 1e-14);
+        for degree in [2, 10, 38] {
+            let q: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(degree)).sum();
+            let exact = 2.0 / (degree as f64 + 1.0);
+            assert!((q - exact).abs() < 1e-14, "degree {degree}: {q} vs {exact}");
+        }
+        let odd: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(39)).sum();
+        assert!(odd.abs() < 1e-14);
     }
 }

@@ -124,9 +124,11 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         self.d[4 * m..].copy_from_slice(&yp[3 * m..4 * m]);
         self.evaluate(t);
         res[3 * m..4 * m].copy_from_slice(&self.e_out);
-        let rates = self.shared.cyclic_rates(t, y);
-        for (k, r) in rates.iter().enumerate() {
-            res[4 * m + k] = yp[4 * m + k] - r;
+        if self.shared.c > 0 {
+            let rates = self.shared.cyclic_rates(t, y);
+            for (k, r) in rates.iter().enumerate() {
+                res[4 * m + k] = yp[4 * m + k] - r;
+            }
         }
         if res.iter().all(|v| v.is_finite()) {
             Ok(())
@@ -171,7 +173,7 @@ impl<S: Scene> ImplicitSystem for Implicit<S> {
         for k in 0..c {
             jyp[(4 * m + k) * dim + 4 * m + k] = 1.0;
         }
-        for j in 0..2 * m {
+        for j in (0..2 * m).filter(|_| c > 0) {
             for (v, &x) in self.d_dual.iter_mut().zip(&y[..2 * m]) {
                 *v = Dual64::from_re(x);
             }

@@ -338,8 +338,24 @@ impl<S: Scene> Model for Embedding<S> {
         if let Some(&s) = r.completion.third_singular_values.last() {
             v.push(("third_determination", s));
         }
-        for shift in &r.branch_shift {
-            v.push(("branch_shift", *shift));
+        // One name per dependent coordinate, in the map's order (the first
+        // keeps the name it had when maps had one).
+        const SHIFT: [&str; MAX_DOF] = [
+            "branch_shift",
+            "branch_shift_2",
+            "branch_shift_3",
+            "branch_shift_4",
+            "branch_shift_5",
+            "branch_shift_6",
+            "branch_shift_7",
+            "branch_shift_8",
+            "branch_shift_9",
+            "branch_shift_10",
+            "branch_shift_11",
+            "branch_shift_12",
+        ];
+        for (name, shift) in SHIFT.iter().zip(&r.branch_shift) {
+            v.push((name, *shift));
         }
         v
     }

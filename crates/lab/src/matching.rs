@@ -104,16 +104,50 @@ impl CyclicMomentum {
         if self.a.is_empty() {
             return Ok(lambda);
         }
+        let refuse = |reason: String| Error::InconsistentInit {
+            formulation: "embedding",
+            reason,
+        };
+        let coefficients = || {
+            (0..names.len())
+                .map(|i| {
+                    let c: Vec<String> = (0..self.a.len())
+                        .map(|k| format!("{:.3e}", self.b[(k, i)]))
+                        .collect();
+                    format!("∂P/∂{} = {}", names[i], c.join(", "))
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        let b_size = self.b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let free: Vec<usize> = (0..given.len()).filter(|&i| given[i].is_none()).collect();
         if !free.is_empty() {
             let p = self.at(&lambda);
             let sub =
                 nalgebra::DMatrix::from_fn(self.a.len(), free.len(), |k, j| self.b[(k, free[j])]);
-            let x = svd_of(sub, true, true)
-                .and_then(|svd| {
-                    svd.solve(&nalgebra::DVector::from_vec(p), 1e-12)
-                        .map_err(str::to_string)
-                })
+            let svd = svd_of(sub, true, true)
+                .map_err(|msg| Error::numerical("completing λ0 from P_c = 0", msg))?;
+            // The multipliers left out must move P by a fair share of what
+            // any multiplier does, or the completed ones are huge and
+            // ill-determined (the disk heading along y: P_ψ hardly depends
+            // on λ₁).
+            let weakest = svd.singular_values.min();
+            if self.a.len() <= free.len()
+                && (weakest.is_nan() || weakest <= COMPLETION_RCOND * b_size)
+            {
+                let left_out: Vec<&str> = free.iter().map(|&i| names[i].as_str()).collect();
+                return Err(refuse(format!(
+                    "the momenta {} of the cyclic coordinates, which A's motions keep at zero, \
+                     hardly depend here on the multipliers left out ({}: smallest singular \
+                     value {weakest:.3e} against {b_size:.3e}); give those and leave out others \
+                     ({})",
+                    self.names.join(", "),
+                    left_out.join(", "),
+                    coefficients()
+                )));
+            }
+            let x = svd
+                .solve(&nalgebra::DVector::from_vec(p), COMPLETION_RCOND * b_size)
                 .map_err(|msg| Error::numerical("completing λ0 from P_c = 0", msg))?;
             for (j, &i) in free.iter().enumerate() {
                 lambda[i] -= x[j];
@@ -126,14 +160,17 @@ impl CyclicMomentum {
             // A valid choice: the given λ moved by the least amount.
             let fix = svd_of(self.b.clone(), true, true)
                 .and_then(|svd| {
-                    svd.solve(&nalgebra::DVector::from_vec(p.clone()), 1e-12)
-                        .map_err(str::to_string)
+                    svd.solve(
+                        &nalgebra::DVector::from_vec(p.clone()),
+                        COMPLETION_RCOND * b_size,
+                    )
+                    .map_err(str::to_string)
                 })
                 .map(|x| {
-                    lambda
+                    names
                         .iter()
-                        .zip(x.iter())
-                        .map(|(l, d)| format!("{:.12}", l - d))
+                        .zip(lambda.iter().zip(x.iter()))
+                        .map(|(n, (l, d))| format!("{n} = {:.12}", l - d))
                         .collect::<Vec<_>>()
                         .join(", ")
                 })
@@ -144,26 +181,31 @@ impl CyclicMomentum {
                 .zip(&p)
                 .map(|(n, v)| format!("{n} = {v:.6e}"))
                 .collect();
-            return Err(Error::InconsistentInit {
-                formulation: "embedding",
-                reason: format!(
-                    "A's motions are the vakonomic ones whose momenta of the cyclic coordinates \
-                     vanish ({} = ∂(L + λᵀg)/∂q̇_c = 0), but {} = ({}) gives {}; the nearest \
-                     valid multipliers are ({fix}); leave out the ones to be computed",
-                    self.names.join(", "),
-                    names.join(", "),
-                    lambda
-                        .iter()
-                        .map(|v| v.to_string())
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    momentum.join(", ")
-                ),
-            });
+            let values: Vec<String> = names
+                .iter()
+                .zip(&lambda)
+                .zip(given)
+                .map(|((n, v), g)| {
+                    let how = if g.is_some() { "given" } else { "completed" };
+                    format!("{n} = {v} ({how})")
+                })
+                .collect();
+            return Err(refuse(format!(
+                "A's motions are the vakonomic ones whose momenta of the cyclic coordinates \
+                 vanish ({} = ∂(L + λᵀg)/∂q̇_c = 0), but {} gives {}; the nearest valid \
+                 multipliers are {fix}; leave out the ones to be computed",
+                self.names.join(", "),
+                values.join(", "),
+                momentum.join(", ")
+            )));
         }
         Ok(lambda)
     }
 }
+
+/// Singular values of `∂P/∂λ` below this fraction of its largest entry count
+/// as zero when multipliers are completed from `P_c = 0`.
+const COMPLETION_RCOND: f64 = 1e-6;
 
 fn derivative_names(scene: &AnyScene, order: &str) -> Vec<String> {
     let info = scene.info();
@@ -178,7 +220,9 @@ fn derivative_names(scene: &AnyScene, order: &str) -> Vec<String> {
 
 /// Completes `init` for formulation A: if no second derivatives are given,
 /// fills `<q_I>_ddot` and `<q_I>_dddot` from the vakonomic motion with
-/// `λ0 = lambda` (default 0); otherwise finds the matching `λ0`.
+/// `λ0 = lambda` (the multipliers not given: 0, or completed from
+/// `P_c = 0` where the map has cyclic coordinates); otherwise finds the
+/// matching `λ0`.
 pub fn prepare_embedding(scene: &AnyScene, init: &mut Initial) -> Result<MatchReport, Error> {
     let second = derivative_names(scene, "ddot");
     let third = derivative_names(scene, "dddot");

@@ -154,7 +154,24 @@ fn a_refuses_multipliers_with_rolling_momentum_and_so_every_circle_of_b() {
     };
     let e = e.to_string();
     assert!(e.contains("P_psi = 1.5"), "{e}");
-    assert!(e.contains("nearest valid multipliers are (0.5"), "{e}");
+    assert!(
+        e.contains("nearest valid multipliers are lambda1 = 0.5"),
+        "{e}"
+    );
+    assert!(e.contains("lambda1 = -1 (given)"), "{e}");
+    // Heading along y, λ₂ given: P_ψ hardly depends on λ₁ (∂P/∂λ₁ =
+    // −R cos θ0 ≈ −2.7e-8), so completing λ₁ is refused rather than made
+    // huge; likewise λ₂ at θ0 = 0, where ∂P/∂λ₂ = 0.
+    for init in [["theta=1.5707963", "lambda2=0.1"], ["theta=0", "lambda1=0"]] {
+        let Err(e) = run(&args("embedding", &init, 1e-10, 1.0)) else {
+            panic!("{init:?}: completed an ill-determined multiplier");
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains("hardly depend here on the multipliers left out"),
+            "{e}"
+        );
+    }
     // C with those multipliers is B's circle.
     let (b, _) = simulate("chetaev", &[], 1e-12, 5.0);
     let (c, _) = simulate("vakonomic", &["lambda1=-1", "lambda2=0"], 1e-12, 5.0);
@@ -205,4 +222,36 @@ fn inverse_map_on_the_disk_solves_for_zero_rolling_momentum() {
     }
     assert!(inverse.cyclic_momentum[0].abs() < 1e-12);
     assert!(inverse.third_residual.unwrap() < 1e-10, "{inverse:?}");
+}
+
+/// ψ is the integral of the ψ̇ a run reports, on either continuation: on
+/// the analytic one ψ̇ is the signed speed over R, on the map's principal
+/// branch |v|/R, also across the gaps of the crossings (where the path in
+/// complex time carried the analytic rate). Checked by the trapezoid rule
+/// on a 1 ms grid over [0, 4] (two crossings).
+#[test]
+fn the_rolling_angle_integrates_its_reported_rate_on_both_branches() {
+    for continuation in ["analytic", "map"] {
+        let mut a = args("embedding", &["lambda2=0"], 1e-11, 4.0);
+        a.output_every = Some(1e-3);
+        a.options = vec![format!("continuation={continuation}")];
+        let (r, _) = run(&a).expect("the run starts");
+        assert!(r.failure.is_none(), "{continuation}: {:?}", r.failure);
+        assert_eq!(r.crossings.len(), 2, "{continuation}");
+        let t = &r.solution.t;
+        let s = &r.samples;
+        let mut integral = 0.0;
+        let mut worst = 0.0f64;
+        for i in 1..s.len() {
+            integral += 0.5 * (t[i] - t[i - 1]) * (s[i].qd[3] + s[i - 1].qd[3]);
+            worst = worst.max((s[i].q[3] - s[0].q[3] - integral).abs());
+        }
+        eprintln!("{continuation}: max |ψ − ψ0 − ∫ψ̇| = {worst:.2e}");
+        assert!(worst < 1e-5, "{continuation}: ψ − ∫ψ̇ reaches {worst:e}");
+        let lowest = s.iter().map(|o| o.qd[3]).fold(f64::INFINITY, f64::min);
+        match continuation {
+            "map" => assert!(lowest >= 0.0, "{lowest}"),
+            _ => assert!(lowest < -0.5, "{lowest}"),
+        }
+    }
 }

@@ -153,9 +153,10 @@ impl Scene for AppellHamel {
     }
 
     /// `ρ = √(ẋ² + ẏ²)`, `β = atan2(ẏ, ẋ)`.
-    fn chart_from(&self, _q: &[f64], qd: &[f64], chart: &mut [f64]) {
+    fn chart_from(&self, _q: &[f64], qd: &[f64], chart: &mut [f64]) -> bool {
         chart[0] = qd[0].hypot(qd[1]);
         chart[1] = qd[1].atan2(qd[0]);
+        true
     }
 
     /// Under B the horizontal path is a straight line with `ρ̇ = c g/(1 + c²)`

@@ -177,9 +177,10 @@ impl Scene for RollingDisk {
     }
 
     /// `(θ̇, ψ̇)`.
-    fn chart_from(&self, _q: &[f64], qd: &[f64], chart: &mut [f64]) {
+    fn chart_from(&self, _q: &[f64], qd: &[f64], chart: &mut [f64]) -> bool {
         chart[0] = qd[2];
         chart[1] = qd[3];
+        true
     }
 
     fn closed_form(

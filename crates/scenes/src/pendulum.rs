@@ -109,7 +109,8 @@ impl Scene for Pendulum {
     }
 
     /// `ω = (x ẏ − y ẋ)/(x² + y²)`.
-    fn chart_from(&self, q: &[f64], qd: &[f64], chart: &mut [f64]) {
+    fn chart_from(&self, q: &[f64], qd: &[f64], chart: &mut [f64]) -> bool {
         chart[0] = (q[0] * qd[1] - q[1] * qd[0]) / (q[0] * q[0] + q[1] * q[1]);
+        true
     }
 }

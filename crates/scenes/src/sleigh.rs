@@ -221,10 +221,11 @@ impl Scene for Sleigh {
     }
 
     /// `u = ẋ cos φ + ẏ sin φ` (signed), `ω = φ̇`.
-    fn chart_from(&self, q: &[f64], qd: &[f64], chart: &mut [f64]) {
+    fn chart_from(&self, q: &[f64], qd: &[f64], chart: &mut [f64]) -> bool {
         let (s, c) = q[2].sin_cos();
         chart[0] = qd[0] * c + qd[1] * s;
         chart[1] = qd[2];
+        true
     }
 
     /// The spec's closed form for `a = 0`, `ω0 ≠ 0`: `ω = ω0`, `φ = φ0 + ω0 t`,

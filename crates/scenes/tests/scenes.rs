@@ -371,7 +371,7 @@ fn every_chart_reading_inverts_the_chart() {
             let mut qd = vec![0.0; q.len()];
             s.velocities_from(q, chart, &mut qd);
             let mut back = vec![0.0; chart.len()];
-            s.chart_from(q, &qd, &mut back);
+            assert!(s.chart_from(q, &qd, &mut back), "{}", s.info().name);
             for (a, b) in chart.iter().zip(&back) {
                 assert!(
                     (a - b).abs() < 1e-14,

@@ -181,6 +181,22 @@ impl Progress {
     }
 }
 
+/// Whether the trajectory file at `path` has a column for each quantity
+/// drawn against time (files written before the chart columns existed have
+/// none: the point is computed again). Reads the header only.
+fn has_series_columns(path: &Path, series: &[String]) -> bool {
+    if series.is_empty() {
+        return true;
+    }
+    let Ok(mut reader) = csv::Reader::from_path(path) else {
+        return false;
+    };
+    let Ok(header) = reader.headers() else {
+        return false;
+    };
+    series.iter().all(|s| header.iter().any(|h| h == s))
+}
+
 /// The stored result of `p`, if it is complete and for the same computation.
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
     let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
@@ -191,7 +207,10 @@ fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> O
             .formulations
             .iter()
             .filter(|f| f.t_last.is_some())
-            .all(|f| output::trajectory_path(dir, p.index, &f.label).exists());
+            .all(|f| {
+                let path = output::trajectory_path(dir, p.index, &f.label);
+                path.exists() && has_series_columns(&path, &exp.series)
+            });
         if !all_there {
             return None;
         }

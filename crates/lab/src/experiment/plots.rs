@@ -184,7 +184,8 @@ pub fn trajectories(
             let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
             let needed = ["t", "residual", "energy"]
                 .into_iter()
-                .chain(info.coordinates.iter().map(|c| c.name));
+                .chain(info.coordinates.iter().map(|c| c.name))
+                .chain(exp.series.iter().map(String::as_str));
             for c in needed {
                 if t.column(c).is_none() {
                     return Err(format!("{}: no column `{c}`", p.display()));

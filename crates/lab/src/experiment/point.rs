@@ -215,21 +215,25 @@ impl SceneVisitor for Physics<'_> {
             .map(|(t, o)| state_measures(&scene, *t, &o.q, &o.qd))
             .collect();
         let width = scene.info().velocity_chart.len();
-        let chart = self
-            .obs
-            .iter()
-            .map(|o| {
-                let mut c = vec![0.0; width];
-                scene.chart_from(&o.q, &o.qd, &mut c);
-                c
-            })
-            .collect();
+        let mut chart = Vec::with_capacity(self.obs.len());
+        for o in self.obs {
+            let mut c = vec![0.0; width];
+            if !scene.chart_from(&o.q, &o.qd, &mut c) {
+                // No chart reading: no chart columns.
+                return (measures, Vec::new());
+            }
+            chart.push(c);
+        }
         (measures, chart)
     }
 }
 
-/// The velocity-chart names of a scene.
-fn chart_names(info: &nonholo_core::SceneInfo) -> Vec<String> {
+/// The velocity-chart names of a scene whose chart was read (none if
+/// `chart` is empty: no reading, or no samples).
+fn chart_names(info: &nonholo_core::SceneInfo, chart: &[Vec<f64>]) -> Vec<String> {
+    if chart.is_empty() {
+        return Vec::new();
+    }
     info.velocity_chart
         .iter()
         .map(|c| c.name.to_string())
@@ -508,7 +512,7 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                     t,
                     obs,
                     physics,
-                    chart_names: chart_names(info),
+                    chart_names: chart_names(info, &chart),
                     chart,
                 };
                 cut_at_non_finite(&mut res, &mut samples);
@@ -538,7 +542,7 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                 t,
                 obs: run.samples,
                 physics,
-                chart_names: chart_names(info),
+                chart_names: chart_names(info, &chart),
                 chart,
             };
             cut_at_non_finite(&mut res, &mut samples);

@@ -964,11 +964,13 @@ impl Experiment {
             None => None,
             Some(s) => {
                 let [a, b] = *s.get_ref();
-                if !(a.is_finite() && b.is_finite() && a >= 0.0 && a < b) {
+                if !(a.is_finite() && b.is_finite() && a >= 0.0 && a < b && a < t_end) {
                     return Err(ctx.err(
                         s.span(),
                         "plots.series_span",
-                        "must be [start, end] with 0 ≤ start < end",
+                        format!(
+                            "must be [start, end] with 0 ≤ start < end and start < t_end = {t_end}"
+                        ),
                     ));
                 }
                 Some([a, b])

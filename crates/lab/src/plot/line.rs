@@ -66,8 +66,8 @@ pub fn line_plot(p: &LinePlot, stem: &Path) -> Result<Vec<PathBuf>, String> {
     write_outputs(
         stem,
         SIZE,
-        |root| draw_line_plot(&root, p, &data),
-        |root| draw_line_plot(&root, p, &data),
+        |root| draw_line_plot(&root, p, &data, Joins::Segments),
+        |root| draw_line_plot(&root, p, &data, Joins::Polyline),
     )
 }
 
@@ -116,12 +116,10 @@ impl LineData {
                 runs.push(run);
             }
             let drawn: usize = runs.iter().map(Vec::len).sum();
-            let hidden = s.x.len() - drawn;
-            let label = match (hidden, drawn) {
-                (0, _) => s.label.clone(),
-                (_, 0) => format!("{} (no drawable point)", s.label),
-                (1, _) => format!("{} (1 point not shown)", s.label),
-                (n, _) => format!("{} ({n} points not shown)", s.label),
+            let label = if drawn == s.x.len() {
+                s.label.clone()
+            } else {
+                format!("{} ({})", s.label, hidden_note(s, p, drawn))
             };
             series.push(SeriesData {
                 label,
@@ -151,10 +149,62 @@ impl LineData {
     }
 }
 
+/// Why points of `s` are not drawn, for its legend entry: zeros or negative
+/// values on a log axis (a divergence that is exactly zero at the start),
+/// or values that are not finite (a run that stopped).
+fn hidden_note(s: &Series, p: &LinePlot, drawn: usize) -> String {
+    let (mut zero, mut negative, mut missing) = (0, 0, 0);
+    for (&x, &y) in s.x.iter().zip(&s.y) {
+        if !x.is_finite() || !y.is_finite() {
+            missing += 1;
+        } else if (p.log_x && x == 0.0) || (p.log_y && y == 0.0) {
+            zero += 1;
+        } else if (p.log_x && x < 0.0) || (p.log_y && y < 0.0) {
+            negative += 1;
+        }
+    }
+    let count = |n: usize, one: &str, many: &str| match n {
+        0 => None,
+        1 => Some(format!("1 {one}")),
+        n => Some(format!("{n} {many}")),
+    };
+    let parts: Vec<String> = [
+        count(zero, "zero off the log axis", "zeros off the log axis"),
+        count(
+            negative,
+            "negative value off the log axis",
+            "negative values off the log axis",
+        ),
+        count(missing, "value missing", "values missing"),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let what = parts.join(", ");
+    if drawn == 0 {
+        format!("nothing drawable: {what}")
+    } else {
+        what
+    }
+}
+
+/// How a solid curve is stroked. The bitmap backend joins the segments of
+/// a wide polyline with unbounded miters, so a curve that turns sharply
+/// (noise at round-off level on a log axis) throws spikes across the title
+/// and the axes; drawn as separate segments it has no joins. SVG viewers
+/// bound the miters themselves (miter limit 4), and one polyline keeps the
+/// file small.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Joins {
+    Segments,
+    Polyline,
+}
+
 fn draw_line_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     p: &LinePlot,
     data: &LineData,
+    joins: Joins,
 ) -> Result<(), String> {
     root.fill(&WHITE).map_err(draw_err)?;
     let area = root
@@ -224,6 +274,13 @@ fn draw_line_plot<DB: DrawingBackend>(
                 if let Some((dash, gap)) = s.pen.dash.on_plot() {
                     chart
                         .draw_series(DashedLineSeries::new(run.iter().copied(), dash, gap, style))
+                        .map_err(draw_err)?;
+                } else if joins == Joins::Segments {
+                    chart
+                        .draw_series(
+                            run.windows(2)
+                                .map(|w| PathElement::new(vec![w[0], w[1]], style)),
+                        )
                         .map_err(draw_err)?;
                 } else {
                     chart

@@ -1,5 +1,6 @@
-//! Experiment files: the TOML schema, and its validation into an
-//! [`Experiment`] whose every value has been checked before anything runs.
+//! Experiment files (the format for users: docs/experiments.md): the TOML
+//! schema, and its validation into an [`Experiment`] whose every value has
+//! been checked before anything runs.
 //!
 //! ```toml
 //! [experiment]

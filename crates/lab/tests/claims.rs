@@ -1,8 +1,9 @@
-//! The sentences of docs/figures.md and docs/embedding.md about the
-//! experiments `sleigh-reversals` and `disk-embedding`, checked against the
-//! committed results they cite (`results/<name>/runs.csv`), so that the
-//! prose and the numbers cannot drift apart: `nonholo reproduce` rewrites
-//! the tables, and this test fails if a claim no longer holds.
+//! Sentences of docs/figures.md, docs/embedding.md and docs/performance.md,
+//! checked against the committed results they cite
+//! (`results/<name>/runs.csv`), so that the prose and the numbers cannot
+//! drift apart: `nonholo reproduce` rewrites the tables, and these tests
+//! fail if a claim no longer holds. (So far: the experiments of issue 11 and
+//! the realisations' rates.)
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -104,4 +105,30 @@ fn disk_embedding_as_figures_md_states() {
     assert_eq!((lo, hi), (3.0, 7.0));
     let at_half = find(&rows, "5", "A");
     assert_eq!(num(at_half, "crossings"), num(at_half, "reversals") + 1.0);
+}
+
+/// figures.md and performance.md, stiff-visc and stiff-mass: `visc(k)` is
+/// 22.1/k to 22.2/k from B at 5 s (Radau IIA, every k), `mass(N)` 6.07/N to 6.09/N
+/// from C at 2 s in position and 6.25/N in all coordinates (compliance
+/// form, every N).
+#[test]
+fn realisation_rates_as_figures_md_states() {
+    for r in runs("stiff-visc")
+        .iter()
+        .filter(|r| r["label"] == "visc-radau5")
+    {
+        let k = num(r, "option.k");
+        let c = num(r, "div_xy_end") * k;
+        assert!((22.05..22.2).contains(&c), "k = {k}: {c}/k");
+    }
+    for r in runs("stiff-mass")
+        .iter()
+        .filter(|r| r["label"] == "compliance-dop853")
+    {
+        let n = num(r, "option.N");
+        let xy = num(r, "div_xy_end") * n;
+        let q = num(r, "div_q_end") * n;
+        assert!((6.07..6.095).contains(&xy), "N = {n}: {xy}/N in position");
+        assert!((q - 6.25).abs() < 0.005, "N = {n}: {q}/N in q");
+    }
 }

@@ -248,12 +248,57 @@ where
         let tag = if i == 0 { "th" } else { "td" };
         h.push_str("<tr>");
         for c in row {
-            h.push_str(&format!("<{tag}>{}</{tag}>", escape(c.as_ref())));
+            let c = c.as_ref();
+            let shown = if i == 0 { c.to_string() } else { readable(c) };
+            h.push_str(&format!("<{tag}>{}</{tag}>", escape(&shown)));
         }
         h.push_str("</tr>\n");
     }
     h.push_str("</table>\n");
     h
+}
+
+/// A table cell for reading: a number that is not an integer to four
+/// significant digits (`2.265e-7`, `0.9231`), everything else as written.
+/// The files keep every digit; pages show these.
+pub fn readable(cell: &str) -> String {
+    let integer = !cell.is_empty()
+        && cell
+            .trim_start_matches('-')
+            .bytes()
+            .all(|b| b.is_ascii_digit());
+    match cell.parse::<f64>() {
+        Ok(x) if x.is_finite() && !integer && x != 0.0 => {
+            let exponent = x.abs().log10().floor() as i32;
+            if (-3..5).contains(&exponent) {
+                let decimals = (3 - exponent).max(0) as usize;
+                let fixed = format!("{x:.decimals$}");
+                if fixed.contains('.') {
+                    fixed
+                        .trim_end_matches('0')
+                        .trim_end_matches('.')
+                        .to_string()
+                } else {
+                    fixed
+                }
+            } else {
+                let sci = format!("{x:.3e}");
+                // 1.500e-7 → 1.5e-7
+                match sci.split_once('e') {
+                    Some((m, e)) => {
+                        let m = if m.contains('.') {
+                            m.trim_end_matches('0').trim_end_matches('.')
+                        } else {
+                            m
+                        };
+                        format!("{m}e{e}")
+                    }
+                    None => sci,
+                }
+            }
+        }
+        _ => cell.to_string(),
+    }
 }
 
 /// The CSV file `path` as an HTML table (an empty table if it cannot be read).
@@ -287,6 +332,27 @@ mod tests {
         #[serde(serialize_with = "plain_opt")]
         t_last: Option<f64>,
         error: Option<&'a str>,
+    }
+
+    #[test]
+    fn readable_cells_have_four_significant_digits() {
+        for (cell, shown) in [
+            ("0.00000000001", "1e-11"),
+            ("0.0000002265359926312271", "2.265e-7"),
+            ("0.9230505824350157", "0.9231"),
+            ("2.245", "2.245"),
+            ("12.5", "12.5"),
+            ("423.97665881089955", "424"),
+            ("125", "125"),
+            ("1000000", "1000000"),
+            ("123456.7", "1.235e5"),
+            ("0", "0"),
+            ("-0.000012345", "-1.234e-5"),
+            ("completed", "completed"),
+            ("", ""),
+        ] {
+            assert_eq!(readable(cell), shown, "{cell}");
+        }
     }
 
     #[test]

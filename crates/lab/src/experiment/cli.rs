@@ -387,7 +387,7 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
 /// The figure standing for `exp`: `plots.main` if given; else the heat map
 /// of a two-variable grid, the end-divergence curve of a sweep of three or
 /// more points, or the divergence against time.
-fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
+pub(crate) fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
     let plots = dir.join("plots");
     let mut candidates: Vec<String> = exp.main_plot.iter().cloned().collect();
     if exp.kind == Kind::WorkPrecision {

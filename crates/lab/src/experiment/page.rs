@@ -1,6 +1,9 @@
-//! `index.html`: the page of an experiment (either kind): title, claim,
-//! description, links to the result files, tables, and every figure with
-//! its caption.
+//! `index.html`: the page of an experiment (either kind): title, the
+//! figure that stands for it (the one docs/figures.md cites), the claim,
+//! how to reproduce it (command, experiment file, the figures page),
+//! description, links to the result files, tables (numbers to four
+//! significant digits; the files keep every digit), and every other figure
+//! with its caption.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -39,12 +42,49 @@ impl Page<'_> {
              figure{{margin:1.5em 0}}img{{max-width:100%}}figcaption{{color:#333}}</style></head><body>\n",
             escape(&exp.title)
         );
-        let _ = writeln!(
-            h,
-            "<h1>{}</h1>\n<p><b>Claim tested:</b> {}</p>",
-            escape(&exp.title),
-            escape(&exp.claim)
+        let figure = |h: &mut String, p: &Path| {
+            let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default();
+            let _ = writeln!(
+                h,
+                "<figure><img src=\"{rel}\" alt=\"{stem}\"><figcaption>{}</figcaption></figure>",
+                escape(&(self.caption)(&stem))
+            );
+        };
+        let _ = writeln!(h, "<h1>{}</h1>", escape(&exp.title));
+        let main = super::cli::main_plot(exp, dir).filter(|m| self.plots.contains(m));
+        if let Some(m) = &main {
+            figure(&mut h, m);
+        }
+        let _ = writeln!(h, "<p><b>Claim tested:</b> {}</p>", escape(&exp.claim));
+        let file = exp
+            .path
+            .file_name()
+            .map(|f| f.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let mut how = format!(
+            "<p><b>Reproduce:</b> <code>nonholo experiment experiments/{}</code> (the \
+             <a href=\"{}\">experiment file</a>)",
+            escape(&file),
+            escape(&super::cli::relative(dir, &exp.path))
         );
+        let figures = exp
+            .path
+            .parent()
+            .and_then(Path::parent)
+            .map(|root| root.join("docs/figures.md"))
+            .filter(|f| f.exists());
+        if let Some(f) = figures {
+            let _ = write!(
+                how,
+                "; every figure with its claim: <a href=\"{}\">docs/figures.md</a>",
+                escape(&super::cli::relative(dir, &f))
+            );
+        }
+        let _ = writeln!(h, "{how}.</p>");
         if !exp.description.is_empty() {
             let _ = writeln!(h, "<p>{}</p>", escape(&exp.description));
         }
@@ -60,7 +100,12 @@ impl Page<'_> {
         };
         let _ = writeln!(h, "<p>{lead}Files: {}.</p>", links.join(", "));
         let section = |h: &mut String, (title, body): &(String, String)| {
-            let _ = write!(h, "<h2>{}</h2>\n{body}", escape(title));
+            // Wide tables scroll inside their box instead of widening the page.
+            let _ = write!(
+                h,
+                "<h2>{}</h2>\n<div style=\"overflow-x:auto\">{body}</div>",
+                escape(title)
+            );
         };
         for s in &self.before {
             section(&mut h, s);
@@ -69,17 +114,9 @@ impl Page<'_> {
             .plots
             .iter()
             .filter(|p| p.extension().is_some_and(|e| e == "png"))
+            .filter(|p| main.as_ref() != Some(*p))
         {
-            let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
-            let stem = p
-                .file_stem()
-                .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_default();
-            let _ = writeln!(
-                h,
-                "<figure><img src=\"{rel}\" alt=\"{stem}\"><figcaption>{}</figcaption></figure>",
-                escape(&(self.caption)(&stem))
-            );
+            figure(&mut h, p);
         }
         for s in &self.after {
             section(&mut h, s);

@@ -79,6 +79,27 @@ pub struct SimulateArgs {
     pub keep_partial: bool,
 }
 
+impl SimulateArgs {
+    /// `nonholo simulate --scene SCENE --formulation FORMULATION` with every
+    /// other flag at its default, as the command line parses it (for code
+    /// and tests that set a few fields and keep the rest).
+    pub fn new(scene: &str, formulation: &str) -> SimulateArgs {
+        #[derive(clap::Parser)]
+        struct Line {
+            #[command(flatten)]
+            args: SimulateArgs,
+        }
+        <Line as clap::Parser>::parse_from([
+            "simulate",
+            "--scene",
+            scene,
+            "--formulation",
+            formulation,
+        ])
+        .args
+    }
+}
+
 /// Splits `name=value` pairs given to `flag`.
 pub fn pairs(flag: &str, items: &[String]) -> Result<Vec<(String, String)>, CliError> {
     items

@@ -17,24 +17,12 @@ use nonholo_lab::simulate::{SimulateArgs, run};
 
 fn args(formulation: &str, init: &[&str], tol: f64, t_end: f64) -> SimulateArgs {
     SimulateArgs {
-        scene: "rolling-disk".into(),
-        formulation: formulation.into(),
-        params: Vec::new(),
         init: init.iter().map(|s| s.to_string()).collect(),
-        options: Vec::new(),
         t_end,
         output_every: Some(0.05),
-        integrator: "dop853".into(),
         rtol: Some(tol),
         atol: Some(tol),
-        step: None,
-        radau_newton: "auto".into(),
-        max_steps: 10_000_000,
-        max_wall_time: None,
-        project_init: false,
-        stiff_stop: false,
-        out: None,
-        keep_partial: false,
+        ..SimulateArgs::new("rolling-disk", formulation)
     }
 }
 

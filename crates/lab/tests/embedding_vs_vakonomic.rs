@@ -19,24 +19,14 @@ fn args(
 ) -> SimulateArgs {
     let own = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     SimulateArgs {
-        scene: "sleigh-incline".into(),
-        formulation: formulation.into(),
         params: own(params),
         init: own(init),
-        options: Vec::new(),
         t_end,
         output_every: Some(every),
         integrator: integrator.into(),
         rtol: Some(tol),
         atol: Some(tol),
-        step: None,
-        radau_newton: "auto".into(),
-        max_steps: 10_000_000,
-        max_wall_time: None,
-        project_init: false,
-        stiff_stop: false,
-        out: None,
-        keep_partial: false,
+        ..SimulateArgs::new("sleigh-incline", formulation)
     }
 }
 

@@ -132,3 +132,29 @@ fn realisation_rates_as_figures_md_states() {
         assert!((q - 6.25).abs() < 0.005, "N = {n}: {q}/N in q");
     }
 }
+
+/// figures.md, extreme-horizon: B's error grows quadratically without
+/// stabilisation (1.3e-3 m at 1e4 s), 1.7e-6 m with projection, 2.6e-9 m
+/// with Baumgarte; C and mass stop on their step budget at t ≈ 394 s,
+/// 1.05 km from B; visc's violation stays below 6.7e-4; A's implicit form
+/// stops at 0.843 s.
+#[test]
+fn extreme_horizon_as_figures_md_states() {
+    let rows = runs("extreme-horizon");
+    let at = |label: &str| find(&rows, "0", label);
+    let b = num(at("B-none"), "div_xy_end");
+    assert!((1.25e-3..1.35e-3).contains(&b), "{b}");
+    assert!((1.65e-6..1.8e-6).contains(&num(at("B-projection"), "div_xy_end")));
+    assert!((2.5e-9..2.7e-9).contains(&num(at("B-baumgarte"), "div_xy_end")));
+    for label in ["C-none", "C-projection", "mass"] {
+        let r = at(label);
+        assert_eq!(r["status"], "failed", "{label}");
+        assert!(r["error"].contains("step budget"), "{label}");
+        assert!((390.0..396.0).contains(&num(r, "t_last")), "{label}");
+        assert!((1040.0..1070.0).contains(&num(r, "div_xy_end")), "{label}");
+    }
+    assert!(num(at("visc"), "constraint_residual_max") < 6.7e-4);
+    let a = at("A");
+    assert_eq!(a["status"], "stopped");
+    assert!((num(a, "t_last") - 0.8434).abs() < 1e-3);
+}

@@ -17,13 +17,26 @@ type PlotSpec<'a> = (
     bool,
 );
 
-/// The plots of every point: error (max over the grid, at the end) against
-/// median wall time and against right-hand-side evaluations, and error
-/// against tolerance.
+/// The plots of every point with a ladder of at least two rungs: error (max
+/// over the grid, at the end) against median wall time and against
+/// right-hand-side evaluations, and error against tolerance; and the
+/// stability map over the points.
 pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
     let pens = crate::experiment::pens::of_experiment(exp);
     for p in points {
+        // A line with one rung is a single point, not a work-precision
+        // curve: a point where no line has two draws no per-point plot (its
+        // runs are in the stability map and the tables).
+        let longest = exp
+            .formulations
+            .iter()
+            .map(|f| p.body.rows.iter().filter(|r| r.label == f.label).count())
+            .max()
+            .unwrap_or(0);
+        if longest < 2 {
+            continue;
+        }
         let at = compact(&exp.axes, &p.values);
         let series = |x: &dyn Fn(&WpRow) -> Option<f64>,
                       y: &dyn Fn(&WpRow) -> Option<f64>,

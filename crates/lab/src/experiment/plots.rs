@@ -15,13 +15,22 @@ use super::point::PointResult;
 use super::spec::{Experiment, SweepMode};
 use crate::plot::{Heatmap, LinePlot, Series, heatmap, line_plot};
 
+/// Up to this many formulations the divergence plot shows every pair; with
+/// more, each against the reference.
+const MAX_ALL_PAIRS: usize = 4;
+
 /// Caption of a plot from its file stem, for the HTML page.
 pub fn caption(exp: &Experiment, stem: &str) -> String {
     let point = format!("point {}", exp.plot_point);
     match stem {
         "trajectories" => format!("Path of the first two coordinates, every formulation, {point}."),
         "divergence" => format!(
-            "Divergence ‖(x, y)_a − (x, y)_b‖ of every pair against time on the common output grid, {point} (log scale; a curve ends where one of the two runs stopped)."
+            "Divergence ‖(x, y)_a − (x, y)_b‖ of {} against time on the common output grid, {point} (log scale; a curve ends where one of the two runs stopped).",
+            if exp.formulations.len() <= MAX_ALL_PAIRS {
+                "every pair".to_string()
+            } else {
+                format!("every formulation and the reference {}", exp.reference)
+            }
         ),
         "residual" => {
             format!(
@@ -272,8 +281,14 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         // in the colour of the second of the two.
         let mut series = Vec::new();
         let mut pair_pens = pens::Pens::default();
+        // Beyond four formulations every pair would crowd the legend (36
+        // lines for nine): only the pairs with the reference then.
+        let all_pairs = trajectories.len() <= MAX_ALL_PAIRS;
         for (i, (la, ta)) in trajectories.iter().enumerate() {
             for (lb, tb) in &trajectories[i + 1..] {
+                if !all_pairs && la != &exp.reference && lb != &exp.reference {
+                    continue;
+                }
                 let (Some(t_a), Some(t_b)) = (ta.column("t"), tb.column("t")) else {
                     continue;
                 };

@@ -158,3 +158,30 @@ fn extreme_horizon_as_figures_md_states() {
     assert_eq!(a["status"], "stopped");
     assert!((num(a, "t_last") - 0.8434).abs() < 1e-3);
 }
+
+/// figures.md, wp-sleigh: on the dense output the explicit methods reach
+/// at least their orders (4.0–4.3, 5.3–6.1, 8.9–10.9) with tolerance
+/// slopes 0.84–1.07; Radau IIA shows 4.2–5.5 and slopes 0.65–0.69.
+#[test]
+fn wp_sleigh_orders_as_figures_md_states() {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../results/wp-sleigh/summary.json");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    for line in summary["lines"].as_array().unwrap() {
+        let integrator = line["integrator"].as_str().unwrap();
+        let order = line["observed_order"].as_f64().unwrap();
+        let (lo, hi, slope) = match integrator {
+            "rk4" => (4.0, 4.3, None),
+            "dopri5" => (5.3, 6.1, Some((0.835, 1.075))),
+            "dop853" => (8.9, 10.95, Some((0.835, 1.075))),
+            "radau5" => (4.15, 5.5, Some((0.645, 0.695))),
+            other => panic!("{other}"),
+        };
+        assert!((lo..=hi).contains(&order), "{line}");
+        if let Some((a, b)) = slope {
+            let s = line["slope_error_vs_tolerance"].as_f64().unwrap();
+            assert!((a..=b).contains(&s), "{line}");
+        }
+    }
+}

@@ -7,7 +7,6 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::axis::max_label_width;
 use super::style::{LEGEND_PX, SIZE, SWATCH_PX, TICK_PX, draw_err, text, title_text};
 use super::write_outputs;
 
@@ -121,7 +120,12 @@ fn draw_status_grid<DB: DrawingBackend>(
     let (aw, _) = area.dim_in_pixel();
     let label = text(LEGEND_PX);
     let small = text(TICK_PX);
-    let row_w = max_label_width(&area, &g.rows)? + 24;
+    // Row names are drawn in the legend font: measured in it.
+    let mut row_w = 0;
+    for name in &g.rows {
+        row_w = row_w.max(area.estimate_text_size(name, &label).map_err(draw_err)?.0);
+    }
+    let row_w = row_w + 24;
     let cols = g.columns.len().max(1) as i32;
     let col_w = ((aw as i32 - row_w as i32 - 16) / cols).max(20);
     let (x0, y0) = (row_w as i32, grid_header_px(g) as i32);
@@ -160,12 +164,25 @@ fn draw_status_grid<DB: DrawingBackend>(
                 BLACK.mix(0.35).stroke_width(1),
             ))
             .map_err(draw_err)?;
-            area.draw(&Text::new(
-                cell.text.clone(),
-                (x + col_w / 2, y + row_h / 2),
-                small.pos(Pos::new(HPos::Center, VPos::Center)),
-            ))
-            .map_err(draw_err)?;
+            // Text wider than its cell goes on two lines, split after its
+            // first comma ("9.3," over "t=0.97").
+            let (w, _) = area
+                .estimate_text_size(&cell.text, &small)
+                .map_err(draw_err)?;
+            let lines: Vec<String> = match cell.text.split_once(", ") {
+                Some((a, b)) if w as i32 > col_w - 8 => vec![format!("{a},"), b.to_string()],
+                _ => vec![cell.text.clone()],
+            };
+            let step = row_h / 4;
+            let first = y + row_h / 2 - step * (lines.len() as i32 - 1);
+            for (i, line) in lines.into_iter().enumerate() {
+                area.draw(&Text::new(
+                    line,
+                    (x + col_w / 2, first + 2 * step * i as i32),
+                    small.pos(Pos::new(HPos::Center, VPos::Center)),
+                ))
+                .map_err(draw_err)?;
+            }
         }
     }
     // Key and note under the grid.

@@ -7,7 +7,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::style::{LEGEND_PX, SIZE, SWATCH_PX, TICK_PX, draw_err, text, title_text};
+use super::style::{LEGEND_PX, SIZE, SWATCH_PX, TICK_PX, draw_err, ensure_font, text, title_text};
 use super::write_outputs;
 
 /// How a cell of a [`StatusGrid`] ended.
@@ -73,6 +73,8 @@ pub fn status_grid(g: &StatusGrid, stem: &Path) -> Result<Vec<PathBuf>, String> 
                 .join("/")
         ));
     }
+    // The headers are measured in the font: registered first.
+    ensure_font()?;
     let size = (SIZE.0, grid_height(g));
     write_outputs(
         stem,
@@ -84,16 +86,21 @@ pub fn status_grid(g: &StatusGrid, stem: &Path) -> Result<Vec<PathBuf>, String> 
 
 const GRID_ROW_PX: u32 = 52;
 
-/// Height of the column headers: the longest name (drawn vertically),
-/// estimated at 0.6 em per character.
+/// Height of the column headers: the longest name (drawn vertically), as
+/// the legend font measures it (a one-pixel bitmap lends the measuring; the
+/// font is registered before any figure is drawn).
 fn grid_header_px(g: &StatusGrid) -> u32 {
-    let chars = g
+    let mut pixel = [0u8; 3];
+    let area = BitMapBackend::with_buffer(&mut pixel, (1, 1)).into_drawing_area();
+    let style = text(LEGEND_PX);
+    let longest = g
         .columns
         .iter()
-        .map(|c| c.chars().count())
+        .filter_map(|c| area.estimate_text_size(c, &style).ok())
+        .map(|(w, _)| w)
         .max()
         .unwrap_or(0);
-    (chars as f64 * 0.6 * LEGEND_PX) as u32 + 24
+    longest + 24
 }
 
 /// The note under the key, one line per `; `-separated part.

@@ -188,6 +188,20 @@ fn hidden_note(s: &Series, p: &LinePlot, drawn: usize) -> String {
     }
 }
 
+/// The dots of a series with few points, told apart by the pen's dash as
+/// the lines are (two lines of one colour, e.g. one formulation by two
+/// integrators, differ in their dots as well): filled for solid, open for
+/// dashed, small filled for dotted, large open for long dashes.
+fn marker(pen: Pen) -> (i32, ShapeStyle) {
+    let colour = pen.rgb();
+    match pen.dash {
+        super::style::Dash::Solid => (MARKER_PX, colour.filled()),
+        super::style::Dash::Dashed => (MARKER_PX + 1, colour.stroke_width(2)),
+        super::style::Dash::Dotted => (MARKER_PX - 2, colour.filled()),
+        super::style::Dash::LongDash => (MARKER_PX + 3, colour.stroke_width(2)),
+    }
+}
+
 /// How a solid curve is stroked. The bitmap backend joins the segments of
 /// a wide polyline with unbounded miters, so a curve that turns sharply
 /// (noise at round-off level on a log axis) throws spikes across the title
@@ -289,11 +303,9 @@ fn draw_line_plot<DB: DrawingBackend>(
                 }
             }
             if s.markers || run.len() == 1 {
+                let (r, mark) = marker(s.pen);
                 chart
-                    .draw_series(
-                        run.iter()
-                            .map(|&q| Circle::new(q, MARKER_PX, colour.filled())),
-                    )
+                    .draw_series(run.iter().map(|&q| Circle::new(q, r, mark)))
                     .map_err(draw_err)?;
             }
         }
@@ -302,7 +314,8 @@ fn draw_line_plot<DB: DrawingBackend>(
     for s in &data.series {
         let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
-        let r = if s.markers { MARKER_PX } else { 0 };
+        let (r, mark) = marker(s.pen);
+        let r = if s.markers { r } else { 0 };
         let len = LEGEND_SAMPLE_PX as i32 - 14;
         let anno = chart
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
@@ -312,13 +325,13 @@ fn draw_line_plot<DB: DrawingBackend>(
             anno.legend(move |(x, y)| {
                 EmptyElement::at((x, y))
                     + DashedPathElement::new(vec![(0, 0), (len, 0)], dash, gap, style)
-                    + Circle::new((len / 2, 0), r, colour.filled())
+                    + Circle::new((len / 2, 0), r, mark)
             });
         } else {
             anno.legend(move |(x, y)| {
                 EmptyElement::at((x, y))
                     + PathElement::new(vec![(0, 0), (len, 0)], style)
-                    + Circle::new((len / 2, 0), r, colour.filled())
+                    + Circle::new((len / 2, 0), r, mark)
             });
         }
     }
@@ -377,7 +390,8 @@ fn draw_outside_legend<DB: DrawingBackend>(
                 .map_err(draw_err)?;
         }
         if s.markers {
-            area.draw(&Circle::new((x0 + len / 2, y), MARKER_PX, colour.filled()))
+            let (r, mark) = marker(s.pen);
+            area.draw(&Circle::new((x0 + len / 2, y), r, mark))
                 .map_err(draw_err)?;
         }
         area.draw(&Text::new(

@@ -57,6 +57,17 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
                     let s = slopes(p, &f.label);
                     let mut label = line_name(f);
+                    let failed = p
+                        .body
+                        .rows
+                        .iter()
+                        .filter(|r| r.label == f.label && r.status == "failed")
+                        .count();
+                    if rows.is_empty() && failed > 0 {
+                        label.push_str(&format!(
+                            " (all {failed} runs failed: reasons in work_precision.csv)"
+                        ));
+                    }
                     if with_order {
                         match (s.order, s.cost_spread) {
                             (Some(o), _) => label.push_str(&format!(" (order {o:.1})")),

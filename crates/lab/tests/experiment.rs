@@ -312,3 +312,57 @@ fn bad_experiment_files_name_key_and_line() {
         &["no [[formulation]]"],
     );
 }
+
+/// One colour per formulation in every figure of an experiment, whatever
+/// the order of its lines: C listed before B is still green and B blue, so
+/// vermillion (the second colour by position, A's colour by formulation)
+/// appears in none of the figures. (Pairs and sweep curves take the colour
+/// of the line compared with the reference, here B.)
+#[test]
+fn figures_colour_lines_by_formulation() {
+    let body = r#"[experiment]
+name = "colours"
+title = "colours"
+claim = "none"
+scene = "rolling-disk"
+
+[init]
+omega_theta = 0.5
+omega_psi = 1.0
+
+[time]
+t_end = 1.0
+output_every = 0.01
+
+[[formulation]]
+label = "C"
+formulation = "vakonomic"
+
+[[formulation]]
+label = "B"
+formulation = "chetaev"
+
+[sweep]
+mode = "grid"
+values = { "C.init.lambda2" = [-0.5, 0.0, 0.5] }
+"#;
+    let (file, dir) = setup("colours", "colours", body);
+    let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for plot in [
+        "trajectories",
+        "residual",
+        "energy",
+        "divergence",
+        "sweep-end",
+    ] {
+        let svg = std::fs::read_to_string(dir.join("plots").join(format!("{plot}.svg")))
+            .unwrap()
+            .to_uppercase();
+        assert!(!svg.contains("#D55E00"), "{plot}: a line in A's colour");
+        assert!(svg.contains("#0072B2"), "{plot}: B not blue");
+        if ["trajectories", "residual", "energy"].contains(&plot) {
+            assert!(svg.contains("#009E73"), "{plot}: C not green");
+        }
+    }
+}

@@ -15,6 +15,16 @@ use super::point::PointResult;
 use super::spec::{Experiment, SweepMode};
 use crate::plot::{Heatmap, LinePlot, Series, heatmap, line_plot};
 
+/// The residual axis: in the constraints' unit where there are only
+/// nonholonomic ones (`max |g| [m/s]`); with holonomic ones the measure
+/// mixes units (`f` in metres, `ḟ` in m/s) and says so.
+fn residual_label(info: &nonholo_core::SceneInfo) -> String {
+    match (info.k(), info.s(), info.nonholonomic_unit) {
+        (0, s, u) if s > 0 && !u.is_empty() => format!("max |g| [{u}]"),
+        _ => "max(|g|, |f|, |ḟ|) [units of each constraint]".into(),
+    }
+}
+
 /// Up to this many formulations the divergence plot shows every pair; with
 /// more, each against the reference.
 const MAX_ALL_PAIRS: usize = 4;
@@ -350,7 +360,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
             &LinePlot {
                 title: titled("Constraint residual, largest so far"),
                 x_label: "t [s]".into(),
-                y_label: "max(|g|, |f|, |ḟ|)".into(),
+                y_label: residual_label(info),
                 log_x: false,
                 log_y: true,
                 equal_aspect: false,

@@ -190,8 +190,9 @@ pub struct Crossed {
     pub record: CrossingRecord,
 }
 
-/// What one crossing did and how well, for the results.
-#[derive(Debug, Clone, Default, PartialEq)]
+/// What one crossing did and how well, for the results (written as is in
+/// the run's JSON, `crossings[]`, docs/schema.md).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct CrossingRecord {
     /// 1 for the first crossing of a run.
     pub number: usize,

@@ -114,45 +114,6 @@ pub struct StatsRecord {
     pub stiffness_detected: Option<[f64; 2]>,
 }
 
-/// One crossing of a singular set (formulation A across a reversal of the
-/// sleigh, see docs/embedding.md §6), as `nonholo_core::CrossingRecord`.
-#[derive(Debug, Clone, Serialize)]
-pub struct CrossingJson {
-    pub number: usize,
-    pub t_stop: f64,
-    pub t_singular: f64,
-    pub t_resume: f64,
-    pub clearance: f64,
-    pub gap_error: f64,
-    pub return_residual: f64,
-    pub restart_change: f64,
-}
-
-impl From<&CrossingRecord> for CrossingJson {
-    fn from(c: &CrossingRecord) -> Self {
-        let CrossingRecord {
-            number,
-            t_stop,
-            t_singular,
-            t_resume,
-            clearance,
-            gap_error,
-            return_residual,
-            restart_change,
-        } = *c;
-        CrossingJson {
-            number,
-            t_stop,
-            t_singular,
-            t_resume,
-            clearance,
-            gap_error,
-            return_residual,
-            restart_change,
-        }
-    }
-}
-
 #[derive(Debug, Clone, Serialize)]
 pub struct ErrorRecord {
     pub t: Option<f64>,
@@ -184,7 +145,7 @@ pub struct RunRecord {
     pub stats: StatsRecord,
     /// The crossings of singular sets the run made, in order (empty for
     /// every formulation but A with a continuation).
-    pub crossings: Vec<CrossingJson>,
+    pub crossings: Vec<CrossingRecord>,
     /// `completed` or `failed`.
     pub status: &'static str,
     pub error: Option<ErrorRecord>,
@@ -402,7 +363,7 @@ impl RunRecord {
                 wall_time_s: st.wall_time_s,
                 stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
             },
-            crossings: run.crossings.iter().map(CrossingJson::from).collect(),
+            crossings: run.crossings.clone(),
             // Schema run/1 (docs/schema.md) knows `completed` and `failed`
             // only: a stop by design is a `failed` run whose error says so.
             status: match run.status() {

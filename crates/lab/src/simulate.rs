@@ -485,7 +485,7 @@ pub fn summary(run: &Run, r: &RunRecord) -> String {
         );
     }
     if !r.crossings.is_empty() {
-        let max = |f: fn(&crate::record::CrossingJson) -> f64| {
+        let max = |f: fn(&nonholo_core::CrossingRecord) -> f64| {
             r.crossings.iter().map(f).fold(0.0, f64::max)
         };
         let _ = writeln!(

@@ -1,73 +1,23 @@
 //! The experiment runner as a user drives it: results, determinism across
 //! thread counts, a sweep killed half-way and resumed, bad files.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn nonholo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nonholo"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::{disk_sweep, nonholo};
 
 /// A fresh `<tmp>/experiments/<name>.toml`; results go to `<tmp>/results/<name>`.
 fn setup(tag: &str, name: &str, body: &str) -> (PathBuf, PathBuf) {
-    let root = std::env::temp_dir().join(format!("nonholo-exp-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
-    std::fs::create_dir_all(root.join("experiments")).unwrap();
-    let file = root.join("experiments").join(format!("{name}.toml"));
-    std::fs::write(&file, body).unwrap();
+    let root = common::scratch(&format!("exp-{tag}"));
+    let file = root.join(common::experiment(&root, name, body));
     (file, root.join("results").join(name))
-}
-
-fn disk_sweep(name: &str, points: usize) -> String {
-    disk_sweep_to(name, points, 20.0)
-}
-
-/// A rolling-disk sweep of `points` values of C's λ1(0) over `[0, t_end]`.
-fn disk_sweep_to(name: &str, points: usize, t_end: f64) -> String {
-    let values: Vec<String> = (0..points)
-        .map(|i| format!("{:.3}", -2.0 + 4.0 * i as f64 / points as f64))
-        .collect();
-    format!(
-        r#"[experiment]
-name = "{name}"
-title = "test sweep"
-claim = "none"
-scene = "rolling-disk"
-
-[init]
-omega_theta = 0.5
-omega_psi = 1.0
-
-[time]
-t_end = {t_end:?}
-output_every = 0.01
-
-[[formulation]]
-label = "B"
-formulation = "chetaev"
-rtol = 1e-12
-atol = 1e-12
-
-[[formulation]]
-label = "C"
-formulation = "vakonomic"
-rtol = 1e-12
-atol = 1e-12
-
-[sweep]
-mode = "grid"
-values = {{ "C.init.lambda1" = [{}] }}
-"#,
-        values.join(", ")
-    )
 }
 
 #[test]
 fn results_are_complete_and_legible() {
-    let (file, dir) = setup("files", "files", &disk_sweep("files", 5));
+    let (file, dir) = setup("files", "files", &disk_sweep("files", 5, 20.0));
     let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in [
@@ -142,7 +92,7 @@ fn results_are_complete_and_legible() {
 
 #[test]
 fn thread_count_does_not_change_results() {
-    let (file, dir) = setup("det", "det", &disk_sweep("det", 8));
+    let (file, dir) = setup("det", "det", &disk_sweep("det", 8, 20.0));
     let f = file.to_str().unwrap();
     let read = |p: &Path| std::fs::read(p).unwrap();
     assert!(
@@ -175,9 +125,9 @@ fn thread_count_does_not_change_results() {
 fn killed_sweep_resumes() {
     let n = 40;
     // ~50 ms per point on one thread: long enough to kill half-way.
-    let (file, dir) = setup("kill", "kill", &disk_sweep_to("kill", n, 300.0));
+    let (file, dir) = setup("kill", "kill", &disk_sweep("kill", n, 300.0));
     let f = file.to_str().unwrap().to_string();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_nonholo"))
+    let mut child = Command::new(common::bin())
         .args(["experiment", &f, "--threads", "1", "--quiet"])
         .spawn()
         .unwrap();
@@ -260,7 +210,7 @@ fn refused(tag: &str, body: &str, needles: &[&str]) {
 
 #[test]
 fn bad_experiment_files_name_key_and_line() {
-    let good = disk_sweep("bad", 2);
+    let good = disk_sweep("bad", 2, 20.0);
     refused(
         "unknown-key",
         &good.replace("[time]\n", "[time]\nt_start = 0\n"),

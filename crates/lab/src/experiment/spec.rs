@@ -1151,20 +1151,7 @@ fn tolerances(
 ) -> Result<Option<Vec<f64>>, SpecError> {
     let Some(v) = v else { return Ok(None) };
     let list = v.get_ref();
-    if list.is_empty() {
-        return Err(ctx.err(v.span(), key, "empty list"));
-    }
-    if list.len() > fields::MAX_LADDER {
-        return Err(ctx.err(
-            v.span(),
-            key,
-            format!(
-                "{} values: a ladder has at most {}",
-                list.len(),
-                fields::MAX_LADDER
-            ),
-        ));
-    }
+    ladder_length(ctx, v, key)?;
     // Each value is run as rtol = atol: both ranges apply.
     for t in list {
         fields::rtol(*t)
@@ -1174,6 +1161,23 @@ fn tolerances(
     Ok(Some(list.clone()))
 }
 
+/// A ladder (of tolerances or step counts) holds 1 to
+/// [`fields::MAX_LADDER`] values.
+fn ladder_length<T>(ctx: &Ctx, v: &Spanned<Vec<T>>, key: &str) -> Result<(), SpecError> {
+    let n = v.get_ref().len();
+    if n == 0 {
+        return Err(ctx.err(v.span(), key, "empty list"));
+    }
+    if n > fields::MAX_LADDER {
+        return Err(ctx.err(
+            v.span(),
+            key,
+            format!("{n} values: a ladder has at most {}", fields::MAX_LADDER),
+        ));
+    }
+    Ok(())
+}
+
 fn steps(
     ctx: &Ctx,
     v: &Option<Spanned<Vec<i64>>>,
@@ -1181,20 +1185,7 @@ fn steps(
 ) -> Result<Option<Vec<usize>>, SpecError> {
     let Some(v) = v else { return Ok(None) };
     let list = v.get_ref();
-    if list.is_empty() {
-        return Err(ctx.err(v.span(), key, "empty list"));
-    }
-    if list.len() > fields::MAX_LADDER {
-        return Err(ctx.err(
-            v.span(),
-            key,
-            format!(
-                "{} values: a ladder has at most {}",
-                list.len(),
-                fields::MAX_LADDER
-            ),
-        ));
-    }
+    ladder_length(ctx, v, key)?;
     if let Some(bad) = list.iter().find(|n| !(1..=10_000_000).contains(*n)) {
         return Err(ctx.err(
             v.span(),

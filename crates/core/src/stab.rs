@@ -161,7 +161,7 @@ impl StepHooks {
     ) -> Result<(), SystemError> {
         let p = scene.constraint_singularity(t, q, qd, &mut self.r);
         if self.guard.crossed(&self.r, p) {
-            return Err(SystemError::new(format!(
+            return Err(SystemError::singular(format!(
                 "a stage crossed the singular set of the constraints of `{}`: {}",
                 scene.info().name,
                 scene

@@ -7,6 +7,10 @@ use crate::Solution;
 pub struct SystemError {
     /// What went wrong, for people.
     pub message: String,
+    /// The state lies beyond the system's singular set, where its equations
+    /// stop by design: a fixed-step method ends such a run as
+    /// [`IntegrateError::Stopped`], not as a failure.
+    pub singular: bool,
 }
 
 impl SystemError {
@@ -14,6 +18,15 @@ impl SystemError {
     pub fn new(message: impl Into<String>) -> Self {
         Self {
             message: message.into(),
+            singular: false,
+        }
+    }
+
+    /// A state beyond the system's singular set (see [`SystemError::singular`]).
+    pub fn singular(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+            singular: true,
         }
     }
 }
@@ -91,9 +104,12 @@ pub enum IntegrateError {
         /// The system's last error.
         source: SystemError,
     },
-    /// [`crate::OdeSystem::guard`] reached zero at `t`.
+    /// [`crate::OdeSystem::guard`] reached zero at `t`, or a fixed step from
+    /// `t` had a stage beyond the system's singular set
+    /// ([`SystemError::singular`]).
     Stopped {
-        /// The located time at which the guard is zero (or just past zero).
+        /// The located time at which the guard is zero (or just past zero);
+        /// with a fixed step, the start of the step that would cross it.
         t: f64,
         /// [`crate::OdeSystem::guard_reason`] at that time.
         reason: String,

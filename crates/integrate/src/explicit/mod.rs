@@ -38,7 +38,8 @@
 //!    or at one of whose later stages `f` failed (`h /= 4`; if that takes `h`
 //!    below the minimum the run ends with `System` and the last error).
 //!    With a fixed step every step is accepted, and a failing or non-finite
-//!    stage ends the run (`System`, `NonFinite`).
+//!    stage ends the run (`System`, `NonFinite`; a stage beyond the system's
+//!    singular set, [`SystemError::singular`], as `Stopped` at the step's start).
 //! 4. After an accepted step: the step polynomial is stored (if
 //!    `Options::dense`), [`OdeSystem::after_step`] may project the state
 //!    (then `f` is evaluated again there), then the guard is evaluated on
@@ -387,6 +388,15 @@ impl<M: Scheme, S: OdeSystem + ?Sized> Core<Rhs<'_, S>> for Rk<M> {
         stats.dense_rhs_evals = self.dense_evals;
         let err = match stages {
             Stages::Done(err) => err,
+            Stages::Rhs(source) if self.ctrl.is_none() && source.singular => {
+                return Attempt::Failed(IntegrateError::Stopped {
+                    t,
+                    reason: format!(
+                        "{} (a stage of the fixed step h = {h:.3e} from this time)",
+                        source.message
+                    ),
+                });
+            }
             Stages::Rhs(source) => {
                 if self.ctrl.is_none() || h.abs() / 4.0 < trial.h_min {
                     return Attempt::Failed(IntegrateError::System { t, source });

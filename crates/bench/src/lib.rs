@@ -7,6 +7,8 @@
 //!   in `(x, y, φ, u, ω[, μ])`) and the body-frame equations of the
 //!   realisations in the formulations' own state: the baselines against
 //!   which the automatic-differentiation right-hand sides are timed.
+//! - [`page`]: `results/peers/index.html`, the peer comparison as a result
+//!   page (error against wall time per problem, and the tables).
 //! - [`timing`]: a plain median timer (the report binary; criterion does the
 //!   benchmark proper).
 //! - `peers` (feature `peers`): `diffsol` (BDF, ESDIRK34, TR-BDF2) and
@@ -17,6 +19,7 @@
 //! workspace build and `cargo test --workspace` never compile them.
 
 pub mod hand;
+pub mod page;
 pub mod setup;
 pub mod timing;
 

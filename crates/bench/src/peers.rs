@@ -24,7 +24,7 @@ use nonholo_chetaev::Chetaev;
 use nonholo_core::integrate::{
     Dense, Method, OdeSystem, Options, Radau5Options, RadauNewton, solve,
 };
-use nonholo_core::{Model, Params, Scene};
+use nonholo_core::{Model, Observation, Params, Scene};
 use nonholo_realise::{Visc, visc};
 use nonholo_scenes::Sleigh;
 
@@ -65,8 +65,12 @@ impl ToCartesian {
                 Ok(())
             }
             ToCartesian::Adapted(v) => {
-                let state = y.to_vec();
-                v.to_cartesian(t, &state, y).map_err(|e| e.message)
+                let n = y.len() / 2;
+                let mut obs = Observation::new(n, v.multiplier_names().len());
+                v.observe(t, y, &mut obs).map_err(|e| e.message)?;
+                y[..n].copy_from_slice(&obs.q);
+                y[n..].copy_from_slice(&obs.qd);
+                Ok(())
             }
         }
     }

@@ -7,7 +7,8 @@
 //! `cargo run --release -p nonholo-bench --features peers --bin peers [-- OPTIONS]`
 //!
 //! Writes `results/peers/peers.csv` and `results/peers/peers.md` (each by a
-//! temporary file and a rename) and prints the markdown tables.
+//! temporary file and a rename), the page `results/peers/index.html` with
+//! its figures ([`nonholo_bench::page`]), and prints the markdown tables.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -24,18 +25,22 @@ struct Args {
     out: PathBuf,
     repeats: usize,
     quick: bool,
+    /// Only rebuild index.html from the stored peers.csv and peers.md.
+    page: bool,
 }
 
-const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick]
-  --out DIR      where peers.csv and peers.md go (default results/peers)
+const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
+  --out DIR      where peers.csv, peers.md and index.html go (default results/peers)
   --repeats N    timed repeats per case, the median is reported (default 7)
-  --quick        k = 1e2, 1e6 and tolerances 1e-6 only (a smoke run)";
+  --quick        k = 1e2, 1e6 and tolerances 1e-6 only (a smoke run)
+  --page         run nothing: rebuild index.html and its figures from the stored files";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         out: PathBuf::from("results/peers"),
         repeats: 7,
         quick: false,
+        page: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -50,6 +55,7 @@ fn parse_args() -> Result<Args, String> {
                     .ok_or_else(|| format!("--repeats: `{v}` is not a count ≥ 1"))?;
             }
             "--quick" => args.quick = true,
+            "--page" => args.page = true,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 std::process::exit(0);
@@ -662,6 +668,9 @@ fn load_average() -> String {
 
 fn run() -> Result<(), String> {
     let args = parse_args()?;
+    if args.page {
+        return nonholo_bench::page::write_page(&args.out);
+    }
     // Fail before the runs, not after them, if the results cannot be written.
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
@@ -695,11 +704,12 @@ fn run() -> Result<(), String> {
     let csv_path = args.out.join("peers.csv");
     write_atomic(&csv_path, &csv)?;
     write_atomic(&args.out.join("peers.md"), &md)?;
+    nonholo_bench::page::write_page(&args.out)?;
     // The summary part (every run is in the files).
     let summary_part = md.split("\n## Every run").next().unwrap_or(&md);
     println!("{summary_part}");
     eprintln!(
-        "wrote {} and peers.md (every run in both)",
+        "wrote {}, peers.md (every run in both) and index.html",
         csv_path.display()
     );
     Ok(())

@@ -1,0 +1,287 @@
+//! `results/peers/index.html`: the peer comparison as a result page —
+//! error against wall time for every solver on each problem (one figure per
+//! problem, stiffness and potential, drawn from `peers.csv`), then the
+//! tables of `peers.md` rendered as HTML.
+//!
+//! The page is built from the two files the `peers` binary writes, so it can
+//! be rebuilt without running the peers again (`peers --page`).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use nonholo_lab::plot::{LinePlot, Series, line_plot};
+use nonholo_lab::table::escape;
+
+/// One row of `peers.csv`, the fields the figures use.
+#[derive(Debug, Clone, PartialEq)]
+struct Run {
+    problem: String,
+    potential: String,
+    param: String,
+    solver: String,
+    tol: f64,
+    status: String,
+    err_max: f64,
+    wall_median_s: f64,
+}
+
+fn read_runs(csv_path: &Path) -> Result<Vec<Run>, String> {
+    let mut reader = csv::Reader::from_path(csv_path)
+        .map_err(|e| format!("cannot read {}: {e}", csv_path.display()))?;
+    let header = reader
+        .headers()
+        .map_err(|e| format!("{}: {e}", csv_path.display()))?
+        .clone();
+    let column = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| format!("{}: no column `{name}`", csv_path.display()))
+    };
+    let [
+        problem,
+        potential,
+        param,
+        krate,
+        method,
+        tol,
+        status,
+        err_max,
+        wall,
+    ] = [
+        "problem",
+        "potential",
+        "param",
+        "crate",
+        "method",
+        "tol",
+        "status",
+        "err_max",
+        "wall_median_s",
+    ]
+    .map(column);
+    let (problem, potential, param, krate, method) =
+        (problem?, potential?, param?, krate?, method?);
+    let (tol, status, err_max, wall) = (tol?, status?, err_max?, wall?);
+    let mut runs = Vec::new();
+    for (line, record) in reader.records().enumerate() {
+        let r = record.map_err(|e| format!("{}: {e}", csv_path.display()))?;
+        let number = |i: usize| -> Result<f64, String> {
+            r[i].parse().map_err(|_| {
+                format!(
+                    "{} row {}: `{}` is not a number",
+                    csv_path.display(),
+                    line + 2,
+                    &r[i]
+                )
+            })
+        };
+        runs.push(Run {
+            problem: r[problem].to_string(),
+            potential: r[potential].to_string(),
+            param: r[param].to_string(),
+            solver: format!("{} {}", &r[krate], &r[method]),
+            tol: number(tol)?,
+            status: r[status].to_string(),
+            err_max: number(err_max)?,
+            wall_median_s: number(wall)?,
+        });
+    }
+    Ok(runs)
+}
+
+/// The figures: per (problem, potential, parameter), the largest error over
+/// the samples against the median wall time, one line per solver through its
+/// tolerances. Only completed runs are drawn (references and failures are in
+/// the tables). Returns the PNG paths with their captions.
+fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
+    let mut groups: BTreeMap<(String, String, String), BTreeMap<String, Vec<&Run>>> =
+        BTreeMap::new();
+    for r in runs.iter().filter(|r| r.status == "ok") {
+        groups
+            .entry((r.problem.clone(), r.potential.clone(), r.param.clone()))
+            .or_default()
+            .entry(r.solver.clone())
+            .or_default()
+            .push(r);
+    }
+    let mut files = Vec::new();
+    for ((problem, potential, param), solvers) in groups {
+        let series = solvers
+            .into_iter()
+            .map(|(solver, mut rs)| {
+                rs.sort_by(|a, b| b.tol.total_cmp(&a.tol));
+                Series {
+                    label: solver,
+                    x: rs.iter().map(|r| r.wall_median_s).collect(),
+                    y: rs.iter().map(|r| r.err_max).collect(),
+                    pen: None,
+                }
+            })
+            .collect();
+        let plot = LinePlot {
+            title: format!("{problem}, {param}, {potential} potential: error against wall time"),
+            x_label: "wall time, median of the repeats [s]".into(),
+            y_label: "max error over the samples, positions and velocities [SI]".into(),
+            log_x: true,
+            log_y: true,
+            equal_aspect: false,
+            series,
+        };
+        let stem = dir
+            .join("plots")
+            .join(format!("wp-{problem}-{param}-{potential}"));
+        let caption = format!(
+            "{problem} at {param} with the {potential} potential: the largest error over the \
+             samples against the median wall time, each solver through its tolerances \
+             (lower left is better)."
+        );
+        let written = line_plot(&plot, &stem)?;
+        files.extend(
+            written
+                .into_iter()
+                .filter(|p| p.extension().is_some_and(|e| e == "png"))
+                .map(|p| (p, caption.clone())),
+        );
+    }
+    Ok(files)
+}
+
+/// Writes `dir/index.html` (and `dir/plots/`) from `dir/peers.csv` and
+/// `dir/peers.md`, then the list of result pages in `dir`'s parent if that
+/// is a `results` directory.
+pub fn write_page(dir: &Path) -> Result<(), String> {
+    let runs = read_runs(&dir.join("peers.csv"))?;
+    let md_path = dir.join("peers.md");
+    let md = std::fs::read_to_string(&md_path)
+        .map_err(|e| format!("cannot read {}: {e}", md_path.display()))?;
+    let plots = figures(&runs, dir)?;
+
+    let title = "Peers: our integrators beside diffsol and ode_solvers";
+    let mut h = format!(
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>\n\
+         <style>body{{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}}\
+         table{{border-collapse:collapse;font-size:0.8em}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}\
+         figure{{margin:1.5em 0}}img{{max-width:100%}}figcaption{{color:#333}}</style></head><body>\n<h1>{title}</h1>\n"
+    );
+    let _ = writeln!(
+        h,
+        "<p><b>Reproduce:</b> <code>cargo run --release -p nonholo-bench --features peers --bin peers</code> \
+         (<code>--page</code> rebuilds this page from the stored files without running anything).</p>"
+    );
+    let docs = dir
+        .parent()
+        .and_then(Path::parent)
+        .map(|r| r.join("docs/peers.md"));
+    if let Some(d) = docs.filter(|d| d.is_file()) {
+        let _ = writeln!(
+            h,
+            "<p>What is compared and what it shows: <a href=\"{}\">docs/peers.md</a>.</p>",
+            escape(&nonholo_lab::experiment::cli::relative(dir, &d))
+        );
+    }
+    let _ = writeln!(
+        h,
+        "<p>Other experiments: <a href=\"../index.html\">every result page</a>. \
+         Files: <a href=\"peers.csv\">peers.csv</a>, <a href=\"peers.md\">peers.md</a>.</p>"
+    );
+    let _ = writeln!(
+        h,
+        "<p>Every figure: one solver per line through its tolerances; errors are the largest over the \
+         101 output samples and t_end against the problem's reference (dense output where the solver \
+         interpolates); runs that failed are left out of the figures and named in the tables. Colours \
+         tell solvers apart here (every line is the same formulation).</p>"
+    );
+    for (p, caption) in &plots {
+        let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
+        let stem = p
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let _ = writeln!(
+            h,
+            "<figure><img src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",
+            escape(&rel),
+            escape(&stem),
+            escape(caption)
+        );
+    }
+    let mut body = String::new();
+    let options = pulldown_cmark::Options::ENABLE_TABLES;
+    pulldown_cmark::html::push_html(&mut body, pulldown_cmark::Parser::new_ext(&md, options));
+    let _ = writeln!(
+        h,
+        "<div style=\"overflow-x:auto\">{body}</div>\n</body></html>"
+    );
+    let path = dir.join("index.html");
+    nonholo_lab::record::write_atomic(&path, h.as_bytes())
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    // The list of result pages beside it, where it is one of them.
+    match dir.parent() {
+        Some(root) if root.file_name().is_some_and(|n| n == "results") => {
+            nonholo_lab::experiment::page::write_index(root)
+        }
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn page_has_a_figure_per_problem_and_the_tables() {
+        let root = std::env::temp_dir()
+            .join(format!("nonholo-peers-page-{}", std::process::id()))
+            .join("results");
+        let dir = root.join("peers");
+        std::fs::create_dir_all(&dir).unwrap();
+        let header = "problem,potential,param,t_end,crate,method,tol,status,err_end,err_max,ref_err,\
+                      reference,wall_median_s,wall_min_s,repeats,rhs_evals,dense_rhs_evals,jac_evals,\
+                      jvp_evals,steps,rejected,newton_iters,newton_fails,lu,message";
+        let rows = [
+            "visc,paper,k=1e2,5,nonholo,Radau IIA (radau5),1e-13,reference,0e0,0e0,NaN,ours,1e-3,1e-3,1,1,0,1,0,1,0,1,0,1,",
+            "visc,paper,k=1e2,5,nonholo,Radau IIA (radau5),1e-6,ok,1e-6,2e-6,1e-12,ours,1e-4,1e-4,3,1,0,1,0,1,0,1,0,1,",
+            "visc,paper,k=1e2,5,nonholo,Radau IIA (radau5),1e-8,ok,1e-8,2e-8,1e-12,ours,2e-4,2e-4,3,1,0,1,0,1,0,1,0,1,",
+            "visc,paper,k=1e2,5,diffsol,\"BDF (NDF, cap)\",1e-6,failed,NaN,NaN,1e-12,ours,1e-4,1e-4,3,1,0,1,0,1,0,1,0,1,Newton cap",
+            "B,paper,a=0.4,20,ode_solvers,DOP853,1e-8,ok,1e-9,2e-9,1e-12,ours,1e-4,1e-4,3,1,0,0,0,1,0,0,0,0,",
+        ];
+        std::fs::write(
+            dir.join("peers.csv"),
+            format!("{header}\n{}\n", rows.join("\n")),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join("peers.md"),
+            "## Summary\n\n| a | b |\n|---|---|\n| 1 | 2 |\n",
+        )
+        .unwrap();
+        write_page(&dir).unwrap();
+        let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+        // One figure per (problem, param, potential) with completed runs.
+        assert_eq!(html.matches("<img ").count(), 2, "{html}");
+        assert!(dir.join("plots/wp-visc-k=1e2-paper.png").is_file());
+        assert!(dir.join("plots/wp-B-a=0.4-paper.png").is_file());
+        // The markdown tables are HTML tables.
+        assert!(
+            html.contains("<table>") && html.contains("<td>2</td>"),
+            "{html}"
+        );
+        // The list of result pages beside it names the page by its title.
+        let index = std::fs::read_to_string(root.join("index.html")).unwrap();
+        assert!(index.contains("peers/index.html") && index.contains("Peers: our integrators"));
+        std::fs::remove_dir_all(root.parent().unwrap()).unwrap();
+    }
+
+    #[test]
+    fn a_missing_column_is_named() {
+        let dir = std::env::temp_dir().join(format!("nonholo-peers-col-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("peers.csv"), "problem,potential\nvisc,paper\n").unwrap();
+        std::fs::write(dir.join("peers.md"), "x").unwrap();
+        let e = write_page(&dir).unwrap_err();
+        assert!(e.contains("no column `param`"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -321,8 +321,11 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
                 if o.stopped_runs > 0 {
                     s.push_str(&format!(", {} stopped at a singular set", o.stopped_runs));
                 }
-                if o.failed_runs > 0 {
-                    s.push_str(&format!(", **{} failed**", o.failed_runs));
+                if o.budget_runs > 0 {
+                    s.push_str(&format!(", {} on their step budget", o.budget_runs));
+                }
+                if o.failed_runs > o.budget_runs {
+                    s.push_str(&format!(", **{} failed**", o.failed_runs - o.budget_runs));
                 }
                 s
             }

@@ -59,6 +59,13 @@ use crate::CliError;
 /// The error of a run stopped by its wall-time budget, as result files give
 /// it: where such a run stops depends on the machine and its load, so the
 /// time reached and the counters are left out (docs/schema.md).
+/// Whether a failed run's message is a used-up budget (`max_steps` or
+/// `max_wall_time`), in the words of the integrator's error and of
+/// [`wall_time_stop`].
+pub fn budget_stop(error: Option<&str>) -> bool {
+    error.is_some_and(|e| e.contains(" budget of ") && e.contains(" used up"))
+}
+
 pub fn wall_time_stop(seconds: f64) -> String {
     format!(
         "wall-time budget of {} s used up (a machine-dependent stop: the time reached and \
@@ -97,6 +104,10 @@ pub struct Outcome {
     pub failed_runs: usize,
     /// Runs that stopped at a singular set.
     pub stopped_runs: usize,
+    /// Of the failed runs, those that used up their step or wall-time
+    /// budget ([`budget_stop`]): the designed end of an explicit method on
+    /// a stiff problem, told apart in tables and figures.
+    pub budget_runs: usize,
     pub runs: usize,
     pub plots: Vec<PathBuf>,
 }
@@ -305,7 +316,42 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         reused: reused.load(Ordering::SeqCst),
         failed_runs: count("failed"),
         stopped_runs: count("stopped"),
+        budget_runs: results
+            .iter()
+            .flat_map(|r| &r.body.formulations)
+            .filter(|f| f.status == "failed" && budget_stop(f.error.as_deref()))
+            .count(),
         runs,
         plots,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{budget_stop, wall_time_stop};
+    use nonholo_core::integrate::IntegrateError;
+
+    /// The budget test reads the integrator's own messages: a change of
+    /// their wording must fail here, not silently count budgets as failures.
+    #[test]
+    fn budget_stops_are_told_from_failures() {
+        let steps = IntegrateError::TooManySteps {
+            t: 0.27,
+            max_steps: 50_000,
+            h: 1e-6,
+            stiffness: None,
+        };
+        let wall = IntegrateError::TimeBudgetExceeded {
+            t: 0.27,
+            seconds: 10.0,
+            h: 1e-6,
+            stiffness: None,
+        };
+        assert!(budget_stop(Some(&steps.to_string())));
+        assert!(budget_stop(Some(&wall.to_string())));
+        assert!(budget_stop(Some(&wall_time_stop(10.0))));
+        let other = IntegrateError::NonFinite { t: 0.1 };
+        assert!(!budget_stop(Some(&other.to_string())));
+        assert!(!budget_stop(None));
+    }
 }

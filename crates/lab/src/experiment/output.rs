@@ -349,6 +349,11 @@ pub fn write_summary(
         .flat_map(|r| &r.body.formulations)
         .filter(|f| f.status == "stopped")
         .count();
+    let budget = results
+        .iter()
+        .flat_map(|r| &r.body.formulations)
+        .filter(|f| f.status == "failed" && super::budget_stop(f.error.as_deref()))
+        .count();
     write_json(
         &dir.join("summary.json"),
         &json!({
@@ -360,6 +365,7 @@ pub fn write_summary(
             "runs": runs,
             "failed_runs": failed,
             "stopped_runs": stopped,
+            "budget_runs": budget,
             "formulations": per_label,
             "pairs": pairs,
             "plots": plots.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),

@@ -4,6 +4,10 @@
 //! description, links to the result files, tables (numbers to four
 //! significant digits; the files keep every digit), and every other figure
 //! with its caption.
+//!
+//! Pages in the default results directory (`results/<name>`) also link to
+//! `results/index.html`, the list of every result page there, which each
+//! page rewrites when it is written ([`write_index`]).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -85,6 +89,12 @@ impl Page<'_> {
             );
         }
         let _ = writeln!(h, "{how}.</p>");
+        if in_results(exp, dir) {
+            let _ = writeln!(
+                h,
+                "<p>Other experiments: <a href=\"../index.html\">every result page</a>.</p>"
+            );
+        }
         if !exp.description.is_empty() {
             let _ = writeln!(h, "<p>{}</p>", escape(&exp.description));
         }
@@ -125,8 +135,89 @@ impl Page<'_> {
         h
     }
 
-    /// Writes the page to `dir/index.html`.
+    /// Writes the page to `dir/index.html`, and the list of result pages
+    /// beside it when `dir` is the default results directory.
     pub fn write(&self, dir: &Path) -> Result<(), String> {
-        write(&dir.join("index.html"), self.html(dir).as_bytes())
+        write(&dir.join("index.html"), self.html(dir).as_bytes())?;
+        match dir.parent() {
+            Some(root) if in_results(self.exp, dir) => write_index(root),
+            _ => Ok(()),
+        }
     }
+}
+
+/// `dir` is `results/<name>` of `exp` (not a `--out` elsewhere).
+fn in_results(exp: &Experiment, dir: &Path) -> bool {
+    let canonical = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    canonical(dir) == canonical(&super::default_dir(exp))
+}
+
+/// Title and claim of the result page in `sub`: from its `summary.json`
+/// (experiments), else the page's own `<title>` (e.g. `results/peers`).
+fn describe(sub: &Path) -> (String, String) {
+    let summary = std::fs::read(sub.join("summary.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok());
+    let field = |k: &str| {
+        summary
+            .as_ref()
+            .and_then(|v| v.get(k))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+    };
+    let title = field("title").unwrap_or_else(|| {
+        std::fs::read_to_string(sub.join("index.html"))
+            .ok()
+            .and_then(|h| {
+                let a = h.find("<title>")? + "<title>".len();
+                let b = a + h[a..].find("</title>")?;
+                Some(h[a..b].to_string())
+            })
+            .unwrap_or_default()
+    });
+    (title, field("claim").unwrap_or_default())
+}
+
+/// Writes `root/index.html`: every `root/<name>/index.html`, by name, with
+/// its title and claim, and a link to `docs/figures.md` beside `root` if
+/// there is one. Titles read from pages are kept as they are (already HTML).
+pub fn write_index(root: &Path) -> Result<(), String> {
+    let mut pages: Vec<String> = std::fs::read_dir(root)
+        .map_err(|e| format!("cannot list {}: {e}", root.display()))?
+        .filter_map(Result::ok)
+        .filter(|e| e.path().join("index.html").is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    pages.sort();
+    let mut h = String::from(
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>nonholo results</title>\n\
+         <style>body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}\
+         table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:4px 8px;text-align:left;vertical-align:top}</style>\
+         </head><body>\n<h1>nonholo results</h1>\n",
+    );
+    let figures = root.parent().map(|r| r.join("docs/figures.md"));
+    if let Some(f) = figures.filter(|f| f.is_file()) {
+        let _ = writeln!(
+            h,
+            "<p>Every figure with the claim it tests: <a href=\"{}\">docs/figures.md</a>.</p>",
+            escape(&super::cli::relative(root, &f))
+        );
+    }
+    let _ = writeln!(
+        h,
+        "<table><tr><th>result</th><th>title</th><th>claim</th></tr>"
+    );
+    for name in &pages {
+        let (title, claim) = describe(&root.join(name));
+        let from_summary = root.join(name).join("summary.json").is_file();
+        let _ = writeln!(
+            h,
+            "<tr><td><a href=\"{0}/index.html\">{0}</a></td><td>{1}</td><td>{2}</td></tr>",
+            escape(name),
+            if from_summary { escape(&title) } else { title },
+            escape(&claim)
+        );
+    }
+    let _ = writeln!(h, "</table></body></html>");
+    write(&root.join("index.html"), h.as_bytes())
 }

@@ -430,6 +430,10 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         reused,
         failed_runs: count("failed"),
         stopped_runs: count("stopped"),
+        budget_runs: rows
+            .clone()
+            .filter(|r| r.status == "failed" && super::budget_stop(r.error.as_deref()))
+            .count(),
         runs: rows.clone().count(),
         plots,
     })

@@ -17,7 +17,10 @@ pub enum CellStatus {
     Completed,
     /// Stopped where the formulation stops by design (a singular set).
     Stopped,
-    /// Failed (integrator error, budget, set-up error).
+    /// Used up its step or wall-time budget (the designed end of an
+    /// explicit method on a stiff problem).
+    Budget,
+    /// Failed (integrator error, set-up error).
     Failed,
     /// Not run.
     Missing,
@@ -46,12 +49,17 @@ pub struct StatusGrid {
     pub note: String,
 }
 
-const STATUS_FILL: [(CellStatus, RGBColor, &str); 4] = [
+const STATUS_FILL: [(CellStatus, RGBColor, &str); 5] = [
     (CellStatus::Completed, RGBColor(198, 232, 190), "completed"),
     (
         CellStatus::Stopped,
         RGBColor(253, 222, 160),
         "stopped at a singular set",
+    ),
+    (
+        CellStatus::Budget,
+        RGBColor(200, 214, 240),
+        "budget used up",
     ),
     (CellStatus::Failed, RGBColor(242, 170, 170), "failed"),
     (CellStatus::Missing, RGBColor(225, 225, 225), "not run"),

@@ -57,16 +57,22 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
                     let s = slopes(p, &f.label);
                     let mut label = line_name(f);
-                    let failed = p
+                    let failed: Vec<_> = p
                         .body
                         .rows
                         .iter()
                         .filter(|r| r.label == f.label && r.status == "failed")
-                        .count();
-                    if rows.is_empty() && failed > 0 {
-                        label.push_str(&format!(
-                            " (all {failed} runs failed: reasons in work_precision.csv)"
-                        ));
+                        .collect();
+                    if rows.is_empty() && !failed.is_empty() {
+                        let n = failed.len();
+                        let budget = failed
+                            .iter()
+                            .all(|r| super::super::budget_stop(r.error.as_deref()));
+                        label.push_str(&if budget {
+                            format!(" (all {n} runs used up their budget: work_precision.csv)")
+                        } else {
+                            format!(" (all {n} runs failed: reasons in work_precision.csv)")
+                        });
                     }
                     if with_order {
                         match (s.order, s.cost_spread) {
@@ -199,6 +205,10 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
                                 r.scd_max.map(|d| format!("{d:.1},")).unwrap_or_default(),
                                 at(r.error_t)
                             ),
+                        },
+                        _ if super::super::budget_stop(r.error.as_deref()) => Cell {
+                            status: CellStatus::Budget,
+                            text: format!("budget{}", at(r.error_t)),
                         },
                         _ => Cell {
                             status: CellStatus::Failed,

@@ -28,6 +28,40 @@ fn runs(name: &str) -> Vec<HashMap<String, String>> {
         .collect()
 }
 
+/// `results/<name>/<file>` (a CSV with a header) as rows of named fields.
+fn table(name: &str, file: &str) -> Vec<HashMap<String, String>> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../results")
+        .join(name)
+        .join(file);
+    let mut reader = csv::Reader::from_path(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run `nonholo reproduce`)", path.display()));
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    reader
+        .records()
+        .map(|r| {
+            header
+                .iter()
+                .cloned()
+                .zip(r.unwrap().iter().map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+/// Asserts that `docs/figures.md` (its prose and the claims in its table)
+/// says each phrase: the numbers a test checks against the results are the
+/// numbers the prose quotes.
+fn figures_md_says(phrases: &[&str]) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/figures.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    // Prose wraps lines: compare with runs of white space as one space.
+    let flat = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    for p in phrases {
+        assert!(flat.contains(p), "docs/figures.md does not say `{p}`");
+    }
+}
+
 fn num(row: &HashMap<String, String>, key: &str) -> f64 {
     row[key]
         .parse()
@@ -183,5 +217,41 @@ fn wp_sleigh_orders_as_figures_md_states() {
             let s = line["slope_error_vs_tolerance"].as_f64().unwrap();
             assert!((a..=b).contains(&s), "{line}");
         }
+    }
+}
+
+/// figures.md, extreme-appell: every run stops by design — B and C 2.6e-9 s
+/// before t*, the realisations 2e-5 to 8e-5 s after it, RK4 at the start of
+/// its last fixed step (0.7 and 1.2 ms early) — with at least 14.6 correct
+/// digits up to there (RK4 13.9).
+#[test]
+fn extreme_appell_as_figures_md_states() {
+    figures_md_says(&[
+        "2.6e-9 s before",
+        "2e-5 to 8e-5 s after",
+        "0.7 and 1.2 ms early",
+        "at least 14.6 correct digits, RK4 13.9",
+    ]);
+    let rows = table("extreme-appell", "work_precision.csv");
+    assert_eq!(rows.len(), 14);
+    for r in &rows {
+        assert_eq!(r["status"], "stopped", "{r:?}");
+        let (c, rho0) = if r["case"].contains("0.5") {
+            (-0.5, 2.0)
+        } else {
+            (-2.0, 5.0)
+        };
+        let t_star = rho0 * (1.0f64 + c * c) / (c.abs() * 9.81);
+        let early = t_star - num(r, "error_t");
+        let label = r["label"].as_str();
+        match label {
+            "B-rk4" => assert!((0.65e-3..1.25e-3).contains(&early), "{label}: {early}"),
+            l if l.starts_with("visc") || l.starts_with("mass") => {
+                assert!((1.95e-5..8.05e-5).contains(&-early), "{label}: {early}")
+            }
+            _ => assert!((2.5e-9..2.65e-9).contains(&early), "{label}: {early}"),
+        }
+        let digits = if label == "B-rk4" { 13.9 } else { 14.6 };
+        assert!(num(r, "scd_max") >= digits, "{label}");
     }
 }

@@ -212,7 +212,7 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
         out,
     )?;
     note!(
-        "{}: {} points ({} reused), {} runs: {} completed, {} stopped at a singular set, {} failed; results in {}",
+        "{}: {} points ({} reused), {} runs: {} completed, {} stopped at a singular set, {} failed{}; results in {}",
         exp.name,
         o.points,
         o.reused,
@@ -220,6 +220,11 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
         o.runs - o.failed_runs - o.stopped_runs,
         o.stopped_runs,
         o.failed_runs,
+        if o.budget_runs > 0 {
+            format!(" ({} of them on their budget)", o.budget_runs)
+        } else {
+            String::new()
+        },
         o.dir.display()
     );
     if o.failed_runs > 0 {
@@ -253,7 +258,9 @@ pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
         let results: Vec<super::PointResult> =
             super::files::load_points(&exp, &dir, super::point::POINT_SCHEMA)
                 .map_err(CliError::Input)?;
-        super::plots::trajectories(&exp, &dir, &results).map_err(CliError::Input)?;
+        for point in std::iter::once(exp.plot_point).chain(exp.also_points.iter().copied()) {
+            super::plots::trajectories(&exp, &dir, &results, point).map_err(CliError::Input)?;
+        }
         let plots = super::plots::draw(&exp, &dir, &results).map_err(CliError::Output)?;
         super::output::write_html(&exp, &dir, &results, &plots).map_err(CliError::Output)?;
         out.finish();

@@ -15,6 +15,24 @@ pub(crate) fn write(path: &Path, bytes: &[u8]) -> Result<(), String> {
     write_atomic(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
+/// Removes the figures (`*.png`, `*.svg`) in `plots` that are not in
+/// `written`: those of an earlier version of the experiment or of the code
+/// (a figure dropped, a stem renamed), which would otherwise stay on its
+/// page as if current.
+pub(crate) fn remove_other_figures(plots: &Path, written: &[PathBuf]) -> Result<(), String> {
+    let Ok(entries) = std::fs::read_dir(plots) else {
+        return Ok(());
+    };
+    for e in entries.filter_map(Result::ok) {
+        let p = e.path();
+        let figure = p.extension().is_some_and(|x| x == "png" || x == "svg");
+        if figure && p.is_file() && !written.contains(&p) {
+            std::fs::remove_file(&p).map_err(|e| format!("cannot remove {}: {e}", p.display()))?;
+        }
+    }
+    Ok(())
+}
+
 /// Writes `value` as pretty JSON with a final newline.
 pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let mut bytes = serde_json::to_vec_pretty(value).map_err(|e| e.to_string())?;

@@ -53,6 +53,9 @@ enum Measures {
         /// stay valid.
         #[serde(skip_serializing_if = "Option::is_none")]
         reversals: Option<String>,
+        /// Timed repeats; left out at 1 (the keys of single runs unchanged).
+        #[serde(skip_serializing_if = "is_one")]
+        repeats: usize,
     },
     WorkPrecision {
         repeats: usize,
@@ -91,6 +94,10 @@ struct SettingsKey<'a> {
 
 fn is_false(b: &bool) -> bool {
     !*b
+}
+
+fn is_one(n: &usize) -> bool {
+    *n == 1
 }
 
 impl<'a> From<&'a Settings> for SettingsKey<'a> {
@@ -146,6 +153,9 @@ struct RefKey<'a> {
     /// Left out at its default, so that keys from before it existed hold.
     #[serde(skip_serializing_if = "is_default_steps")]
     max_steps: usize,
+    /// Left out when the reference runs the line's own options.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    options: &'a [(String, String)],
 }
 
 fn is_default_steps(n: &usize) -> bool {
@@ -162,6 +172,7 @@ impl<'a> From<&'a RefSpec> for RefKey<'a> {
             check_rtol,
             max_wall_time,
             max_steps,
+            options,
         } = r;
         RefKey {
             closed_form: *closed_form,
@@ -171,6 +182,7 @@ impl<'a> From<&'a RefSpec> for RefKey<'a> {
             check_rtol: Bits(*check_rtol),
             max_wall_time: max_wall_time.map(Bits),
             max_steps: *max_steps,
+            options,
         }
     }
 }
@@ -203,6 +215,7 @@ pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String
         Kind::Compare => Measures::Compare {
             threshold: Bits(exp.threshold),
             reversals: exp.reversals.clone(),
+            repeats: exp.repeats,
         },
         Kind::WorkPrecision => Measures::WorkPrecision {
             repeats: exp.repeats,

@@ -255,7 +255,9 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         points
             .par_iter()
             .map(|p| {
-                let needs_traj = exp.all_trajectories || p.index == exp.plot_point;
+                let needs_traj = exp.all_trajectories
+                    || p.index == exp.plot_point
+                    || exp.also_points.contains(&p.index);
                 if !opts.force
                     && let Some(r) = stored(dir, exp, p, needs_traj)
                 {

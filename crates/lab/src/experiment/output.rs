@@ -275,8 +275,8 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
             "mode": format!("{:?}", exp.mode),
             "axes": exp.axes.iter().map(|a| json!({"name": a.name, "values": a.values})).collect::<Vec<_>>(),
         },
-        "measures": {"threshold": exp.threshold, "reference": exp.reference, "reversals": exp.reversals},
-        "plots": {"point": exp.plot_point, "all_trajectories": exp.all_trajectories},
+        "measures": {"threshold": exp.threshold, "reference": exp.reference, "reversals": exp.reversals, "repeats": exp.repeats},
+        "plots": {"point": exp.plot_point, "also": exp.also_points, "log_time": exp.log_time, "all_trajectories": exp.all_trajectories},
     });
     write_json(&dir.join("config.json"), &config)
 }

@@ -31,7 +31,20 @@ const MAX_ALL_PAIRS: usize = 4;
 
 /// Caption of a plot from its file stem, for the HTML page.
 pub fn caption(exp: &Experiment, stem: &str) -> String {
-    let point = format!("point {}", exp.plot_point);
+    // `divergence-p1`: the figure of a `plots.also` point.
+    let (stem, index) = match stem.rsplit_once("-p") {
+        Some((s, i))
+            if i.parse::<usize>()
+                .is_ok_and(|i| exp.also_points.contains(&i)) =>
+        {
+            (s, i.parse().unwrap_or(exp.plot_point))
+        }
+        _ => (stem, exp.plot_point),
+    };
+    let mut point = format!("point {index}");
+    if exp.log_time && stem != "trajectories" && !stem.starts_with("sweep-") {
+        point.push_str(", logarithmic time axis");
+    }
     match stem {
         "trajectories" => format!("Path of the first two coordinates, every formulation, {point}."),
         "divergence" => format!(
@@ -63,12 +76,17 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 .unwrap_or_default()
         ),
         "sweep-cost" => format!(
-            "Wall time of every formulation over the sweep ({}); failed runs left out (their reasons are in runs.csv).",
+            "Wall time of every formulation over the sweep ({}), {}; failed runs left out (their reasons are in runs.csv).",
             exp.axes
                 .iter()
                 .map(|a| a.name.as_str())
                 .collect::<Vec<_>>()
-                .join(" × ")
+                .join(" × "),
+            if exp.repeats > 1 {
+                format!("the median of {} timed runs each", exp.repeats)
+            } else {
+                "one timed run each (differences of tens of per cent are noise)".to_string()
+            }
         ),
         s if s.starts_with("sweep-") => format!(
             "Divergence from {} at the end of the common span, over the sweep ({}); failed runs are left out (reasons in runs.csv); on logarithmic axes the legend gives the fitted slope.",
@@ -180,8 +198,8 @@ pub fn trajectories(
     exp: &Experiment,
     dir: &Path,
     results: &[PointResult],
+    point: usize,
 ) -> Result<Vec<(String, Trajectory)>, String> {
-    let point = exp.plot_point;
     let Some(r) = results.iter().find(|r| r.index == point) else {
         return Ok(Vec::new());
     };
@@ -215,11 +233,30 @@ pub fn trajectories(
         .collect()
 }
 
-/// Draws every figure of `exp` into `dir/plots/`; returns the files written.
+/// Draws every figure of `exp` into `dir/plots/`; returns the files written:
+/// the time series of `plots.point`, those of every `plots.also` point (file
+/// stems ending in `-p<i>`), and the figures over the sweep.
 pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec<PathBuf>, String> {
+    let mut files = time_series(exp, dir, results, exp.plot_point, "")?;
+    for &i in &exp.also_points {
+        files.extend(time_series(exp, dir, results, i, &format!("-p{i}"))?);
+    }
+    files.extend(sweep_plots(exp, &dir.join("plots"), results)?);
+    super::files::remove_other_figures(&dir.join("plots"), &files)?;
+    Ok(files)
+}
+
+/// The figures against time of one point (paths, divergence, residual,
+/// energy, series), their file stems ending in `suffix`.
+fn time_series(
+    exp: &Experiment,
+    dir: &Path,
+    results: &[PointResult],
+    point: usize,
+    suffix: &str,
+) -> Result<Vec<PathBuf>, String> {
     let plots = dir.join("plots");
     let mut files = Vec::new();
-    let point = exp.plot_point;
     let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
     let coords: Vec<String> = info
         .coordinates
@@ -228,7 +265,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         .collect();
     let angle: Vec<bool> = info.coordinates.iter().map(|c| c.unit == "rad").collect();
 
-    let trajectories = trajectories(exp, dir, results)?;
+    let trajectories = trajectories(exp, dir, results, point)?;
     let pens = pens::of_experiment(exp);
     let describe = |label: &str| {
         exp.formulations
@@ -245,7 +282,8 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
     };
     // "at alpha = 0.3, a = 0.4" for the plotted point (nothing without a sweep).
     let values = results
-        .get(point)
+        .iter()
+        .find(|r| r.index == point)
         .map(|r| r.values.clone())
         .unwrap_or_default();
     let at = super::spec::compact(&exp.axes, &values);
@@ -284,7 +322,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 equal_aspect: true,
                 series,
             },
-            &plots.join("trajectories"),
+            &plots.join(format!("{}{suffix}", "trajectories")),
         )?);
 
         // Divergence of every pair from the trajectories on the common grid,
@@ -308,7 +346,10 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                     .filter_map(|c| Some((ta.column(c)?, tb.column(c)?)))
                     .collect();
                 let n = super::point::common_len(&t_a, &t_b);
-                let y: Vec<f64> = (0..n)
+                // Runs from one state agree exactly at the start: that zero
+                // is left out, not reported as a point off the log axis.
+                let first = usize::from(n > 1 && cols.iter().all(|(a, b)| a[0] == b[0]));
+                let y: Vec<f64> = (first..n)
                     .map(|j| {
                         cols.iter()
                             .enumerate()
@@ -322,7 +363,7 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 series.push(Series {
                     pen: line.map(|f| pair_pens.take(&f.formulation, &f.settings.integrator)),
                     label: format!("{la} vs {lb}"),
-                    x: t_a[..n].to_vec(),
+                    x: t_a[first..n].to_vec(),
                     y,
                 });
             }
@@ -336,12 +377,12 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                         "‖Δ({}, {})‖ [{}]",
                         coords[0], coords[1], info.coordinates[0].unit
                     ),
-                    log_x: false,
+                    log_x: exp.log_time,
                     log_y: true,
                     equal_aspect: false,
                     series,
                 },
-                &plots.join("divergence"),
+                &plots.join(format!("{}{suffix}", "divergence")),
             )?);
         }
 
@@ -361,12 +402,12 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 title: titled("Constraint residual, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: residual_label(info),
-                log_x: false,
+                log_x: exp.log_time,
                 log_y: true,
                 equal_aspect: false,
                 series: residual,
             },
-            &plots.join("residual"),
+            &plots.join(format!("{}{suffix}", "residual")),
         )?);
         let energy = trajectories
             .iter()
@@ -386,12 +427,12 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                 title: titled("Energy drift, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: "|E(t) − E(0)| [J]".into(),
-                log_x: false,
+                log_x: exp.log_time,
                 log_y: true,
                 equal_aspect: false,
                 series: energy,
             },
-            &plots.join("energy"),
+            &plots.join(format!("{}{suffix}", "energy")),
         )?);
         for name in &exp.series {
             let series = trajectories
@@ -416,17 +457,16 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
                     title: titled(&format!("{name} against time")),
                     x_label: "t [s]".into(),
                     y_label: quantity_label(exp, name),
-                    log_x: false,
+                    log_x: exp.log_time,
                     log_y: false,
                     equal_aspect: false,
                     series,
                 },
-                &plots.join(format!("series-{name}")),
+                &plots.join(format!("series-{name}{suffix}")),
             )?);
         }
     }
 
-    files.extend(sweep_plots(exp, &plots, results)?);
     Ok(files)
 }
 
@@ -465,6 +505,19 @@ fn log_axis(x: &[f64], numeric: bool) -> bool {
     let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     numeric && lo > 0.0 && hi / lo > 100.0
+}
+
+/// Whether the positive values of `series` span more than two decades: then
+/// a logarithmic axis (zeros are left out, and the legend says so);
+/// otherwise a linear one, on which a zero (e.g. two formulations that
+/// coincide) is drawn where it is.
+fn spans_decades(series: &[Series]) -> bool {
+    let positive: Vec<f64> = series
+        .iter()
+        .flat_map(|s| s.y.iter().copied())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    log_axis(&positive, true)
 }
 
 /// The divergence of `label` from `reference` at the end of their common
@@ -506,10 +559,15 @@ fn sweep_plots(
     match (exp.axes.len(), &exp.mode) {
         (1, _) | (_, SweepMode::Zip) => {
             let (x, numeric) = axis_numbers(exp, 0, results);
+            // Two categories (e.g. the two potentials) make no curve: their
+            // values are in the tables and the points' own figures.
+            if !numeric && results.len() < 3 {
+                return Ok(files);
+            }
             let log_x = log_axis(&x, numeric);
             let mut order: Vec<usize> = (0..results.len()).collect();
             order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
-            let series = others
+            let series: Vec<Series> = others
                 .iter()
                 .map(|l| {
                     let pts: Vec<(f64, f64)> = order
@@ -541,13 +599,14 @@ fn sweep_plots(
                     axis.values.join(", ")
                 )
             };
+            let log_y = spans_decades(&series);
             files.extend(line_plot(
                 &LinePlot {
                     title: "Divergence at the end of the common span".into(),
                     x_label: x_label.clone(),
                     y_label: format!("‖Δ(x, y)‖ from {} [m]", exp.reference),
                     log_x,
-                    log_y: true,
+                    log_y,
                     equal_aspect: false,
                     series,
                 },
@@ -555,7 +614,7 @@ fn sweep_plots(
             )?);
             // Cost over the sweep: wall time of every formulation (failed
             // runs left out), e.g. explicit against implicit as stiffness grows.
-            let cost = exp
+            let cost: Vec<Series> = exp
                 .formulations
                 .iter()
                 .filter(|f| f.formulation != super::spec::CLOSED_FORM)
@@ -588,7 +647,7 @@ fn sweep_plots(
                     x_label,
                     y_label: "wall time [s]".into(),
                     log_x,
-                    log_y: true,
+                    log_y: spans_decades(&cost),
                     equal_aspect: false,
                     series: cost,
                 },

@@ -430,7 +430,8 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
     let mut results = Vec::new();
     let mut samples = Vec::new();
     for r in &runs {
-        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(r)));
+        let outcome =
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(r, exp.repeats)));
         let (res, smp) = match outcome {
             Ok(x) => x,
             Err(p) => {
@@ -470,7 +471,9 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
     )
 }
 
-fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
+/// Runs `r` (timed `repeats` times where it integrates: the result of the
+/// first run, the median of the wall times).
+fn one(r: &PointRun, repeats: usize) -> (FormResult, Option<Samples>) {
     let scene = match nonholo_scenes::build(&r.spec.scene, &r.spec.params) {
         Ok(s) => s,
         Err(e) => return (failed(r, None, e.to_string()), None),
@@ -530,6 +533,9 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
                 return (wall_time_stopped(r, &run, *seconds), None);
             }
             let mut res = from_run(r, &run);
+            if repeats > 1 {
+                res.wall_time_s = median_wall_time(r, res.wall_time_s, repeats);
+            }
             let t = run.solution.t[..run.samples.len()].to_vec();
             let (physics, chart) = scene.clone().visit(Physics {
                 t: &t,
@@ -549,6 +555,24 @@ fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
             with_samples(res, samples)
         }
     }
+}
+
+/// The median wall time of `repeats` runs of `r`, the first of which took
+/// `first` seconds (a repeat that fails differently, e.g. on a wall-time
+/// budget, keeps only the times measured).
+fn median_wall_time(r: &PointRun, first: f64, repeats: usize) -> f64 {
+    let mut times = vec![first];
+    for _ in 1..repeats {
+        match execute(&r.spec) {
+            Ok((run, _))
+                if !matches!(run.failure, Some(IntegrateError::TimeBudgetExceeded { .. })) =>
+            {
+                times.push(run.solution.stats.wall_time_s)
+            }
+            _ => break,
+        }
+    }
+    super::output::median(times).unwrap_or(first)
 }
 
 /// A result and its samples, if it has any: a trajectory file is written

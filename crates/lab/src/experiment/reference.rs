@@ -7,7 +7,8 @@
 //! method (or, where only one method applies, another tolerance): the
 //! largest difference of the two on the output grid bounds the error of the
 //! better one from above, as long as the check is no more accurate than
-//! the primary reference.
+//! the primary reference. A reference may run other formulation options
+//! than the line (`reference.options`): another form of the same equations.
 
 use nonholo_core::integrate::{IntegrateError, Method};
 use nonholo_core::{Observation, Run};
@@ -69,6 +70,7 @@ fn tight(spec: &RunSpec, method: &str, rtol: f64, r: &RefSpec) -> Result<Run, St
     s.integrator.fixed_step = None;
     s.integrator.max_wall_time_s = r.max_wall_time;
     s.integrator.max_steps = r.max_steps;
+    s.options = super::spec::override_with(&s.options, &r.options);
     // Samples at step end points, not interpolated: the continuous extension
     // of Radau IIA (degree 3) would add ~1e-10 at tolerance 1e-13.
     s.integrator.hit_output = true;

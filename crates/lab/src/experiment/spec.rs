@@ -39,9 +39,12 @@
 //! reference = "B"                    # runs.csv reports divergence from this one
 //! reversals = "u"                    # runs.csv counts its sign changes on the output grid
 //!                                    # (a velocity-chart value, coordinate or `<coord>_dot`)
+//! repeats = 5                        # timed runs of each formulation, median wall time (default 1)
 //!
 //! [plots]
 //! point = 0                          # sweep point whose time series are drawn
+//! also = [1]                         # further points drawn too (divergence-p1, …)
+//! log_time = true                    # time axes of those figures logarithmic
 //! main = "divergence"                # the figure shown for it in docs/figures.md
 //! series = ["u"]                     # quantities drawn against time (series-<name>)
 //! series_span = [0.0, 5.0]           # their time window (default: the whole span)
@@ -169,6 +172,8 @@ struct ReferenceFile {
     max_wall_time: Option<Spanned<f64>>,
     max_steps: Option<Spanned<u64>>,
     closed_form: Option<bool>,
+    #[serde(default)]
+    options: Entries,
 }
 
 #[derive(Debug, Deserialize)]
@@ -191,12 +196,17 @@ struct MeasuresFile {
     threshold: Option<Spanned<f64>>,
     reference: Option<Spanned<String>>,
     reversals: Option<Spanned<String>>,
+    repeats: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PlotsFile {
     point: Option<Spanned<u64>>,
+    #[serde(default)]
+    also: Vec<Spanned<u64>>,
+    #[serde(default)]
+    log_time: bool,
     #[serde(default)]
     all_trajectories: bool,
     main: Option<String>,
@@ -274,6 +284,10 @@ pub struct RefSpec {
     pub max_wall_time: Option<f64>,
     /// Step budget of each reference run (the same on every machine).
     pub max_steps: usize,
+    /// Formulation options of the reference runs over the line's own (e.g.
+    /// the direct form of `mass` measured against its compliance form: the
+    /// same motion, without the direct form's ill-conditioning).
+    pub options: Vec<(String, String)>,
 }
 
 impl RefSpec {
@@ -292,6 +306,7 @@ impl RefSpec {
                 check_rtol: 1e-13,
                 max_wall_time: Some(120.0),
                 max_steps: DEFAULT_MAX_STEPS,
+                options: Vec::new(),
             }
         } else {
             RefSpec {
@@ -302,6 +317,7 @@ impl RefSpec {
                 check_rtol: 3e-14,
                 max_wall_time: Some(120.0),
                 max_steps: DEFAULT_MAX_STEPS,
+                options: Vec::new(),
             }
         }
     }
@@ -374,6 +390,10 @@ pub struct Experiment {
     /// counts (`reversals`): a velocity-chart value, coordinate or velocity.
     pub reversals: Option<String>,
     pub plot_point: usize,
+    /// Further points whose time series are drawn too (`<figure>-p<i>`).
+    pub also_points: Vec<usize>,
+    /// Time axes of the time-series figures drawn logarithmically.
+    pub log_time: bool,
     pub all_trajectories: bool,
     /// The plot that stands for the experiment in docs/figures.md (file stem).
     pub main_plot: Option<String>,
@@ -382,7 +402,9 @@ pub struct Experiment {
     pub series: Vec<String>,
     pub series_span: Option<[f64; 2]>,
     pub kind: Kind,
-    /// Work-precision: timed repeats of every run (the median is reported).
+    /// Timed repeats of every run, the median wall time reported
+    /// (work-precision: `[work_precision] repeats`, default 5; compare:
+    /// `[measures] repeats`, default 1).
     pub repeats: usize,
 }
 
@@ -473,7 +495,10 @@ fn entries(ctx: &Ctx, table: &str, e: &Entries) -> Result<Vec<(String, String)>,
         .collect()
 }
 
-fn override_with(base: &[(String, String)], extra: &[(String, String)]) -> Vec<(String, String)> {
+pub(crate) fn override_with(
+    base: &[(String, String)],
+    extra: &[(String, String)],
+) -> Vec<(String, String)> {
     let mut out: Vec<(String, String)> = base
         .iter()
         .filter(|(k, _)| !extra.iter().any(|(e, _)| e == k))
@@ -1003,6 +1028,13 @@ impl Experiment {
                 .as_ref()
                 .map(|p| *p.get_ref() as usize)
                 .unwrap_or(0),
+            also_points: file
+                .plots
+                .also
+                .iter()
+                .map(|p| *p.get_ref() as usize)
+                .collect(),
+            log_time: file.plots.log_time,
             all_trajectories: file.plots.all_trajectories,
             main_plot: file.plots.main.clone(),
             series,
@@ -1018,6 +1050,20 @@ impl Experiment {
                 "plots.point",
                 format!("the sweep has {n} points (0..{})", n - 1),
             ));
+        }
+        for (k, p) in file.plots.also.iter().enumerate() {
+            let i = *p.get_ref() as usize;
+            if i >= n || i == exp.plot_point || exp.also_points[..k].contains(&i) {
+                return Err(ctx.err(
+                    p.span(),
+                    "plots.also",
+                    format!(
+                        "point {i}: must be a point of the sweep (0..{}), other than plots.point \
+                         and named once",
+                        n - 1
+                    ),
+                ));
+            }
         }
         // Every point must resolve: parameters in range, names known,
         // formulations applicable. Errors name the swept values.
@@ -1066,7 +1112,18 @@ fn work_precision_lines(
                 ));
             }
         }
-        return Ok(1);
+        return match &file.measures.repeats {
+            None => Ok(1),
+            Some(r) if (1..=1000).contains(r.get_ref()) => Ok(*r.get_ref() as usize),
+            Some(r) => Err(ctx.err(r.span(), "measures.repeats", "must be between 1 and 1000")),
+        };
+    }
+    if let Some(r) = &file.measures.repeats {
+        return Err(ctx.err(
+            r.span(),
+            "measures.repeats",
+            "work-precision experiments set their repeats in [work_precision]",
+        ));
     }
     let Some(wp) = &file.work_precision else {
         return Err(SpecError(format!(
@@ -1248,6 +1305,12 @@ fn reference(
     if let Some(c) = f.closed_form {
         r.closed_form = c;
     }
+    if !f.options.is_empty() {
+        r.options = override_with(
+            &r.options,
+            &entries(ctx, &format!("{key}.options"), &f.options)?,
+        );
+    }
     Ok(r)
 }
 
@@ -1278,13 +1341,19 @@ pub fn compact(axes: &[Axis], values: &[String]) -> String {
         .zip(values)
         .map(|(a, v)| {
             let name = a.name.rsplit('.').next().unwrap_or(&a.name);
-            // Four significant digits: a title reads `phi = 3.142`.
+            // Four significant digits, large and small values in scientific
+            // notation: a title reads `phi = 3.142`, `N = 1e6`.
             let v = v
                 .parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
-                .and_then(|x| format!("{x:.3e}").parse::<f64>().ok())
-                .map(crate::table::Plain::text)
+                .map(|x| {
+                    if x == 0.0 {
+                        "0".to_string()
+                    } else {
+                        crate::table::readable(&format!("{x:e}"))
+                    }
+                })
                 .unwrap_or(v.clone());
             format!("{name} = {v}")
         })

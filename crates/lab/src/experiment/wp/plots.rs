@@ -163,6 +163,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
     if points.len() >= 2 {
         files.extend(stability_map(exp, dir, points)?);
     }
+    crate::experiment::files::remove_other_figures(&dir.join("plots"), &files)?;
     Ok(files)
 }
 

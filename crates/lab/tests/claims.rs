@@ -255,3 +255,313 @@ fn extreme_appell_as_figures_md_states() {
         assert!(num(r, "scd_max") >= digits, "{label}");
     }
 }
+
+/// Wall time interpolated (log–log) along a work-precision line at a
+/// largest error `e`; none if the line does not reach it.
+fn time_at_error(
+    rows: &[HashMap<String, String>],
+    point: &str,
+    label: &str,
+    e: f64,
+) -> Option<f64> {
+    let mut pts: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|r| r["point"] == point && r["label"] == label && r["status"] == "completed")
+        .map(|r| (num(r, "err_max"), num(r, "wall_time_median_s")))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pts.windows(2).find_map(|w| {
+        let ((e1, t1), (e2, t2)) = (w[0], w[1]);
+        (e1 <= e && e <= e2).then(|| {
+            let f = (e / e1).ln() / (e2 / e1).ln();
+            (t1.ln() + f * (t2 / t1).ln()).exp()
+        })
+    })
+}
+
+/// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8, A
+/// costs 80–170× C and 260–520× B with DOPRI5 and DOP853, 250–450× C and
+/// 1100–2400× B with RK4, 18× C with Radau IIA (paper's potential; with
+/// gravity at the centre of mass A's implicit form does not reach 1e-8).
+#[test]
+fn wp_sleigh_cost_ratios_as_figures_md_states() {
+    figures_md_says(&[
+        "80–170× C and 260–520× B with DOPRI5 and DOP853",
+        "250–450× C and 1100–2400× B with RK4",
+        "18× C with Radau IIA",
+    ]);
+    let rows = table("wp-sleigh", "work_precision.csv");
+    for point in ["0", "1"] {
+        let t = |l: &str| time_at_error(&rows, point, l, 1e-8);
+        for (integrator, (c_lo, c_hi), (b_lo, b_hi)) in [
+            ("dopri5", (75.0, 175.0), (255.0, 525.0)),
+            ("dop853", (75.0, 175.0), (255.0, 525.0)),
+            ("rk4", (250.0, 450.0), (1050.0, 2400.0)),
+        ] {
+            let a = t(&format!("A-{integrator}")).unwrap();
+            let c = a / t(&format!("C-{integrator}")).unwrap();
+            let b = a / t(&format!("B-{integrator}")).unwrap();
+            assert!((c_lo..=c_hi).contains(&c), "{point} {integrator}: A/C {c}");
+            assert!((b_lo..=b_hi).contains(&b), "{point} {integrator}: A/B {b}");
+        }
+    }
+    let radau = t_ratio(&rows, "0", "A-radau5", "C-radau5");
+    assert!((17.5..18.5).contains(&radau), "{radau}");
+    assert!(time_at_error(&rows, "1", "A-radau5", 1e-8).is_none());
+}
+
+fn t_ratio(rows: &[HashMap<String, String>], point: &str, a: &str, b: &str) -> f64 {
+    time_at_error(rows, point, a, 1e-8).unwrap() / time_at_error(rows, point, b, 1e-8).unwrap()
+}
+
+/// figures.md, wp-visc (its claim in the table).
+#[test]
+fn wp_visc_as_figures_md_states() {
+    figures_md_says(&[
+        "1862–1892 steps at k = 1e4",
+        "(7–53 against 8–84)",
+        "fails 19–43 times at k = 1e4 and 90–541 times at k = 1e6",
+        "cuts that to 0–5, at 2.7–3.6× the simplified iteration's wall time at k = 1e2, 0.83–2.2× at 1e4 and 0.27–0.44× at 1e6",
+    ]);
+    let rows = table("wp-visc", "work_precision.csv");
+    let of = |k: &str, label: &str| -> Vec<&HashMap<String, String>> {
+        rows.iter()
+            .filter(|r| r["option.k"] == k && r["label"] == label)
+            .collect()
+    };
+    let range = |v: Vec<f64>| {
+        v.iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), x| (l.min(*x), h.max(*x)))
+    };
+    let steps = |k, l| range(of(k, l).iter().map(|r| num(r, "steps")).collect());
+    let failures = |k, l| range(of(k, l).iter().map(|r| num(r, "newton_failures")).collect());
+    assert_eq!(steps("10000.0", "adapted-dop853"), (1862.0, 1892.0));
+    assert!(
+        of("1000000.0", "adapted-dop853")
+            .iter()
+            .all(|r| r["status"] == "failed" && r["error"].contains("step budget of 50000"))
+    );
+    assert_eq!(steps("1000000.0", "adapted-radau5"), (7.0, 53.0));
+    assert_eq!(steps("100.0", "adapted-radau5"), (8.0, 84.0));
+    for k in ["100.0", "10000.0", "1000000.0"] {
+        assert_eq!(failures(k, "adapted-radau5").1, 0.0, "{k}");
+    }
+    assert_eq!(
+        failures("10000.0", "cartesian-radau5-simplified"),
+        (19.0, 43.0)
+    );
+    assert_eq!(
+        failures("1000000.0", "cartesian-radau5-simplified"),
+        (90.0, 541.0)
+    );
+    for (k, lo, hi) in [
+        ("100.0", 2.7, 3.6),
+        ("10000.0", 0.83, 2.2),
+        ("1000000.0", 0.27, 0.44),
+    ] {
+        assert!(failures(k, "cartesian-radau5-full").1 <= 5.0);
+        let full = of(k, "cartesian-radau5-full");
+        let simple = of(k, "cartesian-radau5-simplified");
+        let (l, h) = range(
+            full.iter()
+                .map(|f| {
+                    let s = simple
+                        .iter()
+                        .find(|s| s["tolerance"] == f["tolerance"])
+                        .unwrap();
+                    num(f, "wall_time_median_s") / num(s, "wall_time_median_s")
+                })
+                .collect(),
+        );
+        assert!(l >= lo - 0.005 && h <= hi + 0.005, "k = {k}: {l}–{h}");
+    }
+}
+
+/// figures.md, wp-mass (its claim in the table): DOP853 evaluations at
+/// tolerance 1e-8, Radau IIA's errors at 1e-10 against the compliance
+/// form's reference, and C beside the compliance form.
+#[test]
+fn wp_mass_as_figures_md_states() {
+    figures_md_says(&[
+        "166 evaluations, error 2.6e-8 at N = 1e4 and 1e6, as C",
+        "407, 2228 and 12 655 evaluations at N = 1e2, 1e4, 1e6",
+        "keeps 1.3e-8 to 1.6e-8 at tolerance 1e-10 for every N while its evaluations grow from 468 to 3532",
+    ]);
+    let rows = table("wp-mass", "work_precision.csv");
+    let at = |n: &str, label: &str, tol: f64| {
+        rows.iter()
+            .find(|r| {
+                r["option.N"] == n
+                    && r["label"] == label
+                    && (num(r, "tolerance") / tol - 1.0).abs() < 1e-9
+            })
+            .unwrap_or_else(|| panic!("{n} {label} {tol}"))
+    };
+    for n in ["10000.0", "1000000.0"] {
+        for l in ["compliance-dop853", "C"] {
+            let r = at(n, l, 1e-8);
+            assert_eq!(num(r, "rhs_evals"), 166.0, "{n} {l}");
+            assert!((num(r, "err_max") / 2.56e-8 - 1.0).abs() < 0.02, "{n} {l}");
+        }
+    }
+    let evals: Vec<f64> = ["100.0", "10000.0", "1000000.0"]
+        .iter()
+        .map(|n| num(at(n, "direct-dop853", 1e-8), "rhs_evals"))
+        .collect();
+    assert_eq!(evals, [407.0, 2228.0, 12655.0]);
+    let radau: Vec<(f64, f64)> = ["100.0", "10000.0", "1000000.0"]
+        .iter()
+        .map(|n| {
+            let r = at(n, "direct-radau5", 1e-10);
+            (num(r, "err_max"), num(r, "rhs_evals"))
+        })
+        .collect();
+    assert!(
+        radau.iter().all(|(e, _)| (1.25e-8..1.65e-8).contains(e)),
+        "{radau:?}"
+    );
+    assert_eq!((radau[0].1, radau[2].1), (468.0, 3532.0));
+    // Against the compliance form's reference: every line of mass(N) shares it.
+    for r in table("wp-mass", "references.csv")
+        .iter()
+        .filter(|r| r["label"].starts_with("direct"))
+    {
+        assert!(num(r, "error_estimate") < 1e-12, "{r:?}");
+    }
+}
+
+/// figures.md, lambda0-family: minimised over λ(0) at 8 random states, the
+/// smallest distance found is 0.11 to 1.24 m, and at 3 states it lies in a
+/// dip narrower than the sample step (2.1–2.4 m on the samples).
+#[test]
+fn lambda0_family_as_figures_md_states() {
+    figures_md_says(&[
+        "C's smallest distance from D'Alembert–Lagrange (B) at t = 2 s is 0.11 to 1.24 m",
+        "at 3 of the 8 states it lies in a dip narrower than the 0.01 N·s sample step (2.1–2.4 m on the samples)",
+    ]);
+    let rows = table("lambda0-family", "minima.csv");
+    assert_eq!(rows.len(), 8);
+    let d: Vec<f64> = rows.iter().map(|r| num(r, "distance")).collect();
+    let (lo, hi) = d
+        .iter()
+        .fold((f64::MAX, 0.0f64), |(l, h), x| (l.min(*x), h.max(*x)));
+    assert!(
+        (0.105..0.115).contains(&lo) && (1.235..1.245).contains(&hi),
+        "{lo} {hi}"
+    );
+    let narrow: Vec<f64> = rows
+        .iter()
+        .filter(|r| num(r, "grid_distance") > 1.5 * num(r, "distance"))
+        .map(|r| num(r, "grid_distance"))
+        .collect();
+    assert_eq!(narrow.len(), 3);
+    assert!(
+        narrow.iter().all(|g| (2.05..2.45).contains(g)),
+        "{narrow:?}"
+    );
+    assert!(
+        rows.iter()
+            .all(|r| r["undefined"] == "0" && num(r, "grid_step") == 0.01)
+    );
+}
+
+/// figures.md, sleigh-slope-sweep: A (explicit, continued) and C end 1.79 to
+/// 16.1 m from B at t = 2 s; A stays within 2.5e-9 m of C; 1 to 6 crossings.
+#[test]
+fn sleigh_slope_sweep_as_figures_md_states() {
+    figures_md_says(&[
+        "1 to 6 crossings",
+        "1.79 to 16.1 m from B at t = 2 s",
+        "within 2.5e-9 m",
+    ]);
+    let runs = runs("sleigh-slope-sweep");
+    for label in ["A", "C"] {
+        let d: Vec<f64> = runs
+            .iter()
+            .filter(|r| r["label"] == label)
+            .map(|r| {
+                assert_eq!(num(r, "t_last"), 2.0);
+                num(r, "div_xy_end")
+            })
+            .collect();
+        assert_eq!(d.len(), 42);
+        let (lo, hi) = d
+            .iter()
+            .fold((f64::MAX, 0.0f64), |(l, h), x| (l.min(*x), h.max(*x)));
+        assert!(
+            (1.79..1.80).contains(&lo) && (16.1..16.2).contains(&hi),
+            "{label}: {lo} {hi}"
+        );
+    }
+    let crossings: Vec<f64> = runs
+        .iter()
+        .filter(|r| r["label"] == "A")
+        .map(|r| num(r, "crossings"))
+        .collect();
+    assert_eq!(crossings.iter().cloned().fold(f64::MAX, f64::min), 1.0);
+    assert_eq!(crossings.iter().cloned().fold(0.0, f64::max), 6.0);
+    let ac = table("sleigh-slope-sweep", "pairs.csv")
+        .iter()
+        .filter(|r| r["a"] == "C" && r["b"] == "A" || r["a"] == "A" && r["b"] == "C")
+        .map(|r| num(r, "div_xy_max"))
+        .fold(0.0f64, f64::max);
+    assert!(ac < 2.55e-9, "{ac:e}");
+}
+
+/// figures.md, stiff-visc and stiff-mass: DOP853's steps on visc grow like
+/// k until the 200 000-step budget; the direct form of mass loses 1/N at
+/// 1e6 (Radau IIA, 12 %) and 1e7 (DOP853, 10 %), blows up at 1e7 and 1e8.
+#[test]
+fn stiff_costs_as_figures_md_states() {
+    figures_md_says(&[
+        "(237, 1022, 9314, 93 101 steps at k = 1e2 … 1e5)",
+        "budget of 200 000 steps",
+        "77–101 steps",
+        "Radau IIA is 12 % off at N = 1e6 and 190× off at 1e7",
+        "DOP853 10 % off at 1e7 and 120× off at 1e8",
+    ]);
+    let visc = runs("stiff-visc");
+    let steps = |k: &str, l: &str| {
+        visc.iter()
+            .find(|r| r["option.k"] == k && r["label"] == l)
+            .map(|r| (num(r, "steps"), r["status"].clone()))
+            .unwrap()
+    };
+    let dop: Vec<f64> = ["100.0", "1000.0", "10000.0", "100000.0"]
+        .iter()
+        .map(|k| steps(k, "visc-dop853").0)
+        .collect();
+    assert_eq!(dop, [237.0, 1022.0, 9314.0, 93101.0]);
+    for k in ["1000000.0", "10000000.0", "100000000.0"] {
+        let r = visc
+            .iter()
+            .find(|r| r["option.k"] == k && r["label"] == "visc-dop853")
+            .unwrap();
+        assert!(r["error"].contains("step budget of 200000"), "{k}");
+    }
+    let radau: Vec<f64> = visc
+        .iter()
+        .filter(|r| r["label"] == "visc-radau5")
+        .map(|r| num(r, "steps"))
+        .collect();
+    assert!(
+        radau.iter().all(|s| (77.0..=101.0).contains(s)),
+        "{radau:?}"
+    );
+    let mass = runs("stiff-mass");
+    let off = |n: &str, l: &str| {
+        let r = mass
+            .iter()
+            .find(|r| r["option.N"] == n && r["label"] == l)
+            .unwrap();
+        let exact = mass
+            .iter()
+            .find(|r| r["option.N"] == n && r["label"] == "compliance-dop853")
+            .unwrap();
+        num(r, "div_xy_end") / num(exact, "div_xy_end")
+    };
+    assert!((off("1000000.0", "direct-radau5") - 0.88).abs() < 0.01);
+    assert!((off("10000000.0", "direct-radau5") / 194.0 - 1.0).abs() < 0.03);
+    assert!((off("10000000.0", "direct-dop853") - 0.90).abs() < 0.01);
+    assert!((off("100000000.0", "direct-dop853") / 124.0 - 1.0).abs() < 0.03);
+}

@@ -33,6 +33,7 @@ pub mod dir;
 pub mod files;
 pub mod key;
 pub mod manifest;
+pub mod minimise;
 pub mod output;
 pub mod page;
 pub mod pens;
@@ -237,7 +238,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
     }
     let started = std::time::SystemTime::now();
     let dir = &out.path().to_path_buf();
-    out.prepare(&["points", "trajectories", "plots"])?;
+    out.prepare(&["points", "trajectories", "plots", minimise::CURVES])?;
     let points = exp.points();
     let threads = opts.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
@@ -297,6 +298,20 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         .collect::<Result<_, _>>()
         .map_err(CliError::Output)?;
 
+    if let Some(m) = &exp.minimise {
+        if !opts.quiet {
+            crate::note!(
+                "{}: minimising the distance of {} from {} over {} at {} points",
+                exp.name,
+                m.label,
+                exp.reference,
+                m.over,
+                points.len()
+            );
+        }
+        pool.install(|| minimise::run(exp, m, dir, &points))
+            .map_err(CliError::Output)?;
+    }
     output::write_tables(exp, dir, &results).map_err(CliError::Output)?;
     let plots = plots::draw(exp, dir, &results).map_err(CliError::Output)?;
     output::write_summary(exp, dir, &results, &plots).map_err(CliError::Output)?;

@@ -276,6 +276,7 @@ pub fn write_tables(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Re
             "axes": exp.axes.iter().map(|a| json!({"name": a.name, "values": a.values})).collect::<Vec<_>>(),
         },
         "measures": {"threshold": exp.threshold, "reference": exp.reference, "reversals": exp.reversals, "repeats": exp.repeats},
+        "minimise": exp.minimise.as_ref().map(|m| json!({"over": m.over, "range": m.range, "samples": m.samples, "refine": m.refine, "label": m.label})),
         "plots": {"point": exp.plot_point, "also": exp.also_points, "log_time": exp.log_time, "all_trajectories": exp.all_trajectories},
     });
     write_json(&dir.join("config.json"), &config)
@@ -366,6 +367,7 @@ pub fn write_summary(
             "failed_runs": failed,
             "stopped_runs": stopped,
             "budget_runs": budget,
+            "minima": super::minimise::summary(exp, dir),
             "formulations": per_label,
             "pairs": pairs,
             "plots": plots.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),
@@ -400,17 +402,38 @@ pub fn write_html(
             results.len(),
             formulations.join(", ")
         ),
-        files: &[
-            "runs.csv",
-            "pairs.csv",
-            "summary.json",
-            "config.json",
-            "manifest.json",
-        ],
+        files: if exp.minimise.is_some() {
+            &[
+                "runs.csv",
+                "pairs.csv",
+                super::minimise::MINIMA,
+                "summary.json",
+                "config.json",
+                "manifest.json",
+            ]
+        } else {
+            &[
+                "runs.csv",
+                "pairs.csv",
+                "summary.json",
+                "config.json",
+                "manifest.json",
+            ]
+        },
         before: Vec::new(),
         plots,
         caption: &|stem| super::plots::caption(exp, stem),
-        after: vec![("Runs".into(), table::html_from_csv(&dir.join("runs.csv")))],
+        after: exp
+            .minimise
+            .iter()
+            .map(|m| {
+                (
+                    format!("Minimisation over {}", m.over),
+                    table::html_from_csv(&dir.join(super::minimise::MINIMA)),
+                )
+            })
+            .chain([("Runs".into(), table::html_from_csv(&dir.join("runs.csv")))])
+            .collect(),
     }
     .write(dir)
 }

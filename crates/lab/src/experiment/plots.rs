@@ -75,6 +75,31 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 .map(|[a, b]| format!(" from t = {a} to {b} s"))
                 .unwrap_or_default()
         ),
+        "minimise" => match &exp.minimise {
+            Some(m) => format!(
+                "The smallest distance of {} from {} at t = {} s over {} ∈ [{}, {}] at every point \
+                 of the sweep: the smallest of {} samples (dashed) and after golden-section \
+                 refinement of the {} best sampled local minima (solid); minima.csv has the values.",
+                m.label,
+                exp.reference,
+                exp.t_end,
+                m.over,
+                m.range[0],
+                m.range[1],
+                m.samples,
+                m.refine
+            ),
+            None => stem.to_string(),
+        },
+        "minimise-curve" => match &exp.minimise {
+            Some(m) => format!(
+                "The distance of {} from {} at t = {} s against {}, sampled on {} values, at \
+                 {point}; the refined minimum marked. A narrower dip between two samples would be \
+                 missed: a sampled minimum, not a proven one.",
+                m.label, exp.reference, exp.t_end, m.over, m.samples
+            ),
+            None => stem.to_string(),
+        },
         "sweep-cost" => format!(
             "Wall time of every formulation over the sweep ({}), {}; failed runs left out (their reasons are in runs.csv).",
             exp.axes
@@ -139,7 +164,7 @@ fn coordinate_label(exp: &Experiment, k: usize) -> String {
 /// formulation's own value says whose it is (`lambda of C [N·s]`), with the
 /// unit that follows from the unit of the constraints (multipliers `J`
 /// over it, the realisations' gains `k`, `N` by their definition).
-fn axis_label(exp: &Experiment, name: &str) -> String {
+pub(super) fn axis_label(exp: &Experiment, name: &str) -> String {
     let info = nonholo_scenes::info(&exp.scene).ok();
     let (owner, rest) = match name.split_once('.') {
         Some((l, r)) if exp.formulations.iter().any(|f| f.label == l) => (Some(l), r),
@@ -242,6 +267,9 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         files.extend(time_series(exp, dir, results, i, &format!("-p{i}"))?);
     }
     files.extend(sweep_plots(exp, &dir.join("plots"), results)?);
+    if let Some(m) = &exp.minimise {
+        files.extend(super::minimise::draw(exp, m, dir)?);
+    }
     super::files::remove_other_figures(&dir.join("plots"), &files)?;
     Ok(files)
 }

@@ -78,6 +78,7 @@ use indexmap::IndexMap;
 use serde::Deserialize;
 use toml::{Spanned, Value};
 
+use super::sweep::Point;
 use crate::fields;
 use crate::formulations;
 use crate::simulate::{DEFAULT_MAX_STEPS, DEFAULT_TOL};
@@ -101,6 +102,59 @@ struct File {
     #[serde(default)]
     plots: PlotsFile,
     work_precision: Option<WorkPrecisionFile>,
+    minimise: Option<MinimiseFile>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MinimiseFile {
+    over: Spanned<String>,
+    range: Spanned<[f64; 2]>,
+    samples: Option<Spanned<u64>>,
+    refine: Option<Spanned<u64>>,
+    label: Spanned<String>,
+}
+
+/// `[minimise]` (compare experiments): at every point of the sweep, the
+/// distance of one formulation from the reference at the end of their
+/// common span is minimised over one more swept name (C's `λ(0)`, say) —
+/// sampled on a uniform grid over `range`, then refined by golden-section
+/// search in the brackets of the `refine` smallest sampled local minima.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MinimiseSpec {
+    /// The swept name varied (`C.init.lambda`).
+    pub over: String,
+    pub target: Target,
+    pub range: [f64; 2],
+    /// Grid samples over `range` (at least 3).
+    pub samples: usize,
+    /// Sampled local minima refined (0: the grid only).
+    pub refine: usize,
+    /// The formulation whose distance from the reference is minimised.
+    pub label: String,
+}
+
+impl MinimiseSpec {
+    /// `exp` with `over` as one more axis, and `point` of `exp` with `over`
+    /// at `value`: what [`super::sweep::resolve`] turns into runs.
+    pub fn at(&self, exp: &Experiment, point: &Point, value: f64) -> (Experiment, Point) {
+        let mut e = exp.clone();
+        e.axes.push(Axis {
+            name: self.over.clone(),
+            target: self.target.clone(),
+            values: Vec::new(),
+            line: 0,
+        });
+        let mut values = point.values.clone();
+        values.push(format!("{value:e}"));
+        (
+            e,
+            Point {
+                index: point.index,
+                values,
+            },
+        )
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -402,6 +456,8 @@ pub struct Experiment {
     pub series: Vec<String>,
     pub series_span: Option<[f64; 2]>,
     pub kind: Kind,
+    /// A minimisation over one more swept name at every point.
+    pub minimise: Option<MinimiseSpec>,
     /// Timed repeats of every run, the median wall time reported
     /// (work-precision: `[work_precision] repeats`, default 5; compare:
     /// `[measures] repeats`, default 1).
@@ -1040,8 +1096,13 @@ impl Experiment {
             series,
             series_span,
             kind,
+            minimise: None,
             repeats,
         };
+        let mut exp = exp;
+        if let Some(m) = &file.minimise {
+            exp.minimise = Some(minimise(&ctx, &exp, m)?);
+        }
         let n = exp.points().len();
         if exp.plot_point >= n {
             let span = file.plots.point.as_ref().map(|p| p.span()).unwrap_or(0..0);
@@ -1312,6 +1373,89 @@ fn reference(
         );
     }
     Ok(r)
+}
+
+/// Checks `[minimise]` against the experiment it belongs to.
+fn minimise(ctx: &Ctx, exp: &Experiment, m: &MinimiseFile) -> Result<MinimiseSpec, SpecError> {
+    if exp.kind != Kind::Compare {
+        return Err(ctx.err(
+            m.over.span(),
+            "minimise",
+            "belongs to experiments of kind \"compare\"",
+        ));
+    }
+    let labels: Vec<String> = exp.formulations.iter().map(|f| f.label.clone()).collect();
+    let over = m.over.get_ref().clone();
+    let target =
+        parse_target(&over, &labels).map_err(|e| ctx.err(m.over.span(), "minimise.over", e))?;
+    if target == Target::Case || exp.axes.iter().any(|a| a.name == over) {
+        return Err(ctx.err(
+            m.over.span(),
+            "minimise.over",
+            "must be a numeric name the sweep does not already vary",
+        ));
+    }
+    let [lo, hi] = *m.range.get_ref();
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Err(ctx.err(
+            m.range.span(),
+            "minimise.range",
+            "must be [low, high], finite, low < high",
+        ));
+    }
+    let samples = match &m.samples {
+        None => 201,
+        Some(n) if (3..=100_000).contains(n.get_ref()) => *n.get_ref() as usize,
+        Some(n) => {
+            return Err(ctx.err(n.span(), "minimise.samples", "must be between 3 and 100000"));
+        }
+    };
+    let refine = match &m.refine {
+        None => 3,
+        Some(n) if *n.get_ref() as usize <= samples => *n.get_ref() as usize,
+        Some(n) => {
+            return Err(ctx.err(
+                n.span(),
+                "minimise.refine",
+                "must be at most minimise.samples",
+            ));
+        }
+    };
+    let label = m.label.get_ref().clone();
+    if !labels.contains(&label) || label == exp.reference {
+        return Err(ctx.err(
+            m.label.span(),
+            "minimise.label",
+            format!(
+                "must be a formulation other than the reference {} (one of {})",
+                exp.reference,
+                labels.join(", ")
+            ),
+        ));
+    }
+    let spec = MinimiseSpec {
+        over,
+        target,
+        range: [lo, hi],
+        samples,
+        refine,
+        label,
+    };
+    // Both ends of the range must resolve at the first point, like every
+    // swept value (names known, values in range).
+    if let Some(first) = exp.points().into_iter().next() {
+        for v in [lo, hi] {
+            let (e, p) = spec.at(exp, &first, v);
+            e.check_point(&p).map_err(|msg| {
+                ctx.err(
+                    m.range.span(),
+                    "minimise.range",
+                    format!("{} = {v}: {msg}", spec.over),
+                )
+            })?;
+        }
+    }
+    Ok(spec)
 }
 
 /// `at alpha = 0.3, a = 0.4: ` for messages about one point.

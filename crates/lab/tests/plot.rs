@@ -381,6 +381,8 @@ fn edge_cases_do_not_panic() {
             "no-series",
             LinePlot {
                 title: "nothing".into(),
+                x_label: "x [m]".into(),
+                y_label: "y [m]".into(),
                 ..Default::default()
             },
             true,
@@ -431,9 +433,9 @@ fn heatmap_edge_cases_do_not_panic() {
     let dir = out_dir("heat-edge");
     let base = Heatmap {
         title: "Edge".into(),
-        x_label: "x".into(),
-        y_label: "y".into(),
-        z_label: "z".into(),
+        x_label: "x [m]".into(),
+        y_label: "y [m]".into(),
+        z_label: "z [m]".into(),
         ..Default::default()
     };
     let cases: Vec<(&str, Heatmap, bool)> = vec![
@@ -554,4 +556,24 @@ fn sharp_turns_stay_inside_the_plot() {
             );
         }
     }
+}
+
+/// Every axis says its unit: a label without one in brackets is refused,
+/// naming it, for line plots and heat maps alike.
+#[test]
+fn an_axis_without_a_unit_is_refused() {
+    let dir = out_dir("units");
+    let mut p = convergence_plot();
+    p.y_label = "error".into();
+    let e = line_plot(&p, &dir.join("no-unit")).unwrap_err();
+    assert!(e.contains("axis label `error` has no unit"), "{e}");
+    p.y_label = "error []".into();
+    assert!(line_plot(&p, &dir.join("empty-unit")).is_err());
+    p.y_label = "c [–]".into();
+    line_plot(&p, &dir.join("pure-number")).unwrap();
+    let mut h = sweep_heatmap();
+    h.z_label = "distance".into();
+    let e = heatmap(&h, &dir.join("heat-no-unit")).unwrap_err();
+    assert!(e.contains("`distance`"), "{e}");
+    assert!(!dir.join("no-unit.png").exists() && !dir.join("heat-no-unit.png").exists());
 }

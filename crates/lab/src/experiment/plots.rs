@@ -129,7 +129,7 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
 /// `name [unit]` of a velocity-chart value, coordinate or velocity.
 fn quantity_label(exp: &Experiment, name: &str) -> String {
     let Ok(info) = nonholo_scenes::info(&exp.scene) else {
-        return name.to_string();
+        return format!("{name} [–]");
     };
     let unit = info
         .velocity_chart
@@ -144,7 +144,7 @@ fn quantity_label(exp: &Experiment, name: &str) -> String {
         });
     match unit {
         Some(u) if !u.is_empty() => format!("{name} [{u}]"),
-        _ => name.to_string(),
+        _ => format!("{name} [–]"),
     }
 }
 
@@ -156,7 +156,7 @@ fn coordinate_label(exp: &Experiment, k: usize) -> String {
                 .get(k)
                 .map(|c| format!("{} [{}]", c.name, c.unit))
         })
-        .unwrap_or_else(|| format!("q{k}"))
+        .unwrap_or_else(|| format!("q{k} [–]"))
 }
 
 /// Axis label of a swept name, from the quantity's name and unit: a scene
@@ -209,11 +209,14 @@ pub(super) fn axis_label(exp: &Experiment, name: &str) -> String {
         .to_string()
     };
     let whose = owner.map(|l| format!(" of {l}")).unwrap_or_default();
-    if unit.is_empty() {
-        format!("{short}{whose}")
+    // Every axis states its unit; a pure number (a slope `c`, a case name)
+    // says so with [–].
+    let unit = if unit.is_empty() {
+        "–"
     } else {
-        format!("{short}{whose} [{unit}]")
-    }
+        unit.as_str()
+    };
+    format!("{short}{whose} [{unit}]")
 }
 
 /// The trajectories of the plotted point: one for every formulation that
@@ -762,8 +765,8 @@ formulation = "mass"
             ("V.option.k", "k of V [kg/s]"),
             ("M.option.N", "N of M [kg]"),
             ("option.k", "k [kg/s]"),
-            ("C.rtol", "rtol of C"),
-            ("case", "case"),
+            ("C.rtol", "rtol of C [–]"),
+            ("case", "case [–]"),
         ] {
             assert_eq!(axis_label(&exp, name), label, "{name}");
         }

@@ -51,6 +51,7 @@ pub struct Heatmap {
 /// drawable value gives a frame with a note, not an error; see the module
 /// documentation.
 pub fn heatmap(h: &Heatmap, stem: &Path) -> Result<Vec<PathBuf>, String> {
+    super::check_units(&[&h.x_label, &h.y_label, &h.z_label])?;
     let data = HeatData::new(h)?;
     write_outputs(
         stem,

@@ -62,6 +62,7 @@ pub struct LinePlot {
 /// `out/h=0.1.png`). Empty or undrawable data gives a frame with a note, not
 /// an error; see the module documentation.
 pub fn line_plot(p: &LinePlot, stem: &Path) -> Result<Vec<PathBuf>, String> {
+    super::check_units(&[&p.x_label, &p.y_label])?;
     let data = LineData::new(p)?;
     write_outputs(
         stem,

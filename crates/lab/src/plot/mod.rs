@@ -47,6 +47,24 @@ pub use self::line::{LinePlot, Series, line_plot};
 use self::style::ensure_font;
 pub use self::style::{Dash, Pen};
 
+/// Refuses an axis label without its unit in brackets at its end
+/// (`t [s]`, `N [kg]`, a pure number `c [–]`): every axis of every figure
+/// says what it measures in.
+fn check_units(labels: &[&str]) -> Result<(), String> {
+    for l in labels {
+        let unit = l
+            .trim_end()
+            .strip_suffix(']')
+            .and_then(|s| s.rfind('[').map(|i| &s[i + 1..]));
+        if unit.is_none_or(|u| u.trim().is_empty()) {
+            return Err(format!(
+                "axis label `{l}` has no unit: end it with one in brackets, e.g. `t [s]`, or `[–]` for a pure number"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `<stem><ext>`, appending rather than replacing an extension.
 fn with_suffix(stem: &Path, ext: &str) -> PathBuf {
     let mut s: OsString = stem.as_os_str().to_owned();

@@ -119,7 +119,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
             (
                 "max-evals",
                 "max error over the grid vs evaluations",
-                "right-hand-side evaluations",
+                "right-hand-side evaluations [count]",
                 &|r| Some(r.counters.rhs_evals as f64),
                 &|r| r.err_max,
                 true,
@@ -127,7 +127,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
             (
                 "end-evals",
                 "error at the end vs evaluations",
-                "right-hand-side evaluations",
+                "right-hand-side evaluations [count]",
                 &|r| Some(r.counters.rhs_evals as f64),
                 &|r| r.err_end,
                 true,
@@ -135,7 +135,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
             (
                 "tolerance",
                 "max error over the grid vs tolerance",
-                "tolerance rtol = atol",
+                "tolerance rtol = atol [–]",
                 &|r| r.tolerance,
                 &|r| r.err_max,
                 false,

@@ -565,3 +565,38 @@ fn stiff_costs_as_figures_md_states() {
     assert!((off("10000000.0", "direct-dop853") - 0.90).abs() < 0.01);
     assert!((off("100000000.0", "direct-dop853") / 124.0 - 1.0).abs() < 0.03);
 }
+
+/// figures.md, extreme-sleigh: correct digits of the completed runs at
+/// tolerance 1e-9, by integrator (A's implicit run apart).
+#[test]
+fn extreme_sleigh_digits_as_figures_md_states() {
+    figures_md_says(&[
+        "8.7 to 14.4 correct digits by DOP853 and 7.8 to 14.6 by Radau IIA",
+        "A's one completed implicit run (5.8)",
+    ]);
+    let rows = table("extreme-sleigh", "work_precision.csv");
+    let digits = |integrator: &str, a: bool| -> Vec<f64> {
+        rows.iter()
+            .filter(|r| r["status"] == "completed" && r["integrator"] == integrator)
+            .filter(|r| (r["formulation"] == "embedding") == a && !r["tolerance"].is_empty())
+            .map(|r| num(r, "scd_max"))
+            .collect()
+    };
+    let span = |v: Vec<f64>| {
+        v.iter()
+            .fold((f64::MAX, 0.0f64), |(l, h), x| (l.min(*x), h.max(*x)))
+    };
+    let (lo, hi) = span(digits("dop853", false));
+    assert!(
+        (8.65..8.75).contains(&lo) && (14.35..14.45).contains(&hi),
+        "{lo} {hi}"
+    );
+    let (lo, hi) = span(digits("radau5", false));
+    assert!(
+        (7.75..7.85).contains(&lo) && (14.55..14.65).contains(&hi),
+        "{lo} {hi}"
+    );
+    let a = digits("radau5", true);
+    assert_eq!(a.len(), 1);
+    assert!((a[0] - 5.8).abs() < 0.05, "{a:?}");
+}

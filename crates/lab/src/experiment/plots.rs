@@ -49,7 +49,7 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
         "trajectories" => format!("Path of the first two coordinates, every formulation, {point}."),
         "divergence" => format!(
             "Divergence ‖(x, y)_a − (x, y)_b‖ of {} against time on the common output grid, {point} (log scale; a curve ends where one of the two runs stopped).",
-            if exp.formulations.len() <= MAX_ALL_PAIRS {
+            if exp.formulations.len() <= MAX_ALL_PAIRS && !exp.divergence_from_reference {
                 "every pair".to_string()
             } else {
                 format!("every formulation and the reference {}", exp.reference)
@@ -114,8 +114,13 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
             }
         ),
         s if s.starts_with("sweep-") => format!(
-            "Divergence from {} at the end of the common span, over the sweep ({}); failed runs are left out (reasons in runs.csv); on logarithmic axes the legend gives the fitted slope.",
+            "Divergence from {} {}, over the sweep ({}); failed runs are left out (reasons in runs.csv); on logarithmic axes the legend gives the fitted slope.",
             exp.reference,
+            if exp.sweep_max {
+                "(the largest over the common span)"
+            } else {
+                "at the end of the common span"
+            },
             exp.axes
                 .iter()
                 .map(|a| a.name.as_str())
@@ -362,7 +367,7 @@ fn time_series(
         let mut pair_pens = pens::Pens::default();
         // Beyond four formulations every pair would crowd the legend (36
         // lines for nine): only the pairs with the reference then.
-        let all_pairs = trajectories.len() <= MAX_ALL_PAIRS;
+        let all_pairs = trajectories.len() <= MAX_ALL_PAIRS && !exp.divergence_from_reference;
         for (i, (la, ta)) in trajectories.iter().enumerate() {
             for (lb, tb) in &trajectories[i + 1..] {
                 if !all_pairs && la != &exp.reference && lb != &exp.reference {
@@ -552,9 +557,11 @@ fn spans_decades(series: &[Series]) -> bool {
 }
 
 /// The divergence of `label` from `reference` at the end of their common
-/// span; none if either run failed (its span ends where it failed, so the
-/// value would not be comparable with the other points').
-fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> {
+/// span (the largest over it with `[plots] sweep_max`); none if either run
+/// failed (its span ends where it failed, so the value would not be
+/// comparable with the other points').
+fn end_divergence(exp: &Experiment, r: &PointResult, label: &str) -> Option<f64> {
+    let reference = exp.reference.as_str();
     let failed = |l: &str| {
         r.body
             .formulations
@@ -568,7 +575,40 @@ fn end_divergence(r: &PointResult, reference: &str, label: &str) -> Option<f64> 
         .pairs
         .iter()
         .find(|p| (p.a == reference && p.b == label) || (p.b == reference && p.a == label))
-        .and_then(|p| p.div_xy_end)
+        .and_then(|p| {
+            if exp.sweep_max {
+                p.div_xy_max
+            } else {
+                p.div_xy_end
+            }
+        })
+}
+
+/// Where the sweep figures read the divergence: "at t = 2 s" when every
+/// pair with the reference spans the whole run, else "at the end of the
+/// common span" (or the largest over it, `[plots] sweep_max`).
+fn sweep_when(exp: &Experiment, results: &[PointResult]) -> String {
+    if exp.sweep_max {
+        return "largest over the common span".into();
+    }
+    let whole = results.iter().all(|r| {
+        r.body
+            .pairs
+            .iter()
+            .filter(|p| p.a == exp.reference || p.b == exp.reference)
+            .all(|p| {
+                p.span_end
+                    .is_some_and(|t| (t - exp.t_end).abs() <= 1e-9 * exp.t_end.max(1.0))
+            })
+    });
+    if whole {
+        format!(
+            "at t = {} s",
+            crate::table::readable(&format!("{:e}", exp.t_end))
+        )
+    } else {
+        "at the end of the common span".into()
+    }
 }
 
 fn sweep_plots(
@@ -603,9 +643,7 @@ fn sweep_plots(
                 .map(|l| {
                     let pts: Vec<(f64, f64)> = order
                         .iter()
-                        .filter_map(|&i| {
-                            end_divergence(&results[i], &exp.reference, l).map(|d| (x[i], d))
-                        })
+                        .filter_map(|&i| end_divergence(exp, &results[i], l).map(|d| (x[i], d)))
                         .collect();
                     let (px, py): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
                     let mut label = format!("{l} vs {}", exp.reference);
@@ -633,7 +671,11 @@ fn sweep_plots(
             let log_y = spans_decades(&series);
             files.extend(line_plot(
                 &LinePlot {
-                    title: "Divergence at the end of the common span".into(),
+                    title: format!(
+                        "Divergence from {}, {}",
+                        exp.reference,
+                        sweep_when(exp, results)
+                    ),
                     x_label: x_label.clone(),
                     y_label: format!("‖Δ(x, y)‖ from {} [m]", exp.reference),
                     log_x,
@@ -700,12 +742,12 @@ fn sweep_plots(
                     let xi = xv.iter().position(|v| *v == xs[i]);
                     let yi = yv.iter().position(|v| *v == ys[i]);
                     if let (Some(xi), Some(yi)) = (xi, yi) {
-                        z[yi][xi] = end_divergence(r, &exp.reference, l);
+                        z[yi][xi] = end_divergence(exp, r, l);
                     }
                 }
                 files.extend(heatmap(
                     &Heatmap {
-                        title: format!("{l} vs {} at the end of the common span", exp.reference),
+                        title: format!("{l} vs {}, {}", exp.reference, sweep_when(exp, results)),
                         x_label: axis_label(exp, &exp.axes[0].name),
                         y_label: axis_label(exp, &exp.axes[1].name),
                         z_label: "‖Δ(x, y)‖ [m]".into(),

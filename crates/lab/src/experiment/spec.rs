@@ -45,6 +45,8 @@
 //! point = 0                          # sweep point whose time series are drawn
 //! also = [1]                         # further points drawn too (divergence-p1, …)
 //! log_time = true                    # time axes of those figures logarithmic
+//! divergence_from_reference = true   # divergence: each against the reference only
+//! sweep_max = true                   # sweep figures: largest divergence, not the end value
 //! main = "divergence"                # the figure shown for it in docs/figures.md
 //! series = ["u"]                     # quantities drawn against time (series-<name>)
 //! series_span = [0.0, 5.0]           # their time window (default: the whole span)
@@ -262,6 +264,10 @@ struct PlotsFile {
     #[serde(default)]
     log_time: bool,
     #[serde(default)]
+    divergence_from_reference: bool,
+    #[serde(default)]
+    sweep_max: bool,
+    #[serde(default)]
     all_trajectories: bool,
     main: Option<String>,
     #[serde(default)]
@@ -448,6 +454,12 @@ pub struct Experiment {
     pub also_points: Vec<usize>,
     /// Time axes of the time-series figures drawn logarithmically.
     pub log_time: bool,
+    /// The divergence figure shows each formulation against the reference
+    /// only (by default every pair, up to four formulations).
+    pub divergence_from_reference: bool,
+    /// Figures over the sweep show the largest divergence over the common
+    /// span instead of the divergence at its end.
+    pub sweep_max: bool,
     pub all_trajectories: bool,
     /// The plot that stands for the experiment in docs/figures.md (file stem).
     pub main_plot: Option<String>,
@@ -1091,6 +1103,8 @@ impl Experiment {
                 .map(|p| *p.get_ref() as usize)
                 .collect(),
             log_time: file.plots.log_time,
+            divergence_from_reference: file.plots.divergence_from_reference,
+            sweep_max: file.plots.sweep_max,
             all_trajectories: file.plots.all_trajectories,
             main_plot: file.plots.main.clone(),
             series,

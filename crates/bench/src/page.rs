@@ -199,13 +199,9 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
             .file_stem()
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default();
-        let _ = writeln!(
-            h,
-            "<figure><img src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",
-            escape(&rel),
-            escape(&stem),
-            escape(caption)
-        );
+        h.push_str(&nonholo_lab::experiment::page::figure_html(
+            &rel, &stem, caption,
+        ));
     }
     let mut body = String::new();
     let options = pulldown_cmark::Options::ENABLE_TABLES;

@@ -5,27 +5,13 @@
 //! fail if a claim no longer holds. (So far: the experiments of issue 11 and
 //! the realisations' rates.)
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::PathBuf;
 
 fn runs(name: &str) -> Vec<HashMap<String, String>> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../results")
-        .join(name)
-        .join("runs.csv");
-    let mut reader = csv::Reader::from_path(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run `nonholo reproduce`)", path.display()));
-    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
-    reader
-        .records()
-        .map(|r| {
-            header
-                .iter()
-                .cloned()
-                .zip(r.unwrap().iter().map(String::from))
-                .collect()
-        })
-        .collect()
+    table(name, "runs.csv")
 }
 
 /// `results/<name>/<file>` (a CSV with a header) as rows of named fields.
@@ -34,19 +20,12 @@ fn table(name: &str, file: &str) -> Vec<HashMap<String, String>> {
         .join("../../results")
         .join(name)
         .join(file);
-    let mut reader = csv::Reader::from_path(&path)
-        .unwrap_or_else(|e| panic!("{}: {e} (run `nonholo reproduce`)", path.display()));
-    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
-    reader
-        .records()
-        .map(|r| {
-            header
-                .iter()
-                .cloned()
-                .zip(r.unwrap().iter().map(String::from))
-                .collect()
-        })
-        .collect()
+    assert!(
+        path.is_file(),
+        "{}: missing (run `nonholo reproduce`)",
+        path.display()
+    );
+    common::csv_rows(&path)
 }
 
 /// Asserts that `docs/figures.md` (its prose and the claims in its table)

@@ -3,6 +3,8 @@
 //! with a time and a reason, every designed stop names the singular set or
 //! the resolution limit, and nothing writes NaN.
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -30,17 +32,7 @@ fn run(name: &str, edit: impl Fn(String) -> String) -> (PathBuf, Option<i32>, St
 }
 
 fn table(path: &Path) -> Vec<HashMap<String, String>> {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let headers = r.headers().unwrap().clone();
-    r.records()
-        .map(|rec| {
-            headers
-                .iter()
-                .zip(rec.unwrap().iter())
-                .map(|(h, v)| (h.to_string(), v.to_string()))
-                .collect()
-        })
-        .collect()
+    common::csv_rows(path)
 }
 
 /// No table cell is NaN or infinite, and every JSON file parses (JSON has

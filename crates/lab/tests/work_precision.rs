@@ -1,6 +1,8 @@
 //! Work-precision experiments as a user runs them: the ladder against a
 //! closed form (observed orders), an estimated reference, re-runs, bad files.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -22,18 +24,7 @@ fn setup(tag: &str, body: &str) -> (PathBuf, PathBuf) {
 }
 
 fn table(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let headers = r.headers().unwrap().clone();
-    r.records()
-        .map(|rec| {
-            let rec = rec.unwrap();
-            headers
-                .iter()
-                .zip(rec.iter())
-                .map(|(h, v)| (h.to_string(), v.to_string()))
-                .collect()
-        })
-        .collect()
+    common::csv_rows(path)
 }
 
 /// B on the sleigh with `a = 0` (closed form) with every integrator.

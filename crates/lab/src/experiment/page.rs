@@ -52,11 +52,7 @@ impl Page<'_> {
                 .file_stem()
                 .map(|s| s.to_string_lossy().to_string())
                 .unwrap_or_default();
-            let _ = writeln!(
-                h,
-                "<figure><img src=\"{rel}\" alt=\"{stem}\"><figcaption>{}</figcaption></figure>",
-                escape(&(self.caption)(&stem))
-            );
+            h.push_str(&figure_html(&rel, &stem, &(self.caption)(&stem)));
         };
         let _ = writeln!(h, "<h1>{}</h1>", escape(&exp.title));
         let main = super::cli::main_plot(exp, dir).filter(|m| self.plots.contains(m));
@@ -144,6 +140,17 @@ impl Page<'_> {
             _ => Ok(()),
         }
     }
+}
+
+/// A figure of a result page: the image at `src` (relative to the page),
+/// `alt` text and caption, escaped.
+pub fn figure_html(src: &str, alt: &str, caption: &str) -> String {
+    format!(
+        "<figure><img src=\"{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>\n",
+        escape(src),
+        escape(alt),
+        escape(caption)
+    )
 }
 
 /// `dir` is `results/<name>` of `exp` (not a `--out` elsewhere).

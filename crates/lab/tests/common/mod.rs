@@ -193,3 +193,19 @@ pub fn bad_numbers(dir: &Path) -> Vec<String> {
     }
     bad
 }
+
+/// A CSV file with a header as rows of named fields (panics, naming the
+/// file, if it cannot be read).
+pub fn csv_rows(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let headers = r.headers().unwrap().clone();
+    r.records()
+        .map(|rec| {
+            headers
+                .iter()
+                .zip(rec.unwrap().iter())
+                .map(|(h, v)| (h.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}

@@ -228,7 +228,7 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
             cells,
             note:
                 "numbers: correct digits −log10(max |Δq| / max |q|) against the line's reference, \
-                   finest rung; t: where a run stopped or failed (reasons in work_precision.csv); \
+                   finest rung; t: the time [s] where a run stopped or failed (reasons in work_precision.csv); \
                    lines: see index.html or work_precision.csv for formulation, integrator, options"
                     .into(),
         },

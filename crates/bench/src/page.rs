@@ -203,6 +203,12 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
             &rel, &stem, caption,
         ));
     }
+    if !md.contains("git revision") {
+        h.push_str(
+            "<p>The code revision these runs were made with was not recorded (peers.md \
+             predates it); run the peers again to record it.</p>\n",
+        );
+    }
     let mut body = String::new();
     let options = pulldown_cmark::Options::ENABLE_TABLES;
     pulldown_cmark::html::push_html(&mut body, pulldown_cmark::Parser::new_ext(&md, options));
@@ -264,6 +270,8 @@ mod tests {
             html.contains("<table>") && html.contains("<td>2</td>"),
             "{html}"
         );
+        // peers.md without a recorded revision: the page says so.
+        assert!(html.contains("was not recorded"), "{html}");
         // The list of result pages beside it names the page by its title.
         let index = std::fs::read_to_string(root.join("index.html")).unwrap();
         assert!(index.contains("peers/index.html") && index.contains("Peers: our integrators"));

@@ -685,8 +685,13 @@ fn run() -> Result<(), String> {
         csv.push_str(&r.csv());
         csv.push('\n');
     }
+    let revision = match nonholo_lab::experiment::manifest::git_revision(&args.out) {
+        (Some(rev), Some(true)) => format!("{rev} with uncommitted changes"),
+        (Some(rev), _) => rev,
+        (None, _) => "unknown (not run in a git checkout)".into(),
+    };
     let mut md = format!(
-        "Load average before / after the run: {load_before} / {}; {} timed repeats per case.\n\n## Summary\n\n",
+        "Code: git revision {revision}. Load average before / after the run: {load_before} / {}; {} timed repeats per case.\n\n## Summary\n\n",
         load_average(),
         args.repeats
     );

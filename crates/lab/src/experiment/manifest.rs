@@ -107,6 +107,19 @@ fn command_output(cmd: &str, args: &[&str], cwd: &Path) -> Option<String> {
         .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
 }
 
+/// The git revision of the checkout holding `dir`, and whether tracked
+/// files differ from it (both none outside a git checkout).
+pub fn git_revision(dir: &Path) -> (Option<String>, Option<bool>) {
+    let rev = command_output("git", &["rev-parse", "HEAD"], dir);
+    let dirty = command_output(
+        "git",
+        &["status", "--porcelain", "--untracked-files=no"],
+        dir,
+    )
+    .map(|s| !s.is_empty());
+    (rev, dirty)
+}
+
 /// Writes `manifest.json`: the command, the experiment file and its hash,
 /// the git revision, versions, the machine, and when the run started and
 /// finished.
@@ -125,13 +138,7 @@ pub fn write_manifest(
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect();
-    let rev = command_output("git", &["rev-parse", "HEAD"], root);
-    let dirty = command_output(
-        "git",
-        &["status", "--porcelain", "--untracked-files=no"],
-        root,
-    )
-    .map(|s| !s.is_empty());
+    let (rev, dirty) = git_revision(root);
     let top = command_output("git", &["rev-parse", "--show-toplevel"], root).map(PathBuf::from);
     let hostname = std::fs::read_to_string("/proc/sys/kernel/hostname")
         .map(|s| s.trim().to_string())

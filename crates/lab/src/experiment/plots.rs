@@ -100,8 +100,16 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
             ),
             None => stem.to_string(),
         },
+        "sweep-evals" => format!(
+            "Right-hand-side evaluations of every formulation over the sweep ({}): the cost that does not depend on the machine; runs that used up their budget are marked where they stopped, other failed runs left out (reasons in runs.csv).",
+            exp.axes
+                .iter()
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" × ")
+        ),
         "sweep-cost" => format!(
-            "Wall time of every formulation over the sweep ({}), {}; failed runs left out (their reasons are in runs.csv).",
+            "Wall time of every formulation over the sweep ({}), {}, while the other worker threads run other points (so it varies where the cost cannot; sweep-evals does not); runs that used up their budget are marked where they stopped, other failed runs left out (reasons in runs.csv).",
             exp.axes
                 .iter()
                 .map(|a| a.name.as_str())
@@ -685,46 +693,92 @@ fn sweep_plots(
                 },
                 &plots.join("sweep-end"),
             )?);
-            // Cost over the sweep: wall time of every formulation (failed
-            // runs left out), e.g. explicit against implicit as stiffness grows.
-            let cost: Vec<Series> = exp
-                .formulations
-                .iter()
-                .filter(|f| f.formulation != super::spec::CLOSED_FORM)
-                .map(|f| {
-                    let (px, py): (Vec<f64>, Vec<f64>) = order
-                        .iter()
-                        .filter_map(|&i| {
-                            let r = results[i]
-                                .body
-                                .formulations
-                                .iter()
-                                .find(|g| g.label == f.label)?;
-                            (r.status != "failed").then_some((x[i], r.wall_time_s))
-                        })
-                        .unzip();
-                    Series {
-                        label: format!(
-                            "{}: {} ({})",
-                            f.label, f.formulation, f.settings.integrator
-                        ),
+            // Cost over the sweep, e.g. explicit against implicit as
+            // stiffness grows: wall time (machine-dependent, with the other
+            // worker threads' runs beside it) and right-hand-side
+            // evaluations (the same everywhere). Runs that used up their
+            // budget are drawn apart (where they stopped, not a cost to the
+            // end); other failed runs are left out.
+            let cost = |value: &dyn Fn(&super::FormResult) -> Option<f64>| -> Vec<Series> {
+                let mut out = Vec::new();
+                for f in exp
+                    .formulations
+                    .iter()
+                    .filter(|f| f.formulation != super::spec::CLOSED_FORM)
+                {
+                    let pick = |budget: bool| -> (Vec<f64>, Vec<f64>) {
+                        order
+                            .iter()
+                            .filter_map(|&i| {
+                                let r = results[i]
+                                    .body
+                                    .formulations
+                                    .iter()
+                                    .find(|g| g.label == f.label)?;
+                                let over =
+                                    r.status == "failed" && super::budget_stop(r.error.as_deref());
+                                let keep = if budget { over } else { r.status != "failed" };
+                                if keep {
+                                    value(r).map(|v| (x[i], v))
+                                } else {
+                                    None
+                                }
+                            })
+                            .unzip()
+                    };
+                    let pen = pens::find(&pens, &f.label);
+                    let name =
+                        format!("{}: {} ({})", f.label, f.formulation, f.settings.integrator);
+                    let (px, py) = pick(false);
+                    out.push(Series {
+                        label: name.clone(),
                         x: px,
                         y: py,
-                        pen: pens::find(&pens, &f.label),
+                        pen,
+                    });
+                    let (bx, by) = pick(true);
+                    if !bx.is_empty() {
+                        out.push(Series {
+                            label: format!("{name}: budget used up, where it stopped"),
+                            x: bx,
+                            y: by,
+                            pen: pen.map(|p| crate::plot::Pen {
+                                dash: crate::plot::Dash::LongDash,
+                                ..p
+                            }),
+                        });
                     }
-                })
-                .collect();
+                }
+                out
+            };
+            let time = cost(&|r| (r.wall_time_stop_t.is_none()).then_some(r.wall_time_s));
             files.extend(line_plot(
                 &LinePlot {
-                    title: "Cost over the sweep".into(),
-                    x_label,
+                    title: "Cost over the sweep: wall time".into(),
+                    x_label: x_label.clone(),
                     y_label: "wall time [s]".into(),
                     log_x,
-                    log_y: spans_decades(&cost),
+                    log_y: spans_decades(&time),
                     equal_aspect: false,
-                    series: cost,
+                    series: time,
                 },
                 &plots.join("sweep-cost"),
+            )?);
+            let evals = cost(&|r| {
+                (r.wall_time_stop_t.is_none() && r.counters.rhs_evals > 0)
+                    .then_some(r.counters.rhs_evals as f64)
+            });
+            files.extend(line_plot(
+                &LinePlot {
+                    title: "Cost over the sweep: evaluations".into(),
+                    x_label,
+                    y_label: "right-hand-side evaluations [count]".into(),
+                    log_x,
+                    log_y: spans_decades(&evals),
+                    equal_aspect: false,
+                    series: evals,
+                },
+                &plots.join("sweep-evals"),
             )?);
         }
         (2, SweepMode::Grid) => {

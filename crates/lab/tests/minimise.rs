@@ -165,6 +165,15 @@ reference = "B"
             "over = \"D.init.lambda1\"\nrange = [0.0, 1.0]\nlabel = \"C\"",
             "minimise.over",
         ),
+        // A name of every formulation would move the reference B as well.
+        (
+            "over = \"init.omega_theta\"\nrange = [0.1, 1.0]\nlabel = \"C\"",
+            "minimise.over",
+        ),
+        (
+            "over = \"B.init.omega_theta\"\nrange = [0.1, 1.0]\nlabel = \"C\"",
+            "minimised formulation alone",
+        ),
     ] {
         let file = experiment(&root, "bad", &base(extra));
         let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);

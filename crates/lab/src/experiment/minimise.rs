@@ -320,19 +320,15 @@ pub fn summary(exp: &Experiment, dir: &Path) -> serde_json::Value {
 /// Reads the sampled objective of `point`.
 fn read_curve(dir: &Path, point: usize) -> Result<(Vec<f64>, Vec<f64>), String> {
     let path = curve_path(dir, point);
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| format!("{}: {e} (run the experiment to compute it)", path.display()))?;
-    let mut xs = Vec::new();
-    let mut ds = Vec::new();
-    for line in text.lines().skip(1) {
-        let (x, d) = line.split_once(',').unwrap_or((line, ""));
-        xs.push(
-            x.parse()
-                .map_err(|_| format!("{}: `{line}`", path.display()))?,
-        );
-        ds.push(d.parse().unwrap_or(f64::NAN));
-    }
-    Ok((xs, ds))
+    let rows = read_rows(&path)?;
+    let value = |r: &std::collections::HashMap<String, String>, k: &str| {
+        r.get(k).and_then(|v| v.parse().ok()).unwrap_or(f64::NAN)
+    };
+    // An undefined distance is an empty field: NaN, left out of the figure.
+    Ok(rows
+        .iter()
+        .map(|r| (value(r, "value"), value(r, "distance")))
+        .unzip())
 }
 
 /// The figures of the minimisation, from the written files.

@@ -1447,6 +1447,26 @@ fn minimise(ctx: &Ctx, exp: &Experiment, m: &MinimiseFile) -> Result<MinimiseSpe
             ),
         ));
     }
+    // Only the minimised formulation may change with the value: a name that
+    // moved the reference too would compare two motions that both change.
+    let owner = match &target {
+        Target::FormParam(l, _)
+        | Target::FormInit(l, _)
+        | Target::FormOption(l, _)
+        | Target::FormSetting(l, _) => Some(l.as_str()),
+        _ => None,
+    };
+    if owner != Some(m.label.get_ref().as_str()) {
+        return Err(ctx.err(
+            m.over.span(),
+            "minimise.over",
+            format!(
+                "must be a name of the minimised formulation alone (`{0}.init.…`, `{0}.param.…`, \
+                 `{0}.option.…`), so that the reference does not change with it",
+                m.label.get_ref()
+            ),
+        ));
+    }
     let spec = MinimiseSpec {
         over,
         target,

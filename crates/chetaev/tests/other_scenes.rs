@@ -358,6 +358,7 @@ mod degenerate {
         default_velocity: &[1.0, 0.0],
         closed_form: None,
         invariants: &[],
+        contacts: &[],
     };
     impl Scene for Degenerate {
         const INFO: &'static SceneInfo = &INFO;

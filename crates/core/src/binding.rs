@@ -24,10 +24,10 @@ use nonholo_integrate::{OdeSystem, RadauNewton, SystemError};
 use num_dual::{Dual2_64, Dual64};
 
 use crate::Error;
-use crate::consistency::{InitProjection, check_or_project};
+use crate::consistency::{InitProjection, check_or_project, check_positions};
 use crate::init::{ExtraName, Initial};
 use crate::linalg::Singular;
-use crate::model::{Description, FormulationInfo, Model, Observation};
+use crate::model::{Description, FormulationInfo, Model, Observation, Switch, SwitchRecord};
 use crate::monitor::Diagnostics;
 use crate::param::Params;
 use crate::scene::{Scalar, Scene, SceneInfo};
@@ -160,6 +160,67 @@ pub trait Equations: Sized + Send + 'static {
     /// Names `--init` accepts beyond the scene's (the multipliers `λ(0)`).
     fn extra_init_names(&self, _info: &SceneInfo) -> Vec<ExtraName> {
         Vec::new()
+    }
+
+    /// Whether the equations have modes that change at stops of their
+    /// guard ([`Equations::event`], [`Equations::switch`]): the friction
+    /// realisation's stick and slip.
+    fn has_modes(&self) -> bool {
+        false
+    }
+
+    /// Whether initial data must satisfy the nonholonomic constraints
+    /// (a friction realisation may start slipping).
+    fn needs_consistent_velocities(&self) -> bool {
+        true
+    }
+
+    /// The equations' own guard at `(t, y)`, watched beside the
+    /// constraints' singular set: positive while the current mode holds
+    /// (only called if [`Equations::has_modes`]).
+    fn event<S: Scene>(
+        &self,
+        _scene: &S,
+        _work: &mut Self::Work<f64>,
+        _t: f64,
+        _y: &[f64],
+    ) -> Option<f64> {
+        None
+    }
+
+    /// Why the equations' guard stopped the run at `(t, y)`.
+    fn event_reason<S: Scene>(
+        &self,
+        _scene: &S,
+        _work: &mut Self::Work<f64>,
+        _t: f64,
+        _y: &[f64],
+    ) -> String {
+        "the mode's guard reached zero".to_string()
+    }
+
+    /// Called after every accepted step, before the guard (see
+    /// [`nonholo_integrate::OdeSystem::after_step`]), with the new state.
+    fn step_accepted<S: Scene>(
+        &mut self,
+        _scene: &S,
+        _work: &mut Self::Work<f64>,
+        _t: f64,
+        _y: &[f64],
+    ) -> Result<(), EvalError> {
+        Ok(())
+    }
+
+    /// Changes the mode at a stop `(t, y)` of the guard (see
+    /// [`crate::model::Switch`]).
+    fn switch<S: Scene>(
+        &mut self,
+        _scene: &S,
+        _work: &mut Self::Work<f64>,
+        _t: f64,
+        _y: &[f64],
+    ) -> Result<Option<SwitchRecord>, SystemError> {
+        Ok(None)
     }
 
     /// The Newton iteration Radau IIA should use (see [`Model::radau_newton`]).
@@ -392,6 +453,11 @@ impl<S: Scene, E: Equations> OdeSystem for Binding<S, E> {
 
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
         let n = self.n;
+        if self.eq.has_modes() {
+            self.eq
+                .step_accepted(&self.scene, &mut self.work, t, y)
+                .map_err(|e| e.into_system(E::INFO))?;
+        }
         if self.eq.cartesian() {
             let (q, rest) = y.split_at_mut(n);
             return self.hooks.after_step(&self.scene, t, q, &mut rest[..n]);
@@ -404,16 +470,28 @@ impl<S: Scene, E: Equations> OdeSystem for Binding<S, E> {
         Ok(false)
     }
 
+    /// The constraints' singular set, and the equations' own guard if they
+    /// have modes: the smaller of the two (NaN if either is).
     fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
-        let n = self.n;
-        if self.eq.cartesian() {
-            return self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n]);
+        let hooks = self.hooks_guard(t, y);
+        if !self.eq.has_modes() {
+            return hooks;
         }
-        self.physical_velocities(t, y).ok()?;
-        self.hooks.guard(&self.scene, t, &y[..n], &self.physical.qd)
+        let own = self.eq.event(&self.scene, &mut self.work, t, y);
+        match (hooks, own) {
+            (Some(a), Some(b)) if a.is_nan() || b.is_nan() => Some(f64::NAN),
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        if self.eq.has_modes() {
+            let own = self.eq.event(&self.scene, &mut self.work, t, y);
+            if own.is_some_and(|v| v.is_nan() || v <= 0.0) {
+                return self.eq.event_reason(&self.scene, &mut self.work, t, y);
+            }
+        }
         let n = self.n;
         if self.eq.cartesian() {
             return self
@@ -426,6 +504,37 @@ impl<S: Scene, E: Equations> OdeSystem for Binding<S, E> {
                 .guard_reason(&self.scene, t, &y[..n], &self.physical.qd),
             Err(e) => e.message,
         }
+    }
+}
+
+impl<S: Scene, E: Equations> Binding<S, E> {
+    /// The guard of the constraints' singular set.
+    fn hooks_guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        let n = self.n;
+        if self.eq.cartesian() {
+            return self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n]);
+        }
+        self.physical_velocities(t, y).ok()?;
+        self.hooks.guard(&self.scene, t, &y[..n], &self.physical.qd)
+    }
+}
+
+impl<S: Scene, E: Equations> Switch for Binding<S, E> {
+    /// The equations' switch; the diagnostics then count the located stop
+    /// instead of the end of the step that passed it.
+    fn switch(&mut self, t: f64, y: &[f64]) -> Result<Option<SwitchRecord>, SystemError> {
+        let record = self.eq.switch(&self.scene, &mut self.work, t, y)?;
+        if record.is_some() {
+            let n = self.n;
+            if self.eq.cartesian() {
+                self.hooks.rewind(&self.scene, t, &y[..n], &y[n..2 * n]);
+            } else {
+                self.physical_velocities(t, y)?;
+                self.hooks
+                    .rewind(&self.scene, t, &y[..n], &self.physical.qd);
+            }
+        }
+        Ok(record)
     }
 }
 
@@ -447,6 +556,14 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
         self.eq.radau_newton()
     }
 
+    fn switch(&mut self) -> Option<&mut dyn Switch> {
+        if self.eq.has_modes() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
     fn extra_init_names(&self) -> Vec<ExtraName> {
         self.eq.extra_init_names(self.scene.info())
     }
@@ -456,6 +573,9 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
         init: &mut Initial,
         project: bool,
     ) -> Result<Option<InitProjection>, Error> {
+        if !project && !self.eq.needs_consistent_velocities() {
+            return check_positions(&self.scene, init);
+        }
         check_or_project(&self.scene, init, project)
     }
 

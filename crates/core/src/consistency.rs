@@ -53,8 +53,38 @@ pub fn check_or_project<S: Scene>(
             projection: r,
         }));
     }
+    check(scene, init, p, true)
+}
+
+/// Checks `init` against the holonomic constraints only (`f = 0`, `ḟ = 0`):
+/// for realisations that may start off the nonholonomic ones (a contact
+/// already slipping).
+pub fn check_positions<S: Scene>(
+    scene: &S,
+    init: &mut Initial,
+) -> Result<Option<InitProjection>, Error> {
+    let info = scene.info();
+    if info.k() == 0 {
+        return Ok(None);
+    }
+    check(scene, init, Projector::new(scene), false)
+}
+
+/// The check of [`check_or_project`], of `g = 0` too if `nonholonomic`.
+fn check<S: Scene>(
+    scene: &S,
+    init: &Initial,
+    mut p: Projector,
+    nonholonomic: bool,
+) -> Result<Option<InitProjection>, Error> {
+    let info = scene.info();
     p.residuals(scene, init.t0, &init.q, &init.qd);
-    let (pos, v) = (p.cs.position_distance(), p.cs.velocity_distance());
+    let own: Vec<f64> = if nonholonomic {
+        Vec::new()
+    } else {
+        p.cs.g.clone()
+    };
+    let (pos, v) = (p.cs.position_distance(), p.cs.velocity_distance_to(&own));
     let tol = INIT_TOL * scale(&init.q);
     if pos.is_nan() || pos > tol {
         return Err(Error::OffConstraints {

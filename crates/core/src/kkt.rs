@@ -119,15 +119,29 @@ impl<T: Scalar> Kkt<T> {
         &self.sol[..self.n]
     }
 
+    /// The assembled matrix and right-hand side of [`Kkt::assemble`]
+    /// (before any solve overwrites the right-hand side with the solution).
+    pub fn system(&self) -> (&DMatrix<T>, &[T]) {
+        (&self.matrix, &self.sol)
+    }
+
+    /// Mutable access to the solution vector, for a solver other than the
+    /// LU of [`Kkt::solve`] that writes `(q̈, μ_g, μ_f)` there.
+    pub fn sol_mut(&mut self) -> &mut [T] {
+        &mut self.sol
+    }
+
     /// `(μ_g, μ_f)` of the last solve.
     pub fn mu(&self) -> &[T] {
         &self.sol[self.n..]
     }
 
-    /// Assembles and solves the system at `(t, q, q̇)` for the field `ell`
-    /// with parameters `p`, the rows of `g` entering as `rows` says.
+    /// Assembles the system at `(t, q, q̇)` for the field `ell` with
+    /// parameters `p`, the rows of `g` entering as `rows` says, without
+    /// solving it: [`Kkt::system`] then reads it (Gauss's principle hands
+    /// it to a conic solver), [`Kkt::solve`] assembles and solves.
     #[allow(clippy::too_many_arguments)]
-    pub fn solve<F: ScalarField, S: Scene, R: GRows>(
+    pub fn assemble<F: ScalarField, S: Scene, R: GRows>(
         &mut self,
         ell: &F,
         p: &[T],
@@ -136,7 +150,7 @@ impl<T: Scalar> Kkt<T> {
         t: T,
         q: &[T],
         qd: &[T],
-    ) -> Result<(), Singular> {
+    ) {
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
@@ -166,6 +180,28 @@ impl<T: Scalar> Kkt<T> {
                     - self.cs.f[i] * (beta * beta);
             }
         }
+    }
+
+    /// Assembles and solves the system at `(t, q, q̇)` for the field `ell`
+    /// with parameters `p`, the rows of `g` entering as `rows` says.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve<F: ScalarField, S: Scene, R: GRows>(
+        &mut self,
+        ell: &F,
+        p: &[T],
+        scene: &S,
+        rows: &R,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) -> Result<(), Singular> {
+        self.assemble(ell, p, scene, rows, t, q, qd);
+        self.solve_assembled()
+    }
+
+    /// Solves the system of the last [`Kkt::assemble`] in place.
+    pub fn solve_assembled(&mut self) -> Result<(), Singular> {
+        let n = self.n;
         solve_saddle(
             &mut self.matrix,
             n,

@@ -36,10 +36,12 @@ pub use binding::{Binding, Equations, EvalError};
 pub use complex::C64;
 pub use error::{Error, Level};
 pub use init::Initial;
-pub use model::{CrossingRecord, Description, FormulationInfo, Model, Observation};
+pub use model::{
+    CrossingRecord, Description, FormulationInfo, Model, Observation, Switch, SwitchRecord,
+};
 pub use monitor::Diagnostics;
 pub use param::{Bound, Kind, ParamSpec, Params, Value};
 pub use run::{Run, RunConfig, RunStatus, simulate};
-pub use scene::{Named, Scalar, Scene, SceneInfo};
+pub use scene::{ContactInfo, Named, Scalar, Scene, SceneInfo};
 
 pub use nonholo_integrate as integrate;

@@ -98,6 +98,12 @@ pub trait Model: Send {
     fn crossing(&mut self) -> Option<&mut dyn Crossing> {
         None
     }
+    /// What changes the mode of a model with modes at a stop of its guard
+    /// (the friction realisation's stick and slip), if the model has modes;
+    /// `None`: a stop of the guard is a crossing or the end of the run.
+    fn switch(&mut self) -> Option<&mut dyn Switch> {
+        None
+    }
     /// Consistent `y'(t0)` for the implicit form, after [`Model::initial_state`].
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
         Err(Error::numerical(
@@ -170,6 +176,39 @@ pub trait Crossing {
         method: Method,
         opts: &Options,
     ) -> Result<Crossed, SystemError>;
+}
+
+/// A change of mode at a stop of the guard, after which the run goes on
+/// from the same time and state with other equations (a contact that
+/// starts or stops slipping).
+pub trait Switch {
+    /// At the stop `(t, y)` of the guard: `Ok(Some(record))` if the model
+    /// changed its mode and goes on from `(t, y)`; `Ok(None)` if the stop is
+    /// not a change of mode (the run then crosses or ends as without
+    /// modes); `Err` if the model cannot go on (the error says why).
+    fn switch(&mut self, t: f64, y: &[f64]) -> Result<Option<SwitchRecord>, SystemError>;
+}
+
+/// One change of mode of a run (written as is in the run's JSON,
+/// `switches[]`, docs/schema.md).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct SwitchRecord {
+    /// 1 for the first switch of a run.
+    pub number: usize,
+    /// The located stop of the guard where the mode changed.
+    pub t: f64,
+    /// The part that changed (a contact's name).
+    pub part: String,
+    /// The modes before and after (`stick`, `slip`).
+    pub from: String,
+    pub to: String,
+    /// The size of the force the new mode needs, relative to what the
+    /// mode allows (friction: `‖f‖/(μN)` of the conic solve at the switch;
+    /// below 1 the contact sticks).
+    pub force_ratio: f64,
+    /// The size of the rate that starts the new mode (friction: the slip
+    /// acceleration `‖a_s‖` in m/s² at a slip onset, 0 when sticking).
+    pub rate: f64,
 }
 
 /// The state at a time of a crossing's gap, written into the slice.

@@ -46,34 +46,49 @@ pub struct Monitor {
     fd: Vec<Dual64>,
     qdual: Vec<Dual64>,
     diag: Diagnostics,
+    /// The diagnostics before the last [`Monitor::record`], for
+    /// [`Monitor::rewind`].
+    prev: Diagnostics,
 }
 
 impl Monitor {
     pub fn new<S: Scene>(scene: &S) -> Self {
         let info = scene.info();
         let n = info.n();
+        let diag = Diagnostics {
+            invariants: info
+                .invariants
+                .iter()
+                .map(|i| InvariantDrift {
+                    name: i.name.to_string(),
+                    initial: f64::NAN,
+                    drift_max: 0.0,
+                })
+                .collect(),
+            ..Diagnostics::default()
+        };
         Monitor {
             jet: Jet::new(n, info.s().max(info.k())),
             g: vec![0.0; info.s()],
             fd: vec![Dual64::from_re(0.0); info.k()],
             qdual: vec![Dual64::from_re(0.0); n],
-            diag: Diagnostics {
-                invariants: info
-                    .invariants
-                    .iter()
-                    .map(|i| InvariantDrift {
-                        name: i.name.to_string(),
-                        initial: f64::NAN,
-                        drift_max: 0.0,
-                    })
-                    .collect(),
-                ..Diagnostics::default()
-            },
+            prev: diag.clone(),
+            diag,
         }
+    }
+
+    /// Replaces the state of the last [`Monitor::record`] by `(t, q, q̇)`: a
+    /// step whose end lies past a located stop of the guard (a change of
+    /// mode inside it) must not count its end state, computed with the
+    /// equations of the mode before.
+    pub fn rewind<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+        self.diag.clone_from(&self.prev);
+        self.record(scene, t, q, qd);
     }
 
     /// Records one state. The first call fixes the initial energy and invariants.
     pub fn record<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+        self.prev.clone_from(&self.diag);
         let info = scene.info();
         let d = &mut self.diag;
         if info.s() > 0 {

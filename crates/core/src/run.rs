@@ -10,7 +10,7 @@ use nonholo_integrate::{
 use crate::Error;
 use crate::consistency::InitProjection;
 use crate::init::Initial;
-use crate::model::{CrossingRecord, Model, Observation};
+use crate::model::{CrossingRecord, Model, Observation, SwitchRecord};
 use crate::monitor::Diagnostics;
 
 /// Integrator choice and settings for a run.
@@ -40,6 +40,8 @@ pub struct Run {
     pub failure: Option<IntegrateError>,
     /// The crossings of singular sets the run made ([`Model::crossing`]).
     pub crossings: Vec<CrossingRecord>,
+    /// The changes of mode the run made ([`Model::switch`]).
+    pub switches: Vec<SwitchRecord>,
 }
 
 impl std::fmt::Debug for Run {
@@ -143,6 +145,7 @@ pub fn simulate(
     }
     model.accepts(config.method)?;
     let mut crossings = Vec::new();
+    let mut switches = Vec::new();
     let result = if config.method.is_implicit() && model.implicit().is_some() {
         let yp0 = model.initial_slope()?;
         let sys = model.implicit().expect("checked above");
@@ -156,6 +159,7 @@ pub fn simulate(
             config.t_end,
             &config.options,
             &mut crossings,
+            &mut switches,
         )
     } else {
         return Err(Error::NoExplicitForm {
@@ -199,14 +203,17 @@ pub fn simulate(
         diagnostics,
         failure,
         crossings,
+        switches,
     })
 }
 
 /// Pieces of the continuous extension per crossing gap.
 const GAP_PIECES: usize = 4;
 
-/// Integrates the explicit form from `(t0, y0)` to `t_end`, and past every
-/// stop of its guard that the model can cross ([`Model::crossing`]): the
+/// Integrates the explicit form from `(t0, y0)` to `t_end`, past every stop
+/// of its guard at which the model changes mode ([`Model::switch`]; the run
+/// goes on from the same state) and every one it can cross
+/// ([`Model::crossing`]): the
 /// segments' samples, continuous extensions and counters are joined into
 /// one solution, the gaps filled from each crossing's states; budgets are
 /// for the whole run.
@@ -219,6 +226,7 @@ fn solve_across(
     t_end: f64,
     opts: &Options,
     crossings: &mut Vec<CrossingRecord>,
+    switches: &mut Vec<SwitchRecord>,
 ) -> Result<Solution, Failure> {
     let start = Instant::now();
     let mut seg = opts.clone();
@@ -232,16 +240,43 @@ fn solve_across(
             Err(f) => (f.partial, Some(f.error)),
         };
         let total = join(&mut total, part);
-        let t_stop = match error {
-            None => return Ok(total.clone()),
-            Some(IntegrateError::Stopped { t, .. }) if model.crossing().is_some() => t,
-            Some(error) => {
-                return Err(Failure {
-                    error,
-                    partial: total.clone(),
-                });
-            }
+        let stop = |error, total: &Solution| {
+            Err(Failure {
+                error,
+                partial: total.clone(),
+            })
         };
+        let (t_stop, error) = match error {
+            None => return Ok(total.clone()),
+            Some(IntegrateError::Stopped { t, .. })
+                if model.switch().is_some() || model.crossing().is_some() =>
+            {
+                (t, error.expect("matched"))
+            }
+            Some(error) => return stop(error, total),
+        };
+        if let Some(switch) = model.switch() {
+            match switch.switch(t_stop, &total.y_last) {
+                Ok(Some(record)) => {
+                    switches.push(record);
+                    (t, y) = (t_stop, total.y_last.clone());
+                    seg = opts.clone();
+                    seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
+                    seg.max_steps = opts
+                        .max_steps
+                        .saturating_sub(total.stats.steps + total.stats.rejected_steps);
+                    seg.max_wall_time_s = opts
+                        .max_wall_time_s
+                        .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+                    continue;
+                }
+                Ok(None) if model.crossing().is_some() => {}
+                Ok(None) => return stop(error, total),
+                Err(source) => {
+                    return stop(IntegrateError::System { t: t_stop, source }, total);
+                }
+            }
+        }
         let mut left = opts.clone();
         let used = total.stats.steps + total.stats.rejected_steps;
         left.max_steps = opts.max_steps.saturating_sub(used);

@@ -24,9 +24,16 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
     /// For `f64` and every dual number over it this is `re().abs()`,
     /// bit for bit.
     fn modulus(&self) -> f64;
+
+    /// Whether the type is plain `f64` (no derivative parts): code that
+    /// must leave automatic differentiation (a call into a numerical
+    /// library) branches on it.
+    const REAL: bool = false;
 }
 
 impl Scalar for f64 {
+    const REAL: bool = true;
+
     #[inline]
     fn modulus(&self) -> f64 {
         self.abs()
@@ -189,6 +196,23 @@ pub struct ClosedFormInfo {
     pub conditions: &'static str,
 }
 
+/// A point of contact whose sliding the scene's nonholonomic constraints
+/// forbid (a blade, a rolling wheel), for the realisations that let it slide
+/// under dry friction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactInfo {
+    /// Name in messages and records (`blade`).
+    pub name: &'static str,
+    /// The rows of `g` that are the contact's slip velocity in the contact
+    /// plane, in an orthonormal frame (`m/s`): one row for a blade (lateral
+    /// slip only), two for a wheel's contact point. The friction force on
+    /// these components then does the power `fᵀg`.
+    pub rows: &'static [usize],
+    /// The normal load the scene puts on the contact ([`Scene::normal_load`]),
+    /// as a formula with its modelling assumption.
+    pub load: &'static str,
+}
+
 /// Static description of a scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SceneInfo {
@@ -221,6 +245,9 @@ pub struct SceneInfo {
     pub closed_form: Option<ClosedFormInfo>,
     /// Scene-specific invariants, see [`Scene::invariant`] (energy is always measured).
     pub invariants: &'static [Named],
+    /// Contacts that the nonholonomic constraints keep from sliding (empty
+    /// if the constraints are not contacts).
+    pub contacts: &'static [ContactInfo],
 }
 
 impl SceneInfo {
@@ -322,6 +349,14 @@ pub trait Scene: Send + Sync + 'static {
         _r: &mut [f64; MAX_SINGULAR],
     ) -> usize {
         0
+    }
+
+    /// The normal load on contact `contact` of [`SceneInfo::contacts`], in
+    /// newtons, constant along the motion; `None` if the scene does not
+    /// model it (no gravity in its Lagrangian): a friction realisation then
+    /// needs it given.
+    fn normal_load(&self, _contact: usize) -> Option<f64> {
+        None
     }
 
     /// Default positions `q0` (the static [`SceneInfo::default_q`] unless

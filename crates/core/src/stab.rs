@@ -147,6 +147,12 @@ impl StepHooks {
         Ok(changed)
     }
 
+    /// Replaces the last accepted step's end state in the diagnostics by the
+    /// located stop `(t, q, q̇)` inside that step (see [`Monitor::rewind`]).
+    pub fn rewind<S: Scene>(&mut self, scene: &S, t: f64, q: &[f64], qd: &[f64]) {
+        self.monitor.rewind(scene, t, q, qd);
+    }
+
     /// Refuses a stage state on the far side of the singular set (the
     /// direction of `r` reversed relative to the start of the step): the
     /// right-hand side is not defined across it, and evaluating it there would

@@ -56,6 +56,7 @@ const INFO: SceneInfo = SceneInfo {
     default_velocity: &[0.3],
     closed_form: None,
     invariants: &[],
+    contacts: &[],
 };
 
 impl Scene for Oscillator {

@@ -39,6 +39,7 @@ const INFO: SceneInfo = SceneInfo {
     default_velocity: &[0.0, 0.3, 0.0],
     closed_form: None,
     invariants: &[],
+    contacts: &[],
 };
 
 impl Scene for Synthetic {

@@ -10,6 +10,8 @@ pub const ALL: &[&FormulationInfo] = &[
     &nonholo_vakonomic::INFO,
     &nonholo_realise::visc::INFO,
     &nonholo_realise::mass::INFO,
+    &nonholo_contact::gauss::INFO,
+    &nonholo_contact::friction::INFO,
 ];
 
 /// The formulation called `name`, or an error listing the valid names.
@@ -68,6 +70,14 @@ impl SceneVisitor for Build {
             )?)),
             "visc" => Ok(Box::new(nonholo_realise::Visc::new(scene, self.options)?)),
             "mass" => Ok(Box::new(nonholo_realise::Mass::new(scene, self.options)?)),
+            "gauss" => Ok(Box::new(nonholo_contact::gauss::Gauss::new(
+                scene,
+                self.options,
+            )?)),
+            "friction" => Ok(Box::new(nonholo_contact::friction::Friction::new(
+                scene,
+                self.options,
+            )?)),
             other => unreachable!("formulation `{other}` registered but not constructed"),
         }
     }
@@ -78,13 +88,22 @@ mod tests {
     use super::*;
 
     /// Every registered formulation is constructed for every scene it
-    /// declares itself applicable to, and refused with a reason otherwise.
+    /// declares itself applicable to (with the options it requires:
+    /// friction's coefficient and normal load), and refused with a reason
+    /// otherwise.
     #[test]
     fn registry_builds_every_applicable_pair() {
         for scene in nonholo_scenes::ALL {
             for f in ALL {
+                let required: Vec<(String, String)> = match f.name {
+                    "friction" => vec![
+                        ("mu".into(), "0.5".into()),
+                        ("normal".into(), "9.81".into()),
+                    ],
+                    _ => Vec::new(),
+                };
                 let built = nonholo_scenes::build(scene.name, &[])
-                    .and_then(|s| build_model(s, f.name, &[]));
+                    .and_then(|s| build_model(s, f.name, &required));
                 match (f.applicable)(scene) {
                     Ok(()) => assert!(
                         built.is_ok(),

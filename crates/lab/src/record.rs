@@ -2,7 +2,7 @@
 //! `docs/schema.md`).
 
 use nonholo_core::integrate::{Radau5Options, Stats};
-use nonholo_core::{CrossingRecord, Params, Run, RunStatus, Value};
+use nonholo_core::{CrossingRecord, Params, Run, RunStatus, SwitchRecord, Value};
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value as Json};
 
@@ -146,6 +146,11 @@ pub struct RunRecord {
     /// The crossings of singular sets the run made, in order (empty for
     /// every formulation but A with a continuation).
     pub crossings: Vec<CrossingRecord>,
+    /// The changes of mode the run made, in order (the friction
+    /// realisation's stick–slip transitions; absent for formulations
+    /// without modes).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub switches: Vec<SwitchRecord>,
     /// `completed` or `failed`.
     pub status: &'static str,
     pub error: Option<ErrorRecord>,
@@ -364,6 +369,7 @@ impl RunRecord {
                 stiffness_detected: st.stiffness_detected.map(|(a, b)| [a, b]),
             },
             crossings: run.crossings.clone(),
+            switches: run.switches.clone(),
             // Schema run/1 (docs/schema.md) knows `completed` and `failed`
             // only: a stop by design is a `failed` run whose error says so.
             status: match run.status() {

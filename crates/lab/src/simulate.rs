@@ -17,7 +17,7 @@ pub struct SimulateArgs {
     /// Scene name (see `nonholo scenes`).
     #[arg(long, allow_hyphen_values = true)]
     pub scene: String,
-    /// Formulation: chetaev (B), vakonomic (C), embedding (A), visc, mass.
+    /// Formulation: chetaev (B), vakonomic (C), embedding (A), visc, mass, gauss, friction.
     #[arg(long, default_value = "chetaev", allow_hyphen_values = true)]
     pub formulation: String,
     /// Scene parameter, `name=value` (repeatable); angles accept a `deg` suffix.

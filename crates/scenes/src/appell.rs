@@ -86,6 +86,7 @@ pub const INFO: SceneInfo = SceneInfo {
         "rad",
         "direction atan2(ẏ, ẋ) of the horizontal velocity (constant under B)",
     )],
+    contacts: &[],
 };
 
 impl AppellHamel {

@@ -3,8 +3,8 @@
 use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{
-    ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
-    atan2_near,
+    ClosedFormInfo, ConstraintKind, ContactInfo, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene,
+    SceneInfo, atan2_near,
 };
 
 /// Contact point `(x, y)`, heading `θ`, rolling angle `ψ`; radius `R`.
@@ -103,6 +103,12 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("theta_dot", "rad/s", "turning rate θ̇ (constant under B)"),
         Named::new("psi_dot", "rad/s", "rolling rate ψ̇ (constant under B)"),
     ],
+    contacts: &[ContactInfo {
+        name: "contact point",
+        rows: &[0, 1],
+        load: "not modelled: the plane is horizontal and L has no potential, so a friction \
+               realisation takes the normal load as given (m g for a disk of weight m g)",
+    }],
 };
 
 impl Scene for RollingDisk {

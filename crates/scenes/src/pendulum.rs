@@ -70,6 +70,7 @@ pub const INFO: SceneInfo = SceneInfo {
     default_velocity: &[0.0],
     closed_form: None,
     invariants: &[],
+    contacts: &[],
 };
 
 impl Scene for Pendulum {

@@ -6,8 +6,8 @@ use std::f64::consts::FRAC_PI_2;
 use nonholo_core::Error;
 use nonholo_core::param::{Bound, ParamSpec, Params};
 use nonholo_core::scene::{
-    ClosedFormInfo, ConstraintKind, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene, SceneInfo,
-    atan2_near,
+    ClosedFormInfo, ConstraintKind, ContactInfo, EmbeddingInfo, MAX_SINGULAR, Named, Scalar, Scene,
+    SceneInfo, atan2_near,
 };
 
 /// Which potential energy the Lagrangian carries.
@@ -124,6 +124,12 @@ pub const INFO: SceneInfo = SceneInfo {
         conditions: "a = 0 and ω0 ≠ 0 (either potential)",
     }),
     invariants: &[],
+    contacts: &[ContactInfo {
+        name: "blade",
+        rows: &[0],
+        load: "m g cos α: the blade carries the whole normal component of the weight (any other \
+               support is frictionless and unloaded)",
+    }],
 };
 
 impl Scene for Sleigh {
@@ -156,6 +162,11 @@ impl Scene for Sleigh {
 
     fn params(&self) -> &Params {
         &self.params
+    }
+
+    /// `m g cos α` on the blade.
+    fn normal_load(&self, _contact: usize) -> Option<f64> {
+        Some(self.m * self.g * self.alpha.cos())
     }
 
     /// Eq. (22): `L = ½m[ẋ² + ẏ² + Jφ̇² + 2aφ̇(ẏ cos φ − ẋ sin φ)] + m g x sin α`,

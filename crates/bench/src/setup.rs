@@ -237,6 +237,40 @@ pub fn rhs_pairs() -> Result<Vec<(RhsCase, RhsCase)>, Error> {
     ])
 }
 
+/// The contact crate's right-hand sides at the generic sleigh state:
+/// `gauss` on the constraint, `friction` sticking there (μ = 1) and
+/// slipping off it (lateral velocity `SLIP`, μ = 0.3).
+pub fn contact_cases() -> Result<Vec<RhsCase>, Error> {
+    use nonholo_contact::friction::{self, Friction};
+    use nonholo_contact::gauss::{self, Gauss};
+    let s = generic_sleigh()?;
+    let on = cartesian(Q, U, 0.0, OMEGA);
+    let off = cartesian(Q, U, SLIP, OMEGA);
+    let g = Gauss::new(s.clone(), Params::defaults(gauss::OPTIONS))?;
+    let mut cases = vec![RhsCase::new(
+        "gauss",
+        "gauss: quadratic program (Clarabel)",
+        Box::new(g),
+        on.to_vec(),
+    )];
+    for (name, what, mu, y) in [
+        ("friction stick", "friction, sticking (μ = 1)", "1", on),
+        ("friction slip", "friction, slipping (μ = 0.3)", "0.3", off),
+    ] {
+        let mut f = Friction::new(s.clone(), options(friction::OPTIONS, &[("mu", mu)])?)?;
+        let mut init = Initial {
+            t0: 0.0,
+            q: y[..3].to_vec(),
+            qd: y[3..].to_vec(),
+            extra: Vec::new(),
+        };
+        f.make_consistent(&mut init, false)?;
+        let y = f.initial_state(&init)?;
+        cases.push(RhsCase::new(name, what, Box::new(f), y));
+    }
+    Ok(cases)
+}
+
 /// The spec's reduced C at the state matching C's generic state (the
 /// baseline for formulation A, whose motions are C's).
 pub fn reduced_c_case() -> Result<RhsCase, Error> {

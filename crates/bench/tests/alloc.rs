@@ -5,7 +5,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use nonholo_bench::setup::{RhsCase, embedding_explicit, residual_case, rhs_pairs};
+use nonholo_bench::setup::{RhsCase, contact_cases, embedding_explicit, residual_case, rhs_pairs};
 
 struct Counting;
 
@@ -154,6 +154,29 @@ fn every_ad_jacobian_allocates_nothing() {
             n, 0,
             "{} jacobian: {n} allocations ({bytes} bytes) in {REPEATS} calls",
             ad.name
+        );
+    }
+}
+
+/// The contact crate's right-hand sides and Jacobians allocate nothing:
+/// friction sticking and slipping (the friction cone is solved only at
+/// transitions), and gauss, whose Clarabel program is updated in place.
+#[test]
+fn gauss_and_friction_allocate_nothing() {
+    for mut case in contact_cases().unwrap() {
+        assert_rhs_allocates_nothing(&mut case);
+        let dim = case.dim();
+        let mut jac = vec![0.0; dim * dim];
+        assert!(case.jacobian(&mut jac).unwrap());
+        let (n, bytes) = count(|| {
+            for _ in 0..REPEATS {
+                case.jacobian(&mut jac).unwrap();
+            }
+        });
+        assert_eq!(
+            n, 0,
+            "{} jacobian: {n} allocations ({bytes} bytes)",
+            case.name
         );
     }
 }

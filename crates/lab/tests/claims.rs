@@ -601,3 +601,193 @@ fn extreme_sleigh_digits_as_figures_md_states() {
     assert_eq!(a.len(), 1);
     assert!((a[0] - 5.8).abs() < 0.05, "{a:?}");
 }
+
+/// Asserts that `docs/friction.md` says each phrase (white space folded).
+fn friction_md_says(phrases: &[&str]) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/friction.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let flat = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    for p in phrases {
+        assert!(flat.contains(p), "docs/friction.md does not say `{p}`");
+    }
+}
+
+/// The row of `label` at swept value `option.mu = mu`.
+fn at_mu<'a>(
+    rows: &'a [HashMap<String, String>],
+    mu: &str,
+    label: &str,
+) -> &'a HashMap<String, String> {
+    rows.iter()
+        .find(|r| r["option.mu"] == mu && r["label"] == label)
+        .unwrap_or_else(|| panic!("no run {label} at μ = {mu}"))
+}
+
+/// figures.md and friction.md, friction-sleigh: B's motion for μ ≥ 0.27 (no
+/// switch, distance 0), so μ* lies in (0.268, 0.27); slip onsets 0.0102 s
+/// (μ = 0.19) rising to 0.573 s (μ = 0.268); distances 8.6e-5 m, 0.74 m,
+/// 12 m, 20 m at μ = 0.268, 0.25, 0.2, 0.1; slides from the start (a slip
+/// reversal first) at μ = 0.1 and 0.15; visc(1e4) 2.2e-3 m at every μ.
+#[test]
+fn friction_sleigh_as_docs_state() {
+    let rows = runs("friction-sleigh");
+    let close = |v: f64, expect: f64, rel: f64| (v / expect - 1.0).abs() <= rel;
+    for mu in ["0.27", "0.3"] {
+        let f = at_mu(&rows, mu, "friction");
+        assert_eq!(f["status"], "completed");
+        assert_eq!(num(f, "switches"), 0.0, "μ = {mu}");
+        assert_eq!(num(f, "div_xy_max"), 0.0, "μ = {mu}");
+    }
+    let mut last = 0.0;
+    for mu in [
+        "0.19", "0.2", "0.21", "0.22", "0.23", "0.24", "0.25", "0.26", "0.265", "0.268",
+    ] {
+        let f = at_mu(&rows, mu, "friction");
+        assert_eq!(f["first_switch"], "stick→slip", "μ = {mu}");
+        let t = num(f, "first_switch_t");
+        assert!(t > last, "the onset moves later as μ grows: μ = {mu}");
+        last = t;
+    }
+    assert!(close(
+        num(at_mu(&rows, "0.19", "friction"), "first_switch_t"),
+        0.0102,
+        0.01
+    ));
+    assert!(close(last, 0.573, 0.001));
+    for (mu, d) in [
+        ("0.268", 8.6e-5),
+        ("0.25", 0.74),
+        ("0.2", 12.0),
+        ("0.1", 20.0),
+    ] {
+        let got = num(at_mu(&rows, mu, "friction"), "div_xy_max");
+        assert!(close(got, d, 0.03), "μ = {mu}: {got}");
+    }
+    for mu in ["0.1", "0.15"] {
+        assert_eq!(at_mu(&rows, mu, "friction")["first_switch"], "slip→slip");
+    }
+    for r in rows.iter().filter(|r| r["label"] == "visc") {
+        assert!(close(num(r, "div_xy_max"), 2.2e-3, 0.01), "{r:?}");
+    }
+    figures_md_says(&[
+        "λ_B\\|/N = 0.2683 on this motion",
+        "0.0102 s at μ = 0.19 to 0.573 s at μ = 0.268",
+        "from 8.6e-5 m (μ = 0.268) to 0.74 m (μ = 0.25) and 20 m (μ = 0.1",
+        "visc(1e4) stays 2.2e-3 m from B at every μ",
+    ]);
+    friction_md_says(&[
+        "at μ = 0.268, just below μ* = 0.2683, the blade slips at 0.573 s and ends 8.6e-5 m from B",
+        "0.74 m at μ = 0.25, 12 m at μ = 0.2 and 20 m at μ = 0.1",
+        "The slip starts at 0.0102 s (μ = 0.19) to 0.573 s (μ = 0.268)",
+        "at 2.5 and 3.1 s",
+    ]);
+}
+
+/// figures.md and friction.md, disk-slip-to-roll: the located onset of
+/// rolling equals `t_r = s0/((μN/m)(1 + mR²/Jr))` to 1e-12 s, the energy
+/// lost is 0.375 J to 1e-12 J, and the distance to B (projected data) is
+/// 0.25 t_r, slope −1 in μ.
+#[test]
+fn disk_slip_to_roll_as_docs_state() {
+    let rows = runs("disk-slip-to-roll");
+    let (m, r, jr, normal, s0) = (1.0, 1.0, 0.5, 9.81, 1.5);
+    let mut n = 0;
+    for f in rows.iter().filter(|r| r["label"] == "friction") {
+        let mu = num(f, "option.mu");
+        let t_r = s0 / ((mu * normal / m) * (1.0 + m * r * r / jr));
+        assert_eq!(f["first_switch"], "slip→stick");
+        assert!((num(f, "first_switch_t") - t_r).abs() < 1e-12, "μ = {mu}");
+        assert!(
+            (num(f, "energy_drift_max") - 0.375).abs() < 1e-12,
+            "μ = {mu}"
+        );
+        let d = num(f, "div_xy_end");
+        assert!((d / (0.25 * t_r) - 1.0).abs() < 1e-6, "μ = {mu}: {d}");
+        n += 1;
+    }
+    assert_eq!(n, 8);
+    figures_md_says(&[
+        "at all 8 values μ = 0.05 … 10 the located onset of rolling equals the closed form to 1e-12 s and the energy lost to 1e-12 J",
+        "falls like 1/μ (slope −1.00)",
+    ]);
+    friction_md_says(&["`E_lost = s0² m Jr /(2 (Jr + m R²)) = 0.375 J`, independent of `μ`"]);
+}
+
+/// The observed orders of a friction work-precision experiment, by
+/// integrator.
+fn friction_orders(name: &str) -> HashMap<String, f64> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../results")
+        .join(name)
+        .join("summary.json");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    summary["lines"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| {
+            (
+                l["integrator"].as_str().unwrap().to_string(),
+                l["observed_order"].as_f64().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// figures.md and friction.md, wp-friction-sleigh and wp-friction-disk:
+/// observed orders (to the quoted digit) across the transitions; RK4's
+/// collapse on the disk; DOP853's 9.0e-10 m with 313 evaluations.
+#[test]
+fn friction_work_precision_as_docs_state() {
+    for (name, expect) in [
+        (
+            "wp-friction-sleigh",
+            [
+                ("rk4", 3.8),
+                ("dopri5", 6.4),
+                ("dop853", 8.2),
+                ("radau5", 4.5),
+            ],
+        ),
+        (
+            "wp-friction-disk",
+            [
+                ("rk4", 0.9),
+                ("dopri5", 6.8),
+                ("dop853", 8.2),
+                ("radau5", 6.4),
+            ],
+        ),
+    ] {
+        let orders = friction_orders(name);
+        for (integrator, order) in expect {
+            let got = orders[integrator];
+            assert!((got - order).abs() < 0.05, "{name} {integrator}: {got}");
+        }
+    }
+    let wp = table("wp-friction-sleigh", "work_precision.csv");
+    let best = wp
+        .iter()
+        .find(|r| r["integrator"] == "dop853" && num(r, "tolerance") == 1e-11)
+        .unwrap();
+    assert!((num(best, "err_max") / 9.0e-10 - 1.0).abs() < 0.01);
+    assert_eq!(num(best, "rhs_evals"), 313.0);
+    let disk = table("wp-friction-disk", "work_precision.csv");
+    let rk4 = disk
+        .iter()
+        .find(|r| r["integrator"] == "rk4" && r["step_count"] == "3200")
+        .unwrap();
+    assert!((num(rk4, "err_max") / 1.1e-3 - 1.0).abs() < 0.05);
+    figures_md_says(&[
+        "observed RK4 3.8, DOPRI5 6.4, DOP853 8.2, Radau IIA 4.5",
+        "DOP853 reaches 9.0e-10 m with 313 evaluations",
+        "fixed-step RK4 falls to order 0.9 (1.1e-3 m with 3200 steps)",
+        "DOPRI5 (6.8), DOP853 (8.2) and Radau IIA (6.4)",
+    ]);
+    friction_md_says(&[
+        "RK4 3.8, DOPRI5 6.4, DOP853 8.2, Radau IIA 4.5",
+        "fixed-step RK4 falls to order 0.9 (1.1e-3 m with 3200 steps",
+        "DOPRI5 6.8, DOP853 8.2, Radau IIA 6.4",
+    ]);
+}

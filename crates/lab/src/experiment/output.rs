@@ -164,6 +164,12 @@ struct RunRow<'a> {
     crossings: Option<usize>,
     /// Sign changes of the quantity `[measures] reversals` names.
     reversals: Option<usize>,
+    /// Changes of mode (the friction realisation's stick–slip transitions).
+    switches: Option<usize>,
+    /// The located time of the first, and what it was (`stick→slip`).
+    #[serde(serialize_with = "plain_opt")]
+    first_switch_t: Option<f64>,
+    first_switch: Option<&'a str>,
 }
 
 impl<'a> RunRow<'a> {
@@ -188,6 +194,9 @@ impl<'a> RunRow<'a> {
                 .unwrap_or_default(),
             crossings: f.crossings,
             reversals: f.reversals,
+            switches: f.switches,
+            first_switch_t: f.first_switch_t,
+            first_switch: f.first_switch.as_deref(),
         }
     }
 }

@@ -1,5 +1,6 @@
 //! One colour per formulation in every figure: B blue, A vermillion, C
-//! bluish green, `visc` reddish purple, `mass` orange, closed forms black
+//! bluish green, `visc` reddish purple, `mass` orange, `friction` sky blue
+//! (`gauss`, which is B by another solver, B's blue), closed forms black
 //! (Okabe & Ito's palette, [`crate::plot::Pen`]); the integrator sets the
 //! dash (DOP853 solid, Radau IIA dashed, DOPRI5 dotted, RK4 long dashes).
 //! Two lines of one plot that would get the same pen (A with two
@@ -10,13 +11,16 @@ use crate::plot::{Dash, Pen};
 /// The palette index of a formulation's colour.
 pub fn colour_of(formulation: &str) -> usize {
     match formulation {
-        "chetaev" => 0,
+        // Gauss's principle with equality rows is B computed by a conic
+        // solver: B's colour (a figure with both tells them by dash).
+        "chetaev" | "gauss" => 0,
         "embedding" => 1,
         "vakonomic" => 2,
         "visc" => 3,
         "mass" => 4,
+        "friction" => 5,
         super::spec::CLOSED_FORM => 6,
-        _ => 5,
+        _ => 6,
     }
 }
 
@@ -130,6 +134,7 @@ mod tests {
             "vakonomic",
             "visc",
             "mass",
+            "friction",
             "closed-form",
         ]
         .iter()

@@ -108,6 +108,15 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
                 .collect::<Vec<_>>()
                 .join(" × ")
         ),
+        "sweep-switch" => format!(
+            "The located time of each formulation's first change of mode (the friction realisation's stick–slip transitions, found as events on the integrator's continuous extension) over the sweep ({}); the legend names the transition; points without a switch on [0, {}] s are left out.",
+            exp.axes
+                .iter()
+                .map(|a| a.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" × "),
+            exp.t_end
+        ),
         "sweep-cost" => format!(
             "Wall time of every formulation over the sweep ({}), {}, while the other worker threads run other points (so it varies where the cost cannot; sweep-evals does not); runs that used up their budget are marked where they stopped, other failed runs left out (reasons in runs.csv).",
             exp.axes
@@ -780,6 +789,65 @@ fn sweep_plots(
                 },
                 &plots.join("sweep-evals"),
             )?);
+            // Where the formulations with modes first change it: one curve
+            // per formulation and kind of change (a slip from the start
+            // that reverses is not a slip onset).
+            let mut switch = Vec::new();
+            for f in &exp.formulations {
+                let rows: Vec<(f64, f64, &str)> = order
+                    .iter()
+                    .filter_map(|&i| {
+                        let r = results[i]
+                            .body
+                            .formulations
+                            .iter()
+                            .find(|g| g.label == f.label)?;
+                        Some((x[i], r.first_switch_t?, r.first_switch.as_deref()?))
+                    })
+                    .collect();
+                let mut kinds: Vec<&str> = rows.iter().map(|r| r.2).collect();
+                kinds.sort_unstable();
+                kinds.dedup();
+                for (k, kind) in kinds.iter().enumerate() {
+                    let (px, py): (Vec<f64>, Vec<f64>) = rows
+                        .iter()
+                        .filter(|r| r.2 == *kind)
+                        .map(|r| (r.0, r.1))
+                        .unzip();
+                    let mut label = format!("{}: first switch {kind}", f.label);
+                    if log_x && let Some(rate) = super::wp::log_slope(&px, &py) {
+                        label.push_str(&format!(" (slope {rate:.2})"));
+                    }
+                    let pen = pens::find(&pens, &f.label).map(|p| crate::plot::Pen {
+                        dash: if k == 0 {
+                            p.dash
+                        } else {
+                            crate::plot::Dash::LongDash
+                        },
+                        ..p
+                    });
+                    switch.push(Series {
+                        label,
+                        x: px,
+                        y: py,
+                        pen,
+                    });
+                }
+            }
+            if !switch.is_empty() {
+                files.extend(line_plot(
+                    &LinePlot {
+                        title: "First change of mode over the sweep".into(),
+                        x_label: axis_label(exp, &axis.name),
+                        y_label: "time of the first switch [s]".into(),
+                        log_x,
+                        log_y: spans_decades(&switch),
+                        equal_aspect: false,
+                        series: switch,
+                    },
+                    &plots.join("sweep-switch"),
+                )?);
+            }
         }
         (2, SweepMode::Grid) => {
             let (xs, _) = axis_numbers(exp, 0, results);

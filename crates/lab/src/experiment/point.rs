@@ -55,6 +55,16 @@ pub struct FormResult {
     /// output grid (none unless asked for).
     #[serde(default)]
     pub reversals: Option<usize>,
+    /// Changes of mode the run made (the friction realisation's stick–slip
+    /// transitions; 0 for formulations without modes, none without a run).
+    #[serde(default)]
+    pub switches: Option<usize>,
+    /// The located time of the first change of mode.
+    #[serde(default)]
+    pub first_switch_t: Option<f64>,
+    /// What the first change of mode was, `<from>→<to>` (`stick→slip`).
+    #[serde(default)]
+    pub first_switch: Option<String>,
 }
 
 impl FormResult {
@@ -86,6 +96,9 @@ impl FormResult {
             wall_time_stop_t: None,
             crossings: None,
             reversals: None,
+            switches: None,
+            first_switch_t: None,
+            first_switch: None,
         }
     }
 }
@@ -288,6 +301,9 @@ fn from_run(r: &PointRun, run: &Run) -> FormResult {
         wall_time_stop_t: None,
         crossings: Some(run.crossings.len()),
         reversals: None,
+        switches: Some(run.switches.len()),
+        first_switch_t: run.switches.first().map(|s| s.t),
+        first_switch: run.switches.first().map(|s| format!("{}→{}", s.from, s.to)),
     }
 }
 

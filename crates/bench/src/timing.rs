@@ -66,3 +66,33 @@ pub fn paired_ns<A: FnMut(), B: FnMut()>(
     }
     (median(&mut ta), median(&mut tb), median(&mut ratio))
 }
+
+/// `--batches N --batch-ms MS` of the report binaries (defaults 31 and
+/// 20 ms); `--help` prints `usage` and exits.
+pub fn batch_args(usage: &str) -> Result<(usize, f64), String> {
+    let (mut batches, mut batch_ms) = (31usize, 20.0f64);
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match a.as_str() {
+            "--batches" => {
+                let v = value("--batches")?;
+                batches = v
+                    .parse()
+                    .map_err(|_| format!("--batches: cannot read `{v}` as a count"))?;
+            }
+            "--batch-ms" => {
+                let v = value("--batch-ms")?;
+                batch_ms = v
+                    .parse()
+                    .map_err(|_| format!("--batch-ms: cannot read `{v}` as milliseconds"))?;
+            }
+            "-h" | "--help" => {
+                println!("usage: {usage}");
+                std::process::exit(0);
+            }
+            other => return Err(format!("unknown argument `{other}` (try --help)")),
+        }
+    }
+    Ok((batches, batch_ms))
+}

@@ -128,14 +128,14 @@ impl ConicProgram {
     /// Solves the program with the data last [`ConicProgram::set`]; only
     /// Clarabel's `Solved` counts.
     pub fn solve(&mut self) -> Result<(), ConicError> {
-        self.solve_accepting(false)
+        self.solve_accepting(false).map(|_| ())
     }
 
     /// As [`ConicProgram::solve`]; with `almost`, Clarabel's `AlmostSolved`
     /// (its reduced tolerances, ~1e-5 relative) counts too: degenerate
     /// programs (a solution on a cone's boundary with a zero multiplier)
-    /// converge only that far.
-    pub fn solve_accepting(&mut self, almost: bool) -> Result<(), ConicError> {
+    /// converge only that far. Returns whether the accuracy is reduced.
+    pub fn solve_accepting(&mut self, almost: bool) -> Result<bool, ConicError> {
         let updated = match self.solver.as_mut() {
             Some(s) if s.is_data_update_allowed() => s
                 .update_P(&self.p.nzval)
@@ -158,8 +158,8 @@ impl ConicProgram {
         solver.solve();
         self.iterations = solver.solution.iterations;
         match solver.solution.status {
-            SolverStatus::Solved => Ok(()),
-            SolverStatus::AlmostSolved if almost => Ok(()),
+            SolverStatus::Solved => Ok(false),
+            SolverStatus::AlmostSolved if almost => Ok(true),
             status => Err(ConicError {
                 status: format!("{status:?}"),
                 iterations: self.iterations,
@@ -205,6 +205,9 @@ pub struct ConeSolution {
     pub slip_accel: [f64; 2],
     /// `‖f‖/r`: below 1 the contact sticks.
     pub ratio: f64,
+    /// Whether Clarabel reached only its reduced accuracy (`AlmostSolved`,
+    /// ~1e-5 relative): a degenerate program.
+    pub reduced: bool,
 }
 
 impl FrictionCone {
@@ -231,12 +234,13 @@ impl FrictionCone {
         );
         // At a transition the solution may lie on the cone's boundary with
         // a zero slip acceleration (degenerate): accept reduced accuracy.
-        self.program.solve_accepting(true)?;
+        let reduced = self.program.solve_accepting(true)?;
         let x = self.program.x();
         let mut out = ConeSolution {
             force: [0.0; 2],
             slip_accel: [0.0; 2],
             ratio: 0.0,
+            reduced,
         };
         out.force[..d].copy_from_slice(&x[..d]);
         for i in 0..d {

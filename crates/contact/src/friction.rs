@@ -117,6 +117,10 @@ const START_SLIP_TOL: f64 = 1e-9;
 /// accurate to ~1e-10 here.
 const STICK_MARGIN: f64 = 1e-8;
 
+/// The margin where Clarabel reached only its reduced accuracy
+/// (`AlmostSolved`, ~1e-5 relative): a ratio within it of 1 is slip.
+const STICK_MARGIN_REDUCED: f64 = 1e-4;
+
 /// The dry-friction realisation bound to a scene.
 pub type Friction<S> = Binding<S, FrictionEquations>;
 
@@ -246,6 +250,21 @@ impl GRows for Rows<'_> {
     }
 }
 
+/// The KKT solve at `(t, y)` with `contacts` in their modes.
+fn solve_with<S: Scene, T: Scalar>(
+    contacts: &[Contact],
+    scene: &S,
+    kkt: &mut Kkt<T>,
+    free: Option<(usize, [f64; 2])>,
+    t: T,
+    y: &[T],
+) -> Result<(), EvalError> {
+    let n = y.len() / 2;
+    let rows = Rows { contacts, free };
+    kkt.solve(&Lagrangian(scene), &[], scene, &rows, t, &y[..n], &y[n..])?;
+    Ok(())
+}
+
 /// The equations of `friction`: the contacts and their modes.
 pub struct FrictionEquations {
     mu: f64,
@@ -255,6 +274,16 @@ pub struct FrictionEquations {
     max_rate: f64,
     /// Times of the switches made.
     switch_times: Vec<f64>,
+    /// Every mode each contact has had, from `t0`: `(since, contact,
+    /// mode)` in time order, so that a state observed after the run (the
+    /// output grid is read at the end) is read in the mode of its time.
+    history: Vec<(f64, usize, Mode)>,
+    /// The velocity change of a unit impulse on each slip component of the
+    /// contact of the last [`FrictionEquations::cone`] (`n × 2`, column by
+    /// column): `Δq̇ = A P`.
+    impulse: Vec<f64>,
+    /// The `W` of that cone (`d × d`, row-major).
+    w: [f64; 4],
     /// The initial modes, for the record.
     sticking_at_start: usize,
 }
@@ -269,13 +298,18 @@ impl FrictionEquations {
         t: T,
         y: &[T],
     ) -> Result<(), EvalError> {
-        let n = y.len() / 2;
-        let rows = Rows {
-            contacts: &self.contacts,
-            free,
-        };
-        kkt.solve(&Lagrangian(scene), &[], scene, &rows, t, &y[..n], &y[n..])?;
-        Ok(())
+        solve_with(&self.contacts, scene, kkt, free, t, y)
+    }
+
+    /// The contacts in the modes they had at time `t` of the run.
+    fn contacts_at(&self, t: f64) -> Vec<Contact> {
+        let mut contacts = self.contacts.clone();
+        for &(since, ci, mode) in &self.history {
+            if since <= t {
+                contacts[ci].mode = mode;
+            }
+        }
+        contacts
     }
 
     /// The slip acceleration `a_s = G_c q̈ + ġ₀_c` of contact `ci` after a
@@ -304,9 +338,13 @@ impl FrictionEquations {
     ) -> Result<ConeSolution, SystemError> {
         let d = self.contacts[ci].d();
         let fail = |e: EvalError| e.into_system(&INFO);
+        let n = y.len() / 2;
         self.solve(scene, kkt, Some((ci, [0.0; 2])), t, y)
             .map_err(fail)?;
         let c = self.slip_accel(kkt, ci);
+        self.impulse.resize(2 * n, 0.0);
+        self.impulse[..n].copy_from_slice(kkt.qdd());
+        self.impulse[n..].copy_from_slice(kkt.qdd());
         let mut w = [0.0; 4];
         for k in 0..d {
             let mut e = [0.0; 2];
@@ -316,7 +354,12 @@ impl FrictionEquations {
             for a in 0..d {
                 w[a * d + k] = col[a] - c[a];
             }
+            // A unit force's acceleration is a unit impulse's velocity change.
+            for (dst, v) in self.impulse[k * n..(k + 1) * n].iter_mut().zip(kkt.qdd()) {
+                *dst = v - *dst;
+            }
         }
+        self.w = w;
         let bound = self.contacts[ci].bound;
         self.cones[ci]
             .solve(&w[..d * d], &c[..d], bound)
@@ -331,7 +374,12 @@ impl FrictionEquations {
     /// The mode that follows a cone's solution at `(t, g)`: stick inside the
     /// cone, else slip starting against the force.
     fn mode_from(&self, ci: usize, sol: &ConeSolution, g: &[f64], t: f64) -> Mode {
-        if sol.ratio < 1.0 - STICK_MARGIN {
+        let margin = if sol.reduced {
+            STICK_MARGIN_REDUCED
+        } else {
+            STICK_MARGIN
+        };
+        if sol.ratio < 1.0 - margin {
             return Mode::Stick;
         }
         let c = &self.contacts[ci];
@@ -439,6 +487,9 @@ impl Equations for FrictionEquations {
             cones,
             max_rate: options.real("max_switch_rate")?,
             switch_times: Vec::new(),
+            history: Vec::new(),
+            impulse: Vec::new(),
+            w: [0.0; 4],
             sticking_at_start: 0,
         })
     }
@@ -473,8 +524,10 @@ impl Equations for FrictionEquations {
         Ok(())
     }
 
-    /// The contact forces: `λ` of a sticking contact, the kinetic force of a
-    /// slipping one (both in B's convention, generalised force `Gᵀλ`).
+    /// The contact forces at time `t` of the run, in the modes of that time
+    /// (observations are read after the run): `λ` of a sticking contact,
+    /// the kinetic force of a slipping one (both in B's convention,
+    /// generalised force `Gᵀλ`).
     fn multipliers<S: Scene>(
         &self,
         scene: &S,
@@ -485,17 +538,28 @@ impl Equations for FrictionEquations {
         _qd: &[f64],
         out: &mut [f64],
     ) -> Result<(), EvalError> {
-        self.solve(scene, kkt, None, t, y)?;
+        let contacts = self.contacts_at(t);
+        solve_with(&contacts, scene, kkt, None, t, y)?;
         for (m, v) in out.iter_mut().zip(kkt.mu()) {
             *m = -v;
         }
         let g = &kkt.cs.g;
-        for c in &self.contacts {
+        for c in &contacts {
             if let Mode::Slip { dir, .. } = c.mode {
+                // Inside a slip phase the slip never passes zero (that is a
+                // switch): the force is against the slip itself, and along
+                // the phase's direction only where the slip is exactly zero.
+                let u = c.slip(g);
+                let norm = u[..c.d()].iter().map(|v| v * v).sum::<f64>().sqrt();
+                let along = if norm > 0.0 {
+                    [u[0] / norm, u[1] / norm]
+                } else {
+                    dir
+                };
                 let f = if c.bound == 0.0 {
                     [0.0; 2]
                 } else {
-                    c.kinetic(g, dir)
+                    c.kinetic(g, along)
                 };
                 for (a, &r) in c.rows.iter().enumerate() {
                     out[r] = f[a];
@@ -518,14 +582,31 @@ impl Equations for FrictionEquations {
         let mut g = vec![0.0; s];
         Self::constraint_values(scene, init.t0, &y, &mut g);
         let scale = init.qd.iter().fold(1.0f64, |m, v| m.max(v.abs()));
-        self.switch_times.clear();
-        for c in &mut self.contacts {
-            c.mode = Mode::Stick;
+        // Rows of g that belong to no contact stay ideal: they must hold.
+        for r in 0..s {
+            if !self.contacts.iter().any(|c| c.rows.contains(&r))
+                && g[r].abs() > START_SLIP_TOL * scale
+            {
+                return Err(Error::numerical(
+                    "friction: the initial data",
+                    format!(
+                        "constraint {} of `{}` belongs to no contact and stays ideal, but its \
+                         value is {:e} at t0",
+                        scene.info().nonholonomic[r],
+                        scene.info().name,
+                        g[r]
+                    ),
+                ));
+            }
         }
-        for ci in 0..self.contacts.len() {
-            let c = &self.contacts[ci];
+        self.switch_times.clear();
+        self.history.clear();
+        // First the contacts that slip from the start, then the friction
+        // cones of the others (each with the slipping ones already slipping).
+        let mut at_rest = Vec::new();
+        for c in &mut self.contacts {
             let norm = c.rows.iter().map(|&r| g[r] * g[r]).sum::<f64>().sqrt();
-            let mode = if norm > START_SLIP_TOL * scale || c.bound == 0.0 {
+            c.mode = if norm > START_SLIP_TOL * scale || c.bound == 0.0 {
                 let mut dir = [0.0; 2];
                 for (a, &r) in c.rows.iter().enumerate() {
                     dir[a] = if norm > 0.0 { g[r] / norm } else { 0.0 };
@@ -536,12 +617,18 @@ impl Equations for FrictionEquations {
                     since: f64::NAN,
                 }
             } else {
-                let sol = self
-                    .cone(scene, kkt, init.t0, &y, ci)
-                    .map_err(|e| Error::numerical("friction: the initial mode", e.message))?;
-                self.mode_from(ci, &sol, &g, init.t0)
+                Mode::Stick
             };
-            self.contacts[ci].mode = mode;
+            at_rest.push(c.mode == Mode::Stick);
+        }
+        for ci in (0..self.contacts.len()).filter(|&ci| at_rest[ci]) {
+            let sol = self
+                .cone(scene, kkt, init.t0, &y, ci)
+                .map_err(|e| Error::numerical("friction: the initial mode", e.message))?;
+            self.contacts[ci].mode = self.mode_from(ci, &sol, &g, init.t0);
+        }
+        for (ci, c) in self.contacts.iter().enumerate() {
+            self.history.push((init.t0, ci, c.mode));
         }
         self.sticking_at_start = self
             .contacts
@@ -560,7 +647,17 @@ impl Equations for FrictionEquations {
 
     fn event<S: Scene>(&self, scene: &S, kkt: &mut Kkt<f64>, t: f64, y: &[f64]) -> Option<f64> {
         match self.events(scene, kkt, t, y) {
-            Ok(v) => v.into_iter().flatten().reduce(f64::min).or(Some(1.0)),
+            Ok(v) => v
+                .into_iter()
+                .flatten()
+                .reduce(|a, b| {
+                    if a.is_nan() || b.is_nan() {
+                        f64::NAN
+                    } else {
+                        a.min(b)
+                    }
+                })
+                .or(Some(1.0)),
             Err(_) => Some(f64::NAN),
         }
     }
@@ -617,13 +714,17 @@ impl Equations for FrictionEquations {
     }
 
     /// At a stop of the guard: the contact whose guard reached zero changes
-    /// mode as its friction cone says.
+    /// mode as its friction cone says. A contact that sticks keeps no slip:
+    /// what is left of it at the located stop (the error of the location)
+    /// is removed by the impulse `P = −W⁻¹v` inside the contact, `Δq̇ = A P`
+    /// (the kinetic-energy projection onto `v = 0` with the other contacts
+    /// in their modes), which the record reports.
     fn switch<S: Scene>(
         &mut self,
         scene: &S,
         kkt: &mut Kkt<f64>,
         t: f64,
-        y: &[f64],
+        y: &mut [f64],
     ) -> Result<Option<SwitchRecord>, SystemError> {
         let events = self
             .events(scene, kkt, t, y)
@@ -653,7 +754,7 @@ impl Equations for FrictionEquations {
         Self::constraint_values(scene, t, y, &mut g);
         let from = self.contacts[ci].mode;
         let d = self.contacts[ci].d();
-        let sol = if from == Mode::Stick {
+        let (sol, decided_by) = if from == Mode::Stick {
             // The guard located ‖λ‖ = μN: the force sits on the cone's
             // boundary with zero slip acceleration (the transition is
             // continuous), and slip starts against it. The stick solve gives
@@ -666,16 +767,53 @@ impl Equations for FrictionEquations {
                 force[a] = -mu[r];
             }
             let norm = force[..d].iter().map(|v| v * v).sum::<f64>().sqrt();
-            ConeSolution {
+            let sol = ConeSolution {
                 force,
                 slip_accel: [0.0; 2],
                 ratio: (norm / self.contacts[ci].bound).max(1.0),
-            }
+                reduced: false,
+            };
+            (sol, "stick force")
         } else {
-            self.cone(scene, kkt, t, y, ci)?
+            let sol = self.cone(scene, kkt, t, y, ci)?;
+            let by = if sol.reduced {
+                "cone, reduced accuracy"
+            } else {
+                "cone"
+            };
+            (sol, by)
         };
         let to = self.mode_from(ci, &sol, &g, t);
+        let mut jump = 0.0;
+        if to == Mode::Stick {
+            // P = −W⁻¹ v (d = 1 or 2) with v the slip velocity left, then
+            // Δq̇ = A P.
+            let c = &self.contacts[ci];
+            let mut u = [0.0; 2];
+            for (a, &r) in c.rows.iter().enumerate() {
+                u[a] = g[r];
+            }
+            let w = &self.w;
+            let p = if d == 1 {
+                [-u[0] / w[0], 0.0]
+            } else {
+                let det = w[0] * w[3] - w[1] * w[2];
+                [
+                    -(w[3] * u[0] - w[1] * u[1]) / det,
+                    -(-w[2] * u[0] + w[0] * u[1]) / det,
+                ]
+            };
+            let n = y.len() / 2;
+            let mut sq = 0.0;
+            for j in 0..n {
+                let dv: f64 = (0..d).map(|k| self.impulse[k * n + j] * p[k]).sum();
+                y[n + j] += dv;
+                sq += dv * dv;
+            }
+            jump = sq.sqrt();
+        }
         self.contacts[ci].mode = to;
+        self.history.push((t, ci, to));
         Ok(Some(SwitchRecord {
             number: self.switch_times.len(),
             t,
@@ -691,6 +829,8 @@ impl Equations for FrictionEquations {
                     .sum::<f64>()
                     .sqrt(),
             },
+            decided_by: decided_by.to_string(),
+            velocity_jump: jump,
         }))
     }
 }

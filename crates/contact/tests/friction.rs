@@ -283,6 +283,26 @@ fn slip_starts_where_b_needs_mu_n_and_dissipates() {
         }
     }
     assert!(slip_drop > 1e-3, "slip dissipated only {slip_drop} J");
+    // The recorded contact force is read in the mode of each sample's time:
+    // μN while slipping, inside the cone and B's λ before the onset.
+    let bound = mu * sleigh_load();
+    for (i, o) in f.samples.iter().enumerate() {
+        let (t, lam) = (f.solution.t[i], o.multipliers[0].abs());
+        if t > first.t && t < second.t {
+            assert!(
+                (lam - bound).abs() < 1e-12,
+                "t = {t}: |λ| = {lam}, μN = {bound}"
+            );
+        } else {
+            assert!(lam < bound, "t = {t}: |λ| = {lam} outside the cone {bound}");
+        }
+        if t < first.t {
+            assert!(
+                (lam - need(&mut b, t) * sleigh_load()).abs() < 1e-9,
+                "t = {t}"
+            );
+        }
+    }
     assert!(
         stick_drift < 1e-10,
         "energy changed by {stick_drift} J while sticking"
@@ -356,6 +376,52 @@ fn disk_slip_to_roll_matches_the_closed_form() {
             "μ = {mu}: rolling speed drifted"
         );
     }
+}
+
+/// The disk sliding in two dimensions while it turns, by fixed-step RK4:
+/// the stick is located where some slip is left (the approach to rolling is
+/// not smooth), and the switch removes it by an impulse inside the contact
+/// that the record reports; rolling then holds the constraint to round-off
+/// instead of carrying the slip on.
+#[test]
+fn stick_removes_the_slip_left_at_the_located_stop() {
+    let s: RollingDisk = scene(&[]);
+    let init = init::resolve(
+        &s,
+        &pairs(&[
+            ("x_dot", "2"),
+            ("y_dot", "0.5"),
+            ("theta_dot", "0.8"),
+            ("psi_dot", "0.5"),
+        ]),
+        &[],
+    )
+    .unwrap();
+    let model = friction(s, &[("mu", "0.3"), ("normal", "9.81")]).unwrap();
+    let f = simulate(
+        Box::new(model),
+        init,
+        RunConfig {
+            method: Method::Rk4,
+            options: Options {
+                fixed_step: Some(0.0025),
+                output: (0..=200).map(|i| i as f64 * 0.01).collect(),
+                ..Options::default()
+            },
+            t_end: 2.0,
+            project_init: false,
+        },
+    )
+    .unwrap();
+    assert!(f.completed());
+    assert_eq!(f.switches.len(), 1);
+    let sw = &f.switches[0];
+    assert_eq!(sw.to, "stick");
+    assert!(sw.velocity_jump > 1e-6, "{sw:?}");
+    let last = f.samples.last().unwrap();
+    let (c, sn) = (last.q[2].cos(), last.q[2].sin());
+    let slip = (last.qd[0] - last.qd[3] * c).hypot(last.qd[1] - last.qd[3] * sn);
+    assert!(slip < 1e-12, "slip {slip} m/s left after sticking");
 }
 
 /// A slipping contact point of the disk in two dimensions (sideways and

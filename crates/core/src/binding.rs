@@ -211,14 +211,14 @@ pub trait Equations: Sized + Send + 'static {
         Ok(())
     }
 
-    /// Changes the mode at a stop `(t, y)` of the guard (see
-    /// [`crate::model::Switch`]).
+    /// Changes the mode at a stop `(t, y)` of the guard, correcting `y` in
+    /// place if it must (see [`crate::model::Switch`]).
     fn switch<S: Scene>(
         &mut self,
         _scene: &S,
         _work: &mut Self::Work<f64>,
         _t: f64,
-        _y: &[f64],
+        _y: &mut [f64],
     ) -> Result<Option<SwitchRecord>, SystemError> {
         Ok(None)
     }
@@ -522,8 +522,9 @@ impl<S: Scene, E: Equations> Binding<S, E> {
 impl<S: Scene, E: Equations> Switch for Binding<S, E> {
     /// The equations' switch; the diagnostics then count the located stop
     /// instead of the end of the step that passed it.
-    fn switch(&mut self, t: f64, y: &[f64]) -> Result<Option<SwitchRecord>, SystemError> {
+    fn switch(&mut self, t: f64, y: &mut [f64]) -> Result<Option<SwitchRecord>, SystemError> {
         let record = self.eq.switch(&self.scene, &mut self.work, t, y)?;
+        let y = &*y;
         if record.is_some() {
             let n = self.n;
             if self.eq.cartesian() {

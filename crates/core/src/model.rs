@@ -183,10 +183,12 @@ pub trait Crossing {
 /// starts or stops slipping).
 pub trait Switch {
     /// At the stop `(t, y)` of the guard: `Ok(Some(record))` if the model
-    /// changed its mode and goes on from `(t, y)`; `Ok(None)` if the stop is
-    /// not a change of mode (the run then crosses or ends as without
-    /// modes); `Err` if the model cannot go on (the error says why).
-    fn switch(&mut self, t: f64, y: &[f64]) -> Result<Option<SwitchRecord>, SystemError>;
+    /// changed its mode and goes on from `(t, y)` — which it may correct in
+    /// place (an impulse that removes what is left of a slip when a contact
+    /// sticks), saying so in the record; `Ok(None)` if the stop is not a
+    /// change of mode (the run then crosses or ends as without modes);
+    /// `Err` if the model cannot go on (the error says why).
+    fn switch(&mut self, t: f64, y: &mut [f64]) -> Result<Option<SwitchRecord>, SystemError>;
 }
 
 /// One change of mode of a run (written as is in the run's JSON,
@@ -207,8 +209,19 @@ pub struct SwitchRecord {
     /// below 1 the contact sticks).
     pub force_ratio: f64,
     /// The size of the rate that starts the new mode (friction: the slip
-    /// acceleration `‖a_s‖` in m/s² at a slip onset, 0 when sticking).
+    /// acceleration `‖a_s‖` in m/s² that the cone finds at a slip onset; 0
+    /// when sticking, and at a slip that starts from sticking, where the
+    /// transition is continuous).
     pub rate: f64,
+    /// What decided the new mode: `cone` (the friction cone, solved to
+    /// Clarabel's full accuracy), `cone, reduced accuracy` (Clarabel's
+    /// `AlmostSolved`, decided with a wider margin), `stick force` (the
+    /// force of the stick phase reached the cone's boundary).
+    pub decided_by: String,
+    /// The change the switch made to the state: the norm of the velocity
+    /// jump that removes the slip left at a located stick (its size is the
+    /// error of the location; 0 otherwise).
+    pub velocity_jump: f64,
 }
 
 /// The state at a time of a crossing's gap, written into the slice.

@@ -256,10 +256,24 @@ fn solve_across(
             Some(error) => return stop(error, total),
         };
         if let Some(switch) = model.switch() {
-            match switch.switch(t_stop, &total.y_last) {
+            let mut y_new = total.y_last.clone();
+            match switch.switch(t_stop, &mut y_new) {
                 Ok(Some(record)) => {
                     switches.push(record);
-                    (t, y) = (t_stop, total.y_last.clone());
+                    if y_new != total.y_last {
+                        // The state jumps at t_stop: the samples and the
+                        // continuous extension from here on start from it.
+                        if total.t.last() == Some(&t_stop) {
+                            let dim = total.dim;
+                            let at = total.y.len() - dim;
+                            total.y[at..].copy_from_slice(&y_new);
+                        }
+                        total.y_last.clone_from(&y_new);
+                    }
+                    if t_stop >= t_end {
+                        return Ok(total.clone());
+                    }
+                    (t, y) = (t_stop, y_new);
                     seg = opts.clone();
                     seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
                     seg.max_steps = opts

@@ -500,5 +500,23 @@ pub fn summary(run: &Run, r: &RunRecord) -> String {
             max(|c| c.restart_change),
         );
     }
+    for w in &r.switches {
+        let _ = writeln!(
+            s,
+            "switch {}: {} {} → {} at t = {:.9} (force ratio {:.6}, by {}{})",
+            w.number,
+            w.part,
+            w.from,
+            w.to,
+            w.t,
+            w.force_ratio,
+            w.decided_by,
+            if w.velocity_jump > 0.0 {
+                format!("; slip left removed, velocity jump {:.1e}", w.velocity_jump)
+            } else {
+                String::new()
+            }
+        );
+    }
     s
 }

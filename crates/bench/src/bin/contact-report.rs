@@ -8,7 +8,7 @@
 use std::process::ExitCode;
 
 use nonholo_bench::setup::{OMEGA, Q, U, cartesian, generic_sleigh, options, sleigh};
-use nonholo_bench::timing::{keep, paired_ns};
+use nonholo_bench::timing::{batch_args, keep, paired_ns};
 use nonholo_chetaev::Chetaev;
 use nonholo_contact::conic::FrictionCone;
 use nonholo_contact::friction::{self, Friction};
@@ -16,34 +16,6 @@ use nonholo_contact::gauss::{self, Gauss};
 use nonholo_core::integrate::{Method, OdeSystem, Options};
 use nonholo_core::{Error, Initial, Model, Params, RunConfig, init, simulate};
 use nonholo_scenes::Sleigh;
-
-fn parse_args() -> Result<(usize, f64), String> {
-    let (mut batches, mut ms) = (31usize, 20.0f64);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match a.as_str() {
-            "--batches" => {
-                let v = value("--batches")?;
-                batches = v
-                    .parse()
-                    .map_err(|_| format!("--batches: cannot read `{v}` as a count"))?;
-            }
-            "--batch-ms" => {
-                let v = value("--batch-ms")?;
-                ms = v
-                    .parse()
-                    .map_err(|_| format!("--batch-ms: cannot read `{v}` as milliseconds"))?;
-            }
-            "-h" | "--help" => {
-                println!("usage: contact-report [--batches N] [--batch-ms MS]");
-                std::process::exit(0);
-            }
-            other => return Err(format!("unknown argument `{other}` (try --help)")),
-        }
-    }
-    Ok((batches, ms))
-}
 
 /// The default sleigh (the paper's potential) from the figures' data.
 fn figure_sleigh() -> Result<(Sleigh, Initial), Error> {
@@ -78,7 +50,7 @@ fn one_run(model: Box<dyn Model>, init: Initial) -> (usize, bool) {
 }
 
 fn run() -> Result<(), String> {
-    let (batches, ms) = parse_args()?;
+    let (batches, ms) = batch_args("contact-report [--batches N] [--batch-ms MS]")?;
     let e = |e: Error| e.to_string();
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(

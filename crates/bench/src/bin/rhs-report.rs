@@ -10,43 +10,7 @@
 use std::process::ExitCode;
 
 use nonholo_bench::setup::{RhsCase, embedding_explicit, reduced_c_case, residual_case, rhs_pairs};
-use nonholo_bench::timing::{keep, paired_ns};
-
-struct Args {
-    batches: usize,
-    batch_ms: f64,
-}
-
-fn parse_args() -> Result<Args, String> {
-    let mut args = Args {
-        batches: 31,
-        batch_ms: 20.0,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match a.as_str() {
-            "--batches" => {
-                let v = value("--batches")?;
-                args.batches = v
-                    .parse()
-                    .map_err(|_| format!("--batches: cannot read `{v}` as a count"))?;
-            }
-            "--batch-ms" => {
-                let v = value("--batch-ms")?;
-                args.batch_ms = v
-                    .parse()
-                    .map_err(|_| format!("--batch-ms: cannot read `{v}` as milliseconds"))?;
-            }
-            "-h" | "--help" => {
-                println!("usage: rhs-report [--batches N] [--batch-ms MS]");
-                std::process::exit(0);
-            }
-            other => return Err(format!("unknown argument `{other}` (try --help)")),
-        }
-    }
-    Ok(args)
-}
+use nonholo_bench::timing::{batch_args, keep, paired_ns};
 
 /// Checks that a case evaluates, with its name in the message.
 fn check(case: &mut RhsCase, dy: &mut [f64]) -> Result<(), String> {
@@ -55,15 +19,15 @@ fn check(case: &mut RhsCase, dy: &mut [f64]) -> Result<(), String> {
 }
 
 fn run() -> Result<(), String> {
-    let args = parse_args()?;
+    let (batches, batch_ms) = batch_args("rhs-report [--batches N] [--batch-ms MS]")?;
     let mut pairs = rhs_pairs().map_err(|e| e.to_string())?;
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
         "One evaluation at the generic sleigh state (a = 0.4, α = 0.3, potential = com); \
          AD and baseline timed in {} alternating batches of ~{} ms each, medians, and the \
          median of the per-batch ratios; load average before: {}.\n",
-        args.batches,
-        args.batch_ms,
+        batches,
+        batch_ms,
         load.split_whitespace()
             .take(3)
             .collect::<Vec<_>>()
@@ -73,7 +37,7 @@ fn run() -> Result<(), String> {
         "| right-hand side by AD | dim | AD (ns) | hand-written baseline | dim | hand (ns) | ratio AD/hand |"
     );
     println!("|---|---|---|---|---|---|---|");
-    let (batches, ms) = (args.batches, args.batch_ms);
+    let ms = batch_ms;
     let mut jac_lines = Vec::new();
     for (ad, hand) in pairs.iter_mut() {
         let (mut dy_ad, mut dy_hand) = (vec![0.0; ad.dim()], vec![0.0; hand.dim()]);

@@ -19,6 +19,9 @@ pub fn colour_of(formulation: &str) -> usize {
         "visc" => 3,
         "mass" => 4,
         "friction" => 5,
+        // Every registered formulation has its colour above (the palette's
+        // seven are taken); a name outside the registry shares the closed
+        // forms' black.
         super::spec::CLOSED_FORM => 6,
         _ => 6,
     }

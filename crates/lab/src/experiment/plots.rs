@@ -780,7 +780,7 @@ fn sweep_plots(
             files.extend(line_plot(
                 &LinePlot {
                     title: "Cost over the sweep: evaluations".into(),
-                    x_label,
+                    x_label: x_label.clone(),
                     y_label: "right-hand-side evaluations [count]".into(),
                     log_x,
                     log_y: spans_decades(&evals),
@@ -838,7 +838,7 @@ fn sweep_plots(
                 files.extend(line_plot(
                     &LinePlot {
                         title: "First change of mode over the sweep".into(),
-                        x_label: axis_label(exp, &axis.name),
+                        x_label,
                         y_label: "time of the first switch [s]".into(),
                         log_x,
                         log_y: spans_decades(&switch),

@@ -1,6 +1,6 @@
 use clap::{Parser, Subcommand};
 use nonholo_lab::experiment::cli::{
-    self, ExperimentArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
+    self, ExperimentArgs, MergeArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
 };
 use nonholo_lab::simulate::{self, SimulateArgs};
 use nonholo_lab::{CliError, listing, note};
@@ -33,6 +33,8 @@ enum Command {
     Experiment(ExperimentArgs),
     /// Error against cost: run work-precision experiments (all of experiments/ by default).
     WorkPrecision(WorkPrecisionArgs),
+    /// Gather the shards of an experiment (`experiment --shard I/N`) into the results of a single run.
+    Merge(MergeArgs),
     /// Redraw an experiment's figures from its stored results.
     Plot(PlotArgs),
     /// Run every experiment marked as a figure and rebuild docs/figures.md.
@@ -78,6 +80,7 @@ fn main() {
         Command::Simulate(args) => simulate::command(args),
         Command::Experiment(args) => cli::experiment(args),
         Command::WorkPrecision(args) => cli::work_precision(args),
+        Command::Merge(args) => cli::merge(args),
         Command::Plot(args) => cli::plot(args),
         Command::Reproduce(args) => cli::reproduce(args),
     };

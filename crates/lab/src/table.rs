@@ -309,8 +309,27 @@ pub fn html_from_csv(path: &Path) -> String {
         .from_reader(text.as_bytes())
         .into_records()
         .flatten();
-    html(records.map(|r| r.iter().map(String::from).collect::<Vec<_>>()))
+    let rows: Vec<Vec<String>> = records
+        .map(|r| r.iter().map(String::from).collect())
+        .collect();
+    let shown = rows.len().min(MAX_HTML_ROWS + 1);
+    let mut out = html(rows[..shown].iter().cloned());
+    if rows.len() > shown {
+        let name = path
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+        out.push_str(&format!(
+            "<p>The first {MAX_HTML_ROWS} of {} rows; all of them in <a href=\"{name}\">{name}</a>.</p>\n",
+            rows.len() - 1
+        ));
+    }
+    out
 }
+
+/// The most rows of a CSV table a results page shows (the header aside):
+/// a sweep of thousands of points keeps a page of a few hundred kilobytes,
+/// its full table in the CSV file the page links to.
+pub const MAX_HTML_ROWS: usize = 500;
 
 #[cfg(test)]
 mod tests {
@@ -332,6 +351,29 @@ mod tests {
         #[serde(serialize_with = "plain_opt")]
         t_last: Option<f64>,
         error: Option<&'a str>,
+    }
+
+    /// A long CSV shows its first rows and links to the file.
+    #[test]
+    fn long_tables_are_cut_on_pages() {
+        let dir = std::env::temp_dir().join(format!("nonholo-table-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("runs.csv");
+        let mut text = String::from("point,label\n");
+        for i in 0..(MAX_HTML_ROWS + 7) {
+            text.push_str(&format!("{i},B\n"));
+        }
+        std::fs::write(&path, &text).unwrap();
+        let page = html_from_csv(&path);
+        assert_eq!(page.matches("<tr>").count(), MAX_HTML_ROWS + 1);
+        assert!(page.contains(&format!(
+            "The first {MAX_HTML_ROWS} of {} rows",
+            MAX_HTML_ROWS + 7
+        )));
+        assert!(page.contains("<a href=\"runs.csv\">runs.csv</a>"));
+        std::fs::write(&path, "point,label\n0,B\n").unwrap();
+        assert!(!html_from_csv(&path).contains("The first"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -316,3 +316,61 @@ values = { "C.init.lambda2" = [-0.5, 0.0, 0.5] }
         }
     }
 }
+
+/// A sweep split into shards (`--shard I/N`, each into its own directory)
+/// and merged (`nonholo merge`) gives the results of a single run: its
+/// tables byte for byte (wall times, in timing.csv, aside), and a merge
+/// with a shard missing names the points and the shard that computes them.
+#[test]
+fn shards_merge_into_the_single_run() {
+    let (file, single) = setup("shards", "shards", &disk_sweep("shards", 7, 5.0));
+    let f = file.to_str().unwrap();
+    let o = nonholo(&["experiment", f, "--quiet", "--threads", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let root = single.parent().unwrap().to_path_buf();
+    let mut shards = Vec::new();
+    for i in 1..=3 {
+        let o = nonholo(&["experiment", f, "--quiet", "--shard", &format!("{i}/3")]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let dir = root.join(format!("shards.shard-{i}-of-3"));
+        assert!(dir.join("shard.json").is_file());
+        assert!(!dir.join("runs.csv").exists(), "a shard writes no tables");
+        shards.push(dir.to_str().unwrap().to_string());
+    }
+    let merged = root.join("merged");
+    let mut args = vec!["merge", f, "--quiet", "--out", merged.to_str().unwrap()];
+    args.extend(shards.iter().map(String::as_str));
+    let o = nonholo(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for table in ["runs.csv", "pairs.csv", "summary.json", "config.json"] {
+        assert_eq!(
+            std::fs::read(single.join(table)).unwrap(),
+            std::fs::read(merged.join(table)).unwrap(),
+            "{table} differs"
+        );
+    }
+    // A shard missing: exit 2, the points named with the command that
+    // computes them.
+    let partial = root.join("partial");
+    let o = nonholo(&[
+        "merge",
+        f,
+        "--quiet",
+        "--out",
+        partial.to_str().unwrap(),
+        &shards[0],
+        &shards[2],
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("2 of 7 points are stored in none of the shard directories (points 1, 4)")
+            && err.contains("--shard 2/3"),
+        "{err}"
+    );
+    // Bad shard values are refused before anything runs.
+    for bad in ["0/3", "4/3", "x"] {
+        let o = nonholo(&["experiment", f, "--quiet", "--shard", bad]);
+        assert_eq!(o.status.code(), Some(2), "--shard {bad}");
+    }
+}

@@ -1,9 +1,10 @@
-//! `nonholo experiment`, `nonholo plot` and `nonholo reproduce`.
+//! `nonholo experiment`, `nonholo merge`, `nonholo plot` and `nonholo reproduce`.
 
 use std::path::{Path, PathBuf};
 
 use clap::Args;
 
+use super::shard::{self, Shard};
 use super::spec::Kind;
 use super::{Experiment, ResultsDir, RunOptions, default_dir, run};
 use crate::{CliError, fields, io, note};
@@ -25,6 +26,32 @@ pub struct ExperimentArgs {
     /// created if missing; an existing one must be empty or nonholo's.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Compute only shard I of N (`--shard 2/4`: the points whose index is
+    /// 1 modulo 4) into its own directory (default
+    /// results/<name>.shard-I-of-N); `nonholo merge` gathers the shards
+    /// into the results of a single run (docs/cluster.md).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+}
+
+#[derive(Debug, Clone, Args)]
+pub struct MergeArgs {
+    /// Experiment file whose shards to merge.
+    pub file: PathBuf,
+    /// The shard directories (each written by `nonholo experiment FILE
+    /// --shard I/N`).
+    #[arg(required = true)]
+    pub shards: Vec<PathBuf>,
+    /// Results directory (default: results/<name> beside experiments/).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads for what the merge computes itself (the `[minimise]`
+    /// searches), 1 to 1024 (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -164,6 +191,7 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
                 force: args.force,
                 threads: Some(1),
                 quiet: args.quiet,
+                shard: None,
             },
             dir,
         )?;
@@ -201,13 +229,18 @@ fn load(path: &Path) -> Result<Experiment, CliError> {
 pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
     let threads = threads(args.threads)?;
     let exp = load(&args.file)?;
-    let out = open_dir(&exp, args.out.as_deref(), true)?;
+    let shard = args.shard.as_deref().map(Shard::parse).transpose()?;
+    let out = match (shard, &args.out) {
+        (Some(s), None) => open_dir(&exp, Some(&s.default_dir(&exp)), true)?,
+        _ => open_dir(&exp, args.out.as_deref(), true)?,
+    };
     let o = run(
         &exp,
         &RunOptions {
             force: args.force,
             threads,
             quiet: args.quiet,
+            shard,
         },
         out,
     )?;
@@ -238,6 +271,69 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
                     _ => "runs.csv",
                 })
                 .display()
+        )));
+    }
+    Ok(())
+}
+
+/// `nonholo merge FILE SHARD...`: gathers the shards' stored points into
+/// one results directory and writes the tables, figures and pages from
+/// them (nothing is run again; a `[minimise]` search is made here). Exit 2
+/// if a point is in none of the shards, 3 if some runs failed.
+pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
+    let threads = threads(args.threads)?;
+    let exp = load(&args.file)?;
+    if exp.kind == Kind::WorkPrecision {
+        return Err(CliError::Input(format!(
+            "{}: work-precision experiments are not sharded, so there is nothing to merge",
+            exp.name
+        )));
+    }
+    let shards = args
+        .shards
+        .iter()
+        .map(|d| ResultsDir::open(d, "shard directory", false))
+        .collect::<Result<Vec<_>, _>>()?;
+    let out = open_dir(&exp, args.out.as_deref(), true)?;
+    if shards.iter().any(|s| s.path() == out.path()) {
+        return Err(CliError::Input(format!(
+            "merge: {} is both a shard and the output",
+            out.path().display()
+        )));
+    }
+    let points = shard::gather(&exp, &shards, out.path())?;
+    drop(shards);
+    let o = run(
+        &exp,
+        &RunOptions {
+            force: false,
+            threads,
+            quiet: args.quiet,
+            shard: None,
+        },
+        out,
+    )?;
+    note!(
+        "{}: {} points merged from {} shards ({} reused), {} runs; results in {}",
+        exp.name,
+        points,
+        args.shards.len(),
+        o.reused,
+        o.runs,
+        o.dir.display()
+    );
+    if o.reused != o.points {
+        return Err(CliError::Run(format!(
+            "merge: {} points were computed again instead of reused",
+            o.points - o.reused
+        )));
+    }
+    if o.failed_runs > 0 {
+        return Err(CliError::RunsFailed(format!(
+            "{} of {} runs failed (reasons in {})",
+            o.failed_runs,
+            o.runs,
+            o.dir.join("runs.csv").display()
         )));
     }
     Ok(())
@@ -318,6 +414,7 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
                 force: args.force,
                 threads,
                 quiet: false,
+                shard: None,
             },
             out,
         ) {

@@ -40,6 +40,7 @@ pub mod pens;
 pub mod plots;
 pub mod point;
 pub mod reference;
+pub mod shard;
 pub mod spec;
 pub mod sweep;
 pub mod wp;
@@ -92,6 +93,9 @@ pub struct RunOptions {
     pub threads: Option<usize>,
     /// No progress output.
     pub quiet: bool,
+    /// Compute only this slice of the points, and write only the points
+    /// (no tables, figures or pages: `nonholo merge` writes those).
+    pub shard: Option<shard::Shard>,
 }
 
 /// What a run of an experiment did.
@@ -234,12 +238,19 @@ fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> O
 /// work-precision experiment: [`wp`]).
 pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outcome, CliError> {
     if exp.kind == spec::Kind::WorkPrecision {
+        if opts.shard.is_some() {
+            return Err(CliError::Input(format!(
+                "{}: a work-precision experiment times its runs one at a time on one machine; \
+                 --shard splits compare experiments only",
+                exp.name
+            )));
+        }
         return wp::run(exp, opts, out);
     }
     let started = std::time::SystemTime::now();
     let dir = &out.path().to_path_buf();
     out.prepare(&["points", "trajectories", "plots", minimise::CURVES])?;
-    let points = exp.points();
+    let points = shard::slice(exp.points(), opts.shard);
     let threads = opts.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -298,6 +309,19 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         .collect::<Result<_, _>>()
         .map_err(CliError::Output)?;
 
+    if let Some(s) = opts.shard {
+        let indices: Vec<usize> = points.iter().map(|p| p.index).collect();
+        shard::write_record(exp, dir, s, &indices).map_err(CliError::Output)?;
+        manifest::write_manifest(exp, dir, started, threads).map_err(CliError::Output)?;
+        out.finish();
+        return Ok(outcome(
+            dir,
+            &results,
+            reused.load(Ordering::SeqCst),
+            Vec::new(),
+        ));
+    }
+
     if let Some(m) = &exp.minimise {
         if !opts.quiet {
             crate::note!(
@@ -318,7 +342,11 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
     output::write_html(exp, dir, &results, &plots).map_err(CliError::Output)?;
     manifest::write_manifest(exp, dir, started, threads).map_err(CliError::Output)?;
     out.finish();
+    Ok(outcome(dir, &results, reused.load(Ordering::SeqCst), plots))
+}
 
+/// The counts of a finished run.
+fn outcome(dir: &Path, results: &[PointResult], reused: usize, plots: Vec<PathBuf>) -> Outcome {
     let runs = results.iter().map(|r| r.body.formulations.len()).sum();
     let count = |status: &str| {
         results
@@ -327,10 +355,10 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
             .filter(|f| f.status == status)
             .count()
     };
-    Ok(Outcome {
-        dir: dir.clone(),
+    Outcome {
+        dir: dir.to_path_buf(),
         points: results.len(),
-        reused: reused.load(Ordering::SeqCst),
+        reused,
         failed_runs: count("failed"),
         stopped_runs: count("stopped"),
         budget_runs: results
@@ -340,7 +368,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
             .count(),
         runs,
         plots,
-    })
+    }
 }
 
 #[cfg(test)]

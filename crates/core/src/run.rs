@@ -274,14 +274,7 @@ fn solve_across(
                         return Ok(total.clone());
                     }
                     (t, y) = (t_stop, y_new);
-                    seg = opts.clone();
-                    seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
-                    seg.max_steps = opts
-                        .max_steps
-                        .saturating_sub(total.stats.steps + total.stats.rejected_steps);
-                    seg.max_wall_time_s = opts
-                        .max_wall_time_s
-                        .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+                    seg = segment(opts.clone(), opts, t, total, start);
                     continue;
                 }
                 Ok(None) if model.crossing().is_some() => {}
@@ -343,15 +336,21 @@ fn solve_across(
         total.t_last = crossed.t;
         total.y_last.clone_from(&crossed.y);
         (t, y) = (crossed.t, crossed.y);
-        seg = left;
-        seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
-        seg.max_steps = opts
-            .max_steps
-            .saturating_sub(total.stats.steps + total.stats.rejected_steps);
-        seg.max_wall_time_s = opts
-            .max_wall_time_s
-            .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+        seg = segment(left, opts, t, total, start);
     }
+}
+
+/// The options of the segment that starts at `t`: the output times after
+/// it, and what is left of the run's step and wall-time budgets.
+fn segment(mut seg: Options, opts: &Options, t: f64, total: &Solution, start: Instant) -> Options {
+    seg.output = opts.output.iter().copied().filter(|&tau| tau > t).collect();
+    seg.max_steps = opts
+        .max_steps
+        .saturating_sub(total.stats.steps + total.stats.rejected_steps);
+    seg.max_wall_time_s = opts
+        .max_wall_time_s
+        .map(|s| (s - start.elapsed().as_secs_f64()).max(0.0));
+    seg
 }
 
 /// Appends the segment `part` to the run's solution so far.

@@ -368,6 +368,31 @@ fn shards_merge_into_the_single_run() {
             && err.contains("--shard 2/3"),
         "{err}"
     );
+    assert!(
+        !partial.join("points").exists(),
+        "a refused merge writes nothing"
+    );
+    // A shard directory is the shard's: no full results, no merge into it,
+    // and not given twice.
+    let o = nonholo(&["experiment", f, "--quiet", "--out", &shards[0]]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = nonholo(&["merge", f, "--quiet", "--out", &shards[0], &shards[1]]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = nonholo(&[
+        "merge",
+        f,
+        "--quiet",
+        "--out",
+        merged.to_str().unwrap(),
+        &shards[0],
+        &shards[0],
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     // Bad shard values are refused before anything runs.
     for bad in ["0/3", "4/3", "x"] {
         let o = nonholo(&["experiment", f, "--quiet", "--shard", bad]);

@@ -230,10 +230,29 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
     let threads = threads(args.threads)?;
     let exp = load(&args.file)?;
     let shard = args.shard.as_deref().map(Shard::parse).transpose()?;
+    if shard.is_some() && exp.kind == Kind::WorkPrecision {
+        return Err(CliError::Input(format!(
+            "--shard: {} is a work-precision experiment, which times its runs one at a time \
+             on one machine; --shard splits compare experiments only",
+            exp.name
+        )));
+    }
     let out = match (shard, &args.out) {
-        (Some(s), None) => open_dir(&exp, Some(&s.default_dir(&exp)), true)?,
+        (Some(s), None) => {
+            let dir = ResultsDir::open(&s.default_dir(&exp), "shard directory", true)?;
+            dir.check_experiment(&exp.name, "shard directory")?;
+            dir
+        }
         _ => open_dir(&exp, args.out.as_deref(), true)?,
     };
+    let is_shard_dir = shard::shard_of(out.path()).is_some();
+    if shard.is_none() && is_shard_dir {
+        return Err(CliError::Input(format!(
+            "--out: {} is a shard directory (it holds shard.json); merge the shards with \
+             `nonholo merge` instead of writing full results into one",
+            out.path().display()
+        )));
+    }
     let o = run(
         &exp,
         &RunOptions {
@@ -289,20 +308,36 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
             exp.name
         )));
     }
+    // The same directory twice (however spelled) would meet its own lock.
+    let out_path = args.out.clone().unwrap_or_else(|| default_dir(&exp));
+    let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+    let mut seen = vec![canonical(&out_path)];
+    for d in &args.shards {
+        let c = canonical(d);
+        if seen.contains(&c) {
+            return Err(CliError::Input(format!(
+                "merge: {} is given twice (as a shard and as the output, or as two shards)",
+                d.display()
+            )));
+        }
+        seen.push(c);
+    }
     let shards = args
         .shards
         .iter()
         .map(|d| ResultsDir::open(d, "shard directory", false))
         .collect::<Result<Vec<_>, _>>()?;
     let out = open_dir(&exp, args.out.as_deref(), true)?;
-    if shards.iter().any(|s| s.path() == out.path()) {
+    if shard::shard_of(out.path()).is_some() {
         return Err(CliError::Input(format!(
-            "merge: {} is both a shard and the output",
+            "merge: the output {} is a shard directory",
             out.path().display()
         )));
     }
     let points = shard::gather(&exp, &shards, out.path())?;
-    drop(shards);
+    for s in shards {
+        s.finish();
+    }
     let o = run(
         &exp,
         &RunOptions {
@@ -323,6 +358,8 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
         o.dir.display()
     );
     if o.reused != o.points {
+        // Cannot happen: every point was checked by the same test the run
+        // reuses it by. Reported as a failed run (status 1) if it does.
         return Err(CliError::Run(format!(
             "merge: {} points were computed again instead of reused",
             o.points - o.reused

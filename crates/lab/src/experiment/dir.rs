@@ -71,14 +71,17 @@ impl ResultsDir {
     }
 
     /// Refuses a directory that holds the results of another experiment
-    /// (its `summary.json` names it), so that `--out` never mixes two.
+    /// (its `summary.json`, or a shard's `shard.json`, names it), so that
+    /// `--out` never mixes two.
     pub fn check_experiment(&self, name: &str, what: &str) -> Result<(), CliError> {
         let summary = fs::read_to_string(self.path.join("summary.json"))
             .ok()
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+        let shard = super::shard::shard_of(&self.path);
         let stored = summary
             .as_ref()
-            .and_then(|s| s["name"].as_str().or(s["experiment"].as_str()));
+            .and_then(|s| s["name"].as_str().or(s["experiment"].as_str()))
+            .or(shard.as_deref());
         match stored {
             Some(other) if other != name => Err(CliError::Input(format!(
                 "{what}: {} holds the results of experiment `{other}`, not `{name}`",

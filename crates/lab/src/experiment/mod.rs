@@ -249,7 +249,11 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
     }
     let started = std::time::SystemTime::now();
     let dir = &out.path().to_path_buf();
-    out.prepare(&["points", "trajectories", "plots", minimise::CURVES])?;
+    if opts.shard.is_some() {
+        out.prepare(&["points", "trajectories"])?;
+    } else {
+        out.prepare(&["points", "trajectories", "plots", minimise::CURVES])?;
+    }
     let points = shard::slice(exp.points(), opts.shard);
     let threads = opts.threads.unwrap_or_else(|| {
         std::thread::available_parallelism()

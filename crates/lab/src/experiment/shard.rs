@@ -128,37 +128,22 @@ pub fn gather(exp: &Experiment, shards: &[ResultsDir], out: &Path) -> Result<usi
             _ => {}
         }
     }
-    let n = count.unwrap_or(1);
-    fs::create_dir_all(out.join("points"))
-        .and_then(|()| fs::create_dir_all(out.join("trajectories")))
-        .map_err(|e| CliError::Output(format!("cannot create {}: {e}", out.display())))?;
+    let n = count.unwrap_or(1).max(1);
     let points = exp.points();
+    // Where each point is stored, all of them found before anything is
+    // written (a refused merge writes nothing).
+    let mut found = Vec::with_capacity(points.len());
     let mut missing = Vec::new();
     for p in &points {
         let needs_traj =
             exp.all_trajectories || p.index == exp.plot_point || exp.also_points.contains(&p.index);
-        let Some(dir) = shards
+        match shards
             .iter()
             .map(ResultsDir::path)
             .find(|d| super::stored(d, exp, p, needs_traj).is_some())
-        else {
-            missing.push(p.index);
-            continue;
-        };
-        if dir == out {
-            continue;
-        }
-        copy(
-            &files::point_path(dir, p.index),
-            &files::point_path(out, p.index),
-        )?;
-        if needs_traj {
-            for f in &exp.formulations {
-                let from = output::trajectory_path(dir, p.index, &f.label);
-                if from.exists() {
-                    copy(&from, &output::trajectory_path(out, p.index, &f.label))?;
-                }
-            }
+        {
+            Some(dir) => found.push((p.index, dir, needs_traj)),
+            None => missing.push(p.index),
         }
     }
     if let Some(&first) = missing.first() {
@@ -174,7 +159,31 @@ pub fn gather(exp: &Experiment, shards: &[ResultsDir], out: &Path) -> Result<usi
             first % n + 1,
         )));
     }
+    fs::create_dir_all(out.join("points"))
+        .and_then(|()| fs::create_dir_all(out.join("trajectories")))
+        .map_err(|e| CliError::Output(format!("cannot create {}: {e}", out.display())))?;
+    for (index, dir, needs_traj) in found {
+        copy(
+            &files::point_path(dir, index),
+            &files::point_path(out, index),
+        )?;
+        if needs_traj {
+            for f in &exp.formulations {
+                let from = output::trajectory_path(dir, index, &f.label);
+                if from.exists() {
+                    copy(&from, &output::trajectory_path(out, index, &f.label))?;
+                }
+            }
+        }
+    }
     Ok(points.len())
+}
+
+/// The experiment a shard directory holds (its `shard.json`), if it is one.
+pub fn shard_of(dir: &Path) -> Option<String> {
+    let text = fs::read_to_string(dir.join("shard.json")).ok()?;
+    let r: ShardRecord = serde_json::from_str(&text).ok()?;
+    Some(r.experiment)
 }
 
 fn copy(from: &Path, to: &Path) -> Result<(), CliError> {

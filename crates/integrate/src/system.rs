@@ -135,3 +135,39 @@ pub trait ImplicitSystem {
         "guard function reached zero".to_string()
     }
 }
+
+/// The worst entry of a system's Jacobian against central differences of
+/// its right-hand side at `(t, y)` (step `1e-6 (1 + |y_j|)`), relative to
+/// the largest entry of its column (at least 1): `(mismatch, i, j)`, for
+/// checking an analytic or AD Jacobian. `Ok(None)` if the system has no
+/// Jacobian of its own.
+pub fn jacobian_mismatch(
+    sys: &mut dyn OdeSystem,
+    t: f64,
+    y: &[f64],
+) -> Result<Option<(f64, usize, usize)>, SystemError> {
+    let dim = y.len();
+    let mut jac = vec![0.0; dim * dim];
+    if !sys.jacobian(t, y, &mut jac)? {
+        return Ok(None);
+    }
+    let (mut fp, mut fm) = (vec![0.0; dim], vec![0.0; dim]);
+    let mut worst = (0.0f64, 0, 0);
+    for j in 0..dim {
+        let h = 1e-6 * (1.0 + y[j].abs());
+        let (mut yp, mut ym) = (y.to_vec(), y.to_vec());
+        yp[j] += h;
+        ym[j] -= h;
+        sys.rhs(t, &yp, &mut fp)?;
+        sys.rhs(t, &ym, &mut fm)?;
+        let col = (0..dim).fold(1.0f64, |m, i| m.max(jac[i * dim + j].abs()));
+        for i in 0..dim {
+            let fd = (fp[i] - fm[i]) / (2.0 * h);
+            let e = (jac[i * dim + j] - fd).abs() / col;
+            if e.is_nan() || e > worst.0 {
+                worst = (e, i, j);
+            }
+        }
+    }
+    Ok(Some(worst))
+}

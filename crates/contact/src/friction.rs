@@ -226,10 +226,6 @@ impl GRows for Rows<'_> {
             let force = match (self.free, c.mode) {
                 (Some((k, f)), _) if k == ci => [T::from(f[0]), T::from(f[1])],
                 (_, Mode::Stick) => continue,
-                (_, Mode::Slip { dir, .. }) if c.bound == 0.0 => {
-                    let _ = dir;
-                    [T::from(0.0); 2]
-                }
                 (_, Mode::Slip { dir, .. }) => c.kinetic(&cs.g, dir),
             };
             for (a, &r) in c.rows.iter().enumerate() {
@@ -425,21 +421,34 @@ impl FrictionEquations {
         scene.nonholonomic(t, &y[..n], &y[n..], g);
     }
 
-    /// Every contact's guard value at `(t, y)` (after a KKT solve there).
-    fn events<S: Scene>(
+    /// The contact whose guard is smallest at `(t, y)` and that value (a
+    /// NaN value wins: a guard that cannot be evaluated stops the run);
+    /// `None` if no contact has a guard (all without friction). One KKT
+    /// solve, no allocation: the guard is evaluated at every accepted step.
+    fn nearest_event<S: Scene>(
         &self,
         scene: &S,
         kkt: &mut Kkt<f64>,
         t: f64,
         y: &[f64],
-    ) -> Result<Vec<Option<f64>>, EvalError> {
+    ) -> Result<Option<(usize, f64)>, EvalError> {
         self.solve(scene, kkt, None, t, y)?;
         let mut g = [0.0; nonholo_core::scene::MAX_CONSTRAINTS];
         let s = scene.info().s();
         Self::constraint_values(scene, t, y, &mut g[..s]);
-        Ok((0..self.contacts.len())
-            .map(|ci| self.contact_event(ci, kkt, &g[..s], t))
-            .collect())
+        let mut nearest: Option<(usize, f64)> = None;
+        for ci in 0..self.contacts.len() {
+            let Some(v) = self.contact_event(ci, kkt, &g[..s], t) else {
+                continue;
+            };
+            if v.is_nan() {
+                return Ok(Some((ci, v)));
+            }
+            if nearest.is_none_or(|(_, m)| v < m) {
+                nearest = Some((ci, v));
+            }
+        }
+        Ok(nearest)
     }
 }
 
@@ -556,11 +565,7 @@ impl Equations for FrictionEquations {
                 } else {
                     dir
                 };
-                let f = if c.bound == 0.0 {
-                    [0.0; 2]
-                } else {
-                    c.kinetic(g, along)
-                };
+                let f = c.kinetic(g, along);
                 for (a, &r) in c.rows.iter().enumerate() {
                     out[r] = f[a];
                 }
@@ -646,34 +651,17 @@ impl Equations for FrictionEquations {
     }
 
     fn event<S: Scene>(&self, scene: &S, kkt: &mut Kkt<f64>, t: f64, y: &[f64]) -> Option<f64> {
-        match self.events(scene, kkt, t, y) {
-            Ok(v) => v
-                .into_iter()
-                .flatten()
-                .reduce(|a, b| {
-                    if a.is_nan() || b.is_nan() {
-                        f64::NAN
-                    } else {
-                        a.min(b)
-                    }
-                })
-                .or(Some(1.0)),
+        match self.nearest_event(scene, kkt, t, y) {
+            Ok(e) => Some(e.map_or(1.0, |(_, v)| v)),
             Err(_) => Some(f64::NAN),
         }
     }
 
     fn event_reason<S: Scene>(&self, scene: &S, kkt: &mut Kkt<f64>, t: f64, y: &[f64]) -> String {
-        let events = match self.events(scene, kkt, t, y) {
-            Ok(v) => v,
+        let ci = match self.nearest_event(scene, kkt, t, y) {
+            Ok(Some((ci, _))) => ci,
+            Ok(None) => return "no contact with friction".into(),
             Err(e) => return e.into_system(&INFO).message,
-        };
-        let Some((ci, _)) = events
-            .iter()
-            .enumerate()
-            .filter_map(|(i, v)| v.map(|v| (i, v)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-        else {
-            return "no contact with friction".into();
         };
         let c = &self.contacts[ci];
         match c.mode {
@@ -726,17 +714,18 @@ impl Equations for FrictionEquations {
         t: f64,
         y: &mut [f64],
     ) -> Result<Option<SwitchRecord>, SystemError> {
-        let events = self
-            .events(scene, kkt, t, y)
-            .map_err(|e| e.into_system(&INFO))?;
-        let Some((ci, value)) = events
-            .iter()
-            .enumerate()
-            .filter_map(|(i, v)| v.map(|v| (i, v)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
+        let Some((ci, value)) = self
+            .nearest_event(scene, kkt, t, y)
+            .map_err(|e| e.into_system(&INFO))?
         else {
             return Ok(None);
         };
+        if value.is_nan() {
+            return Err(SystemError::new(format!(
+                "friction: the guard of the {} is not finite at t = {t}",
+                self.contacts[ci].name
+            )));
+        }
         if value > 0.0 {
             return Ok(None);
         }

@@ -75,6 +75,10 @@ impl Equations for ChetaevEquations {
         Kkt::for_scene(scene.info())
     }
 
+    fn keeps_constraints(&self) -> bool {
+        true
+    }
+
     fn dim(&self, info: &SceneInfo) -> usize {
         2 * info.n()
     }

@@ -148,6 +148,10 @@ impl Equations for GaussEquations {
         }
     }
 
+    fn keeps_constraints(&self) -> bool {
+        true
+    }
+
     fn dim(&self, info: &SceneInfo) -> usize {
         2 * info.n()
     }

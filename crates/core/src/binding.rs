@@ -27,7 +27,10 @@ use crate::Error;
 use crate::consistency::{InitProjection, check_or_project, check_positions};
 use crate::init::{ExtraName, Initial};
 use crate::linalg::Singular;
-use crate::model::{Description, FormulationInfo, Model, Observation, Switch, SwitchRecord};
+use crate::model::{
+    Description, FormulationInfo, Model, Observation, StateChart, Switch, SwitchRecord,
+    multiplier_names,
+};
 use crate::monitor::Diagnostics;
 use crate::param::Params;
 use crate::scene::{Scalar, Scene, SceneInfo};
@@ -231,6 +234,21 @@ pub trait Equations: Sized + Send + 'static {
     /// Numbers found while setting up the initial state, for the record.
     fn init_report(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
+    }
+
+    /// Whether every motion keeps the scene's constraints `f = ḟ = g = 0`
+    /// (B, C, Gauss; not a realisation, which only approaches them): a
+    /// linearisation then reduces to the constraint manifold.
+    fn keeps_constraints(&self) -> bool {
+        false
+    }
+
+    /// Names of the components of `y` after `(q, q̇)` (`lambda`, ...), for
+    /// linearisations; `y[i]` by default.
+    fn extra_state_names(&self, info: &SceneInfo) -> Vec<String> {
+        (2 * info.n()..self.dim(info))
+            .map(|i| format!("y[{i}]"))
+            .collect()
     }
 }
 
@@ -626,5 +644,48 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
 
     fn diagnostics(&self) -> Diagnostics {
         self.hooks.diagnostics().clone()
+    }
+
+    fn state_chart(&mut self, t: f64, y: &[f64]) -> Result<StateChart, Error> {
+        let info = self.scene.info();
+        if !self.eq.cartesian() {
+            return Err(Error::NotApplicable {
+                formulation: E::INFO.name.into(),
+                scene: info.name.into(),
+                reason: "linearisation needs a state that begins with (q, q̇); this form of \
+                         the formulation holds other velocities"
+                    .into(),
+            });
+        }
+        let (n, k, s) = (self.n, info.k(), info.s());
+        let mut names: Vec<String> = info.coordinates.iter().map(|c| c.name.into()).collect();
+        names.extend(info.coordinates.iter().map(|c| format!("{}_dot", c.name)));
+        names.extend(self.eq.extra_state_names(info));
+        let (invariants, invariant_names, position_rows) = if self.eq.keeps_constraints() {
+            let d = crate::constraints::invariant_jacobian(&self.scene, t, &y[..n], &y[n..2 * n]);
+            let mut full = nalgebra::DMatrix::zeros(d.nrows(), self.dim);
+            full.view_mut((0, 0), (d.nrows(), 2 * n)).copy_from(&d);
+            let holo = multiplier_names(0, k);
+            let mut rows: Vec<String> = holo.iter().map(|v| v.replacen("nu", "f", 1)).collect();
+            rows.extend(
+                holo.iter()
+                    .map(|v| format!("{}_dot", v.replacen("nu", "f", 1))),
+            );
+            rows.extend(
+                multiplier_names(s, 0)
+                    .iter()
+                    .map(|v| v.replacen("lambda", "g", 1)),
+            );
+            (full, rows, k)
+        } else {
+            (nalgebra::DMatrix::zeros(0, self.dim), Vec::new(), 0)
+        };
+        Ok(StateChart {
+            n,
+            names,
+            invariants,
+            invariant_names,
+            position_rows,
+        })
     }
 }

@@ -170,3 +170,51 @@ pub fn nan_max(a: f64, b: f64) -> f64 {
         a.max(b)
     }
 }
+
+/// The Jacobian, with respect to `(q, q̇)`, of the functions whose common
+/// zero set is the constraint manifold in phase space: `f` (rows `0..k`),
+/// `ḟ = F q̇ + ∂f/∂t` (rows `k..2k`) and `g` (rows `2k..2k+s`), a
+/// `(2k + s) × 2n` matrix (columns `q` then `q̇`).
+///
+/// Positions of `f` by hyper-dual passes seeded with `e_j` and with the
+/// motion `(q̇, 1)` in `(q, t)`, which give `∂f/∂q_j` and `∂ḟ/∂q_j` at once
+/// (`∂ḟ/∂q̇_j = ∂f/∂q_j`); `g` by one dual pass per column. Used once per
+/// linearisation, not in right-hand sides.
+pub fn invariant_jacobian<S: Scene>(scene: &S, t: f64, q: &[f64], qd: &[f64]) -> DMatrix<f64> {
+    use num_dual::{Dual64, HyperDual64};
+    let info = scene.info();
+    let (n, s, k) = (info.n(), info.s(), info.k());
+    let mut d = DMatrix::zeros(2 * k + s, 2 * n);
+    if k > 0 {
+        let mut qh = vec![HyperDual64::from_re(0.0); n];
+        let mut fh = vec![HyperDual64::from_re(0.0); k];
+        let th = HyperDual64::new(t, 0.0, 1.0, 0.0);
+        for j in 0..n {
+            for i in 0..n {
+                qh[i] = HyperDual64::new(q[i], if i == j { 1.0 } else { 0.0 }, qd[i], 0.0);
+            }
+            scene.holonomic(th, &qh, &mut fh);
+            for r in 0..k {
+                d[(r, j)] = fh[r].eps1;
+                d[(k + r, j)] = fh[r].eps1eps2;
+                d[(k + r, n + j)] = fh[r].eps1;
+            }
+        }
+    }
+    if s > 0 {
+        let mut qx = vec![Dual64::from_re(0.0); n];
+        let mut qdx = vec![Dual64::from_re(0.0); n];
+        let mut gx = vec![Dual64::from_re(0.0); s];
+        for j in 0..2 * n {
+            for i in 0..n {
+                qx[i] = Dual64::new(q[i], if j == i { 1.0 } else { 0.0 });
+                qdx[i] = Dual64::new(qd[i], if j == n + i { 1.0 } else { 0.0 });
+            }
+            scene.nonholonomic(Dual64::from_re(t), &qx, &qdx, &mut gx);
+            for r in 0..s {
+                d[(2 * k + r, j)] = gx[r].eps;
+            }
+        }
+    }
+    d
+}

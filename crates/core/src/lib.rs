@@ -37,7 +37,8 @@ pub use complex::C64;
 pub use error::{Error, Level};
 pub use init::Initial;
 pub use model::{
-    CrossingRecord, Description, FormulationInfo, Model, Observation, Switch, SwitchRecord,
+    CrossingRecord, Description, FormulationInfo, Model, Observation, StateChart, Switch,
+    SwitchRecord,
 };
 pub use monitor::Diagnostics;
 pub use param::{Bound, Kind, ParamSpec, Params, Value};

@@ -158,6 +158,38 @@ pub trait Model: Send {
     }
     /// Diagnostics accumulated since [`Model::initial_state`].
     fn diagnostics(&self) -> Diagnostics;
+    /// The structure of the state at `(t, y)` that a linearisation needs
+    /// (component names and the constraint manifold the formulation keeps
+    /// invariant); `Err` if the formulation's state does not begin with
+    /// `(q, q̇)` (formulation A), so that it cannot be linearised this way.
+    fn state_chart(&mut self, _t: f64, _y: &[f64]) -> Result<StateChart, Error> {
+        Err(Error::NotApplicable {
+            formulation: self.formulation().name.into(),
+            scene: self.scene_info().name.into(),
+            reason: "linearisation needs a state that begins with (q, q̇)".into(),
+        })
+    }
+}
+
+/// What a linearisation needs to know of a formulation's state `y`, which
+/// begins with `(q, q̇)` (see [`Model::state_chart`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateChart {
+    /// Number of coordinates `n`.
+    pub n: usize,
+    /// A name for every component of `y`: the coordinates, `<coord>_dot`,
+    /// then the formulation's own (`lambda`, ...).
+    pub names: Vec<String>,
+    /// The Jacobian, with respect to `y`, of the functions the formulation
+    /// keeps at zero along every motion (`f`, `ḟ`, `g` for B and C), one row
+    /// each; no rows if it keeps none (a realisation, which only
+    /// approaches the constraints).
+    pub invariants: nalgebra::DMatrix<f64>,
+    /// A name for each row (`f`, `f_dot`, `g1`, ...).
+    pub invariant_names: Vec<String>,
+    /// How many leading rows constrain positions only (`f`); the others
+    /// constrain velocities.
+    pub position_rows: usize,
 }
 
 /// A continuation of a run's solution across a stop of its guard, where the

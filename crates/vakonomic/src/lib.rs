@@ -97,6 +97,14 @@ impl Equations for VakonomicEquations {
         Kkt::for_scene(scene.info())
     }
 
+    fn keeps_constraints(&self) -> bool {
+        true
+    }
+
+    fn extra_state_names(&self, info: &SceneInfo) -> Vec<String> {
+        nonholo_core::model::multiplier_names(info.s(), 0)
+    }
+
     fn dim(&self, info: &SceneInfo) -> usize {
         2 * info.n() + info.s()
     }

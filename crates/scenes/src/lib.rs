@@ -6,12 +6,14 @@
 //! | `rolling-disk` | x, y, θ, ψ | 2 linear nonholonomic | θ = atan2(ẏ, ẋ), ψ̇ = ±speed/R (ψ cyclic) | B |
 //! | `appell-hamel` | x, y, z | 1 nonlinear nonholonomic | — | B |
 //! | `pendulum` | x, y | 1 holonomic | — | — |
+//! | `bicycle` | x, y, ψ, φ, θ, δ, θR, θF | 1 holonomic, 4 linear nonholonomic | — | — |
 //!
 //! Code that must work with any scene receives it through [`SceneVisitor`],
 //! which is called with the concrete scene type so that everything
 //! downstream is monomorphised (no dynamic dispatch in right-hand sides).
 
 pub mod appell;
+pub mod bicycle;
 pub mod disk;
 pub mod pendulum;
 pub mod sleigh;
@@ -19,12 +21,19 @@ pub mod sleigh;
 use nonholo_core::{Error, Params, Scene, SceneInfo};
 
 pub use appell::AppellHamel;
+pub use bicycle::Bicycle;
 pub use disk::RollingDisk;
 pub use pendulum::Pendulum;
 pub use sleigh::{Potential, Sleigh};
 
 /// Every scene, in listing order.
-pub const ALL: &[&SceneInfo] = &[&sleigh::INFO, &disk::INFO, &appell::INFO, &pendulum::INFO];
+pub const ALL: &[&SceneInfo] = &[
+    &sleigh::INFO,
+    &disk::INFO,
+    &appell::INFO,
+    &pendulum::INFO,
+    &bicycle::INFO,
+];
 
 /// Something to do with a scene of any type.
 pub trait SceneVisitor {
@@ -39,6 +48,7 @@ pub enum AnyScene {
     RollingDisk(RollingDisk),
     AppellHamel(AppellHamel),
     Pendulum(Pendulum),
+    Bicycle(Bicycle),
 }
 
 impl AnyScene {
@@ -48,6 +58,7 @@ impl AnyScene {
             AnyScene::RollingDisk(s) => s.info(),
             AnyScene::AppellHamel(s) => s.info(),
             AnyScene::Pendulum(s) => s.info(),
+            AnyScene::Bicycle(s) => s.info(),
         }
     }
 
@@ -57,6 +68,7 @@ impl AnyScene {
             AnyScene::RollingDisk(s) => s.params(),
             AnyScene::AppellHamel(s) => s.params(),
             AnyScene::Pendulum(s) => s.params(),
+            AnyScene::Bicycle(s) => s.params(),
         }
     }
 
@@ -67,6 +79,7 @@ impl AnyScene {
             AnyScene::RollingDisk(s) => v.visit(s),
             AnyScene::AppellHamel(s) => v.visit(s),
             AnyScene::Pendulum(s) => v.visit(s),
+            AnyScene::Bicycle(s) => v.visit(s),
         }
     }
 }
@@ -92,6 +105,7 @@ pub fn build(name: &str, params: &[(String, String)]) -> Result<AnyScene, Error>
         "rolling-disk" => AnyScene::RollingDisk(RollingDisk::from_params(&p)?),
         "appell-hamel" => AnyScene::AppellHamel(AppellHamel::from_params(&p)?),
         "pendulum" => AnyScene::Pendulum(Pendulum::from_params(&p)?),
+        "bicycle" => AnyScene::Bicycle(Bicycle::from_params(&p)?),
         other => unreachable!("scene `{other}` listed in ALL but not built"),
     })
 }

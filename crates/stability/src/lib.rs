@@ -261,7 +261,7 @@ pub fn linearize(
     }
     let matrix = jz.select_rows(&keep).select_columns(&keep);
     let basis = e.select_columns(&keep);
-    let modes = eigen(&matrix)?;
+    let modes = modes(&matrix)?;
     Ok(Linearisation {
         t,
         state: y,
@@ -343,8 +343,9 @@ fn pivot_columns(
     Ok(chosen)
 }
 
-/// Eigenvalues and eigenvectors of `a`, by decreasing real part.
-fn eigen(a: &DMatrix<f64>) -> Result<Vec<Mode>, Error> {
+/// Eigenvalues and eigenvectors of `a` (faer's dense eigendecomposition),
+/// by decreasing real part, then decreasing imaginary part.
+pub fn modes(a: &DMatrix<f64>) -> Result<Vec<Mode>, Error> {
     let m = a.nrows();
     if m == 0 {
         return Ok(Vec::new());

@@ -1,0 +1,332 @@
+//! The Whipple bicycle under B against the benchmark of Meijaard,
+//! Papadopoulos, Ruina & Schwab (2007, Proc. R. Soc. A 463): the linearised
+//! matrices `M`, `C1`, `K0`, `K2` of roll and steer, the eigenvalues of
+//! their Table 2 and the bifurcation, weave and capsize speeds — all from
+//! the nonlinear Lagrangian of the `bicycle` scene by automatic
+//! differentiation, reduction and quotient (docs/stability.md).
+
+use faer::c64;
+use nalgebra::DMatrix;
+use nonholo_core::ad::Jet;
+use nonholo_core::scene::Lagrangian;
+use nonholo_core::{Initial, Params, Scene};
+use nonholo_scenes::Bicycle;
+use nonholo_stability::{Linearisation, Options, linearize, modes};
+
+fn bicycle() -> Bicycle {
+    let p = Params::resolve(nonholo_scenes::bicycle::INFO.params, &[], "parameter").unwrap();
+    Bicycle::from_params(&p).unwrap()
+}
+
+fn upright(b: &Bicycle, v: f64) -> Initial {
+    let q = vec![0.0; 8];
+    let mut qd = vec![0.0; 8];
+    b.velocities_from(&q, &[v, 0.0, 0.0], &mut qd);
+    Initial {
+        t0: 0.0,
+        q,
+        qd,
+        extra: Vec::new(),
+    }
+}
+
+fn linearise(v: f64) -> Linearisation {
+    let b = bicycle();
+    let init = upright(&b, v);
+    let o = Params::resolve(nonholo_chetaev::INFO.options, &[], "option").unwrap();
+    let mut model = nonholo_chetaev::Chetaev::new(b, o).unwrap();
+    let opts = Options {
+        independent: vec!["phi_dot".into(), "delta_dot".into(), "thetaR_dot".into()],
+        ..Options::default()
+    };
+    linearize(&mut model, &init, &opts).unwrap()
+}
+
+/// Indices of roll, steer and their rates among the essential components.
+fn roll_steer(lin: &Linearisation) -> [usize; 4] {
+    ["phi", "delta", "phi_dot", "delta_dot"].map(|n| lin.index(n).unwrap())
+}
+
+/// The eigenvalues of roll and steer (the speed's own eigenvalue, zero,
+/// left out: the speed does not feed back at first order).
+fn roll_steer_eigenvalues(v: f64) -> Vec<c64> {
+    let lin = linearise(v);
+    let idx = roll_steer(&lin);
+    let a = lin.matrix.select_rows(&idx).select_columns(&idx);
+    modes(&a).unwrap().iter().map(|m| m.value).collect()
+}
+
+/// Table 2 of Meijaard et al. (2007): eigenvalues at v = 0, 1, …, 10 m/s
+/// (weave pairs as `(re, ±im)`).
+const TABLE2: [[(f64, f64); 4]; 11] = [
+    [
+        (-3.13164324790656, 0.0),
+        (3.13164324790656, 0.0),
+        (-5.53094371765393, 0.0),
+        (5.53094371765393, 0.0),
+    ],
+    [
+        (-3.13423125066578, 0.0),
+        (3.52696170990070, 0.8077402751993),
+        (3.52696170990070, -0.8077402751993),
+        (-7.11008014637442, 0.0),
+    ],
+    [
+        (-3.07158645641514, 0.0),
+        (2.68234517512745, 1.68066296590675),
+        (2.68234517512745, -1.68066296590675),
+        (-8.67387984831735, 0.0),
+    ],
+    [
+        (-2.63366137253667, 0.0),
+        (1.70675605663975, 2.31582447384325),
+        (1.70675605663975, -2.31582447384325),
+        (-10.35101467245920, 0.0),
+    ],
+    [
+        (-1.42944427361326, 0.0),
+        (0.41325331521125, 3.07910818603206),
+        (0.41325331521125, -3.07910818603206),
+        (-12.15861426576450, 0.0),
+    ],
+    [
+        (-0.32286642900409, 0.0),
+        (-0.77534188219585, 4.46486771378823),
+        (-0.77534188219585, -4.46486771378823),
+        (-14.07838969279822, 0.0),
+    ],
+    [
+        (-0.00406690076970, 0.0),
+        (-1.52644486584142, 5.87673060598709),
+        (-1.52644486584142, -5.87673060598709),
+        (-16.08537123098030, 0.0),
+    ],
+    [
+        (0.10268170574766, 0.0),
+        (-2.13875644258362, 7.19525913329805),
+        (-2.13875644258362, -7.19525913329805),
+        (-18.15788466125262, 0.0),
+    ],
+    [
+        (0.14327879765713, 0.0),
+        (-2.69348683581097, 8.46037971396931),
+        (-2.69348683581097, -8.46037971396931),
+        (-20.27940894394569, 0.0),
+    ],
+    [
+        (0.15790184030917, 0.0),
+        (-3.21675402252485, 9.69377351531791),
+        (-3.21675402252485, -9.69377351531791),
+        (-22.43788559040858, 0.0),
+    ],
+    [
+        (0.16105338653172, 0.0),
+        (-3.72016840437287, 10.90681139476287),
+        (-3.72016840437287, -10.90681139476287),
+        (-24.62459635017404, 0.0),
+    ],
+];
+
+/// Every eigenvalue of Table 2, v = 0…10 m/s, to 1e-10 relative (the
+/// table prints 14 decimals; its smallest entry, 0.0040669 at 6 m/s, is
+/// met to 1e-10 absolute).
+#[test]
+fn eigenvalues_match_table_2() {
+    let mut worst: f64 = 0.0;
+    for (v, row) in TABLE2.iter().enumerate() {
+        let got = roll_steer_eigenvalues(v as f64);
+        assert_eq!(got.len(), 4);
+        for &(re, im) in row {
+            let want = c64::new(re, im);
+            let err = got
+                .iter()
+                .map(|g| (g - want).norm())
+                .fold(f64::INFINITY, f64::min);
+            let rel = err / want.norm().max(1.0);
+            worst = worst.max(rel);
+            assert!(
+                rel < 1e-10,
+                "v = {v}: {want} not found in {got:?} ({rel:.1e})"
+            );
+        }
+    }
+    println!("largest relative difference from Table 2: {worst:.1e}");
+}
+
+/// The essential dynamics: roll, steer, their rates and the speed; `x`,
+/// `y`, the heading and both wheel angles quotiented out as cyclic (the
+/// wheels turning at −v/r); the pitch eliminated by the front contact.
+#[test]
+fn the_reduction_keeps_roll_steer_and_speed() {
+    let v = 4.0;
+    let lin = linearise(v);
+    assert_eq!(
+        lin.names,
+        ["phi", "delta", "phi_dot", "delta_dot", "thetaR_dot"]
+    );
+    let cyclic: Vec<&str> = lin.cyclic.iter().map(|c| c.0.as_str()).collect();
+    assert_eq!(cyclic, ["x", "y", "psi", "thetaR", "thetaF"]);
+    let rate = |n: &str| lin.cyclic.iter().find(|c| c.0 == n).unwrap().1;
+    assert!((rate("x") - v).abs() < 1e-14);
+    assert!((rate("thetaR") + v / 0.3).abs() < 1e-13);
+    assert!((rate("thetaF") + v / 0.35).abs() < 1e-13);
+    assert!(lin.dependent.contains(&"theta".to_string()));
+    assert!(lin.residual < 1e-13, "{}", lin.residual);
+    // The speed's eigenvalue is zero and its perturbation feeds nothing back.
+    let speed = lin.index("thetaR_dot").unwrap();
+    for i in 0..5 {
+        if i != speed {
+            assert!(lin.matrix[(i, speed)].abs() < 1e-12);
+        }
+    }
+    assert!(lin.modes.iter().any(|m| m.value.norm() < 1e-12));
+}
+
+/// The linearised equations `M q̈ + v C1 q̇ + (g K0 + v² K2) q = 0` in
+/// `q = (φ, δ)`: `M` is the kinetic-energy form on the essential
+/// velocities, `K` and `C` follow from the essential matrix at two speeds.
+#[test]
+fn matrices_match_the_benchmark() {
+    let b = bicycle();
+    let g = b.g;
+    let q = vec![0.0; 8];
+    let mut mass = DMatrix::zeros(8, 8);
+    Jet::<f64>::new(8, 1).mass(
+        &Lagrangian(&b),
+        0.0,
+        &q,
+        &[0.0; 8],
+        &[],
+        &mut mass.view_mut((0, 0), (8, 8)),
+    );
+    let second_order = |v: f64| {
+        let lin = linearise(v);
+        let [p, d, pd, dd] = roll_steer(&lin);
+        let speed = lin.index("thetaR_dot").unwrap();
+        let vel = lin.basis.rows(8, 8).select_columns(&[pd, dd, speed]);
+        let m3 = vel.transpose() * &mass * &vel;
+        // Roll and steer rates do not couple to the speed in T at upright.
+        assert!(m3[(0, 2)].abs() < 1e-12 && m3[(1, 2)].abs() < 1e-12, "{m3}");
+        let m = m3.view((0, 0), (2, 2)).into_owned();
+        let a = &lin.matrix;
+        let k = -&m * a.select_rows(&[pd, dd]).select_columns(&[p, d]);
+        let c = -&m * a.select_rows(&[pd, dd]).select_columns(&[pd, dd]);
+        (m, c, k)
+    };
+    let (m, _, k_0) = second_order(0.0);
+    let (_, c_1, k_1) = second_order(1.0);
+    let k0 = &k_0 / g;
+    let k2 = &k_1 - &k_0;
+    let published = [
+        (
+            "M",
+            &m,
+            [
+                [80.81722, 2.31941332208709],
+                [2.31941332208709, 0.29784188199686],
+            ],
+        ),
+        (
+            "C1",
+            &c_1,
+            [
+                [0.0, 33.86641391492494],
+                [-0.85035641456978, 1.68540397397560],
+            ],
+        ),
+        (
+            "K0",
+            &k0,
+            [
+                [-80.95, -2.59951685249872],
+                [-2.59951685249872, -0.80329488458618],
+            ],
+        ),
+        (
+            "K2",
+            &k2,
+            [[0.0, 76.59734589573222], [0.0, 2.65431523794604]],
+        ),
+    ];
+    for (name, got, want) in published {
+        for i in 0..2 {
+            for j in 0..2 {
+                let err = (got[(i, j)] - want[i][j]).abs() / want[i][j].abs().max(1.0);
+                assert!(
+                    err < 1e-10,
+                    "{name}[{i}{j}] = {} vs {}",
+                    got[(i, j)],
+                    want[i][j]
+                );
+            }
+        }
+    }
+    // At a third speed the same matrices hold: K = g K0 + v² K2, C = v C1.
+    let (_, c_3, k_3) = second_order(3.0);
+    assert!((&k_3 - (&k0 * g + &k2 * 9.0)).amax() < 1e-9);
+    assert!((&c_3 - &c_1 * 3.0).amax() < 1e-10);
+}
+
+/// Bisection on `f` over `[lo, hi]` (a sign change) to 1e-13 m/s.
+fn bisect(mut lo: f64, mut hi: f64, f: impl Fn(f64) -> f64) -> f64 {
+    let positive_at_lo = f(lo) > 0.0;
+    assert_ne!(
+        positive_at_lo,
+        f(hi) > 0.0,
+        "no sign change on [{lo}, {hi}]"
+    );
+    while hi - lo > 1e-13 {
+        let mid = 0.5 * (lo + hi);
+        if (f(mid) > 0.0) == positive_at_lo {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// Table 2 (a): the speed where two real eigenvalues meet and become the
+/// weave pair, the weave speed (its real part crosses zero) and the capsize
+/// speed (the capsize eigenvalue crosses zero): the bicycle is self-stable
+/// between the last two.
+#[test]
+fn critical_speeds_match_table_2() {
+    let abscissa = |v: f64| {
+        roll_steer_eigenvalues(v)
+            .iter()
+            .map(|z| z.re)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    // (λ1 − λ2)² of the two eigenvalues of largest real part: positive for
+    // a real pair, negative for a complex one, smooth in v through the merge.
+    let discriminant = |v: f64| {
+        let ev = roll_steer_eigenvalues(v);
+        let d = ev[0] - ev[1];
+        (d * d).re
+    };
+    let bifurcation = bisect(0.5, 1.0, discriminant);
+    let weave = bisect(4.0, 5.0, abscissa);
+    let capsize = bisect(6.0, 7.0, abscissa);
+    println!("bifurcation {bifurcation:.14}, weave {weave:.14}, capsize {capsize:.14}");
+    assert!(
+        (bifurcation - 0.68428307889246).abs() < 1e-10,
+        "{bifurcation}"
+    );
+    assert!((weave - 4.29238253634111).abs() < 1e-10, "{weave}");
+    assert!((capsize - 6.02426201538837).abs() < 1e-10, "{capsize}");
+    // At the weave speed the pair is ±3.43503384866144 i; at the
+    // bifurcation the double root is 3.78290405129320 (Table 2 (a)).
+    let at_weave = roll_steer_eigenvalues(4.29238253634111);
+    assert!(
+        at_weave
+            .iter()
+            .any(|z| (z.im.abs() - 3.43503384866144).abs() < 1e-10 && z.re.abs() < 1e-10)
+    );
+    // A double root is only √ε-conditioned: 1e-6 is what can be asked there.
+    let at_merge = roll_steer_eigenvalues(0.68428307889246);
+    assert!(
+        (at_merge[0].re - 3.78290405129320).abs() < 1e-6,
+        "{at_merge:?}"
+    );
+}

@@ -128,6 +128,7 @@ fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
             log_y: true,
             equal_aspect: false,
             series,
+            y_range: None,
         };
         let stem = dir
             .join("plots")

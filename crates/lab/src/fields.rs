@@ -46,7 +46,7 @@ pub fn num(v: f64) -> String {
     }
 }
 
-fn positive_finite(v: f64) -> Result<f64, String> {
+pub fn positive_finite(v: f64) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {

@@ -5,6 +5,7 @@ pub mod experiment;
 pub mod fields;
 pub mod formulations;
 pub mod io;
+pub mod linearize;
 pub mod listing;
 pub mod matching;
 pub mod plot;

@@ -2,6 +2,7 @@ use clap::{Parser, Subcommand};
 use nonholo_lab::experiment::cli::{
     self, ExperimentArgs, MergeArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
 };
+use nonholo_lab::linearize::{self, LinearizeArgs};
 use nonholo_lab::simulate::{self, SimulateArgs};
 use nonholo_lab::{CliError, listing, note};
 
@@ -29,6 +30,8 @@ enum Command {
     },
     /// Run one motion of a scene under one formulation.
     Simulate(Box<SimulateArgs>),
+    /// Linearise a formulation about a steady motion: eigenvalues and eigenvectors of the essential dynamics.
+    Linearize(Box<LinearizeArgs>),
     /// Run an experiment file: sweeps, comparisons, plots, reports in results/<name>/.
     Experiment(ExperimentArgs),
     /// Error against cost: run work-precision experiments (all of experiments/ by default).
@@ -78,6 +81,7 @@ fn main() {
     let result: Result<(), CliError> = match &cli.command {
         Command::Scenes { json } => scenes(*json),
         Command::Simulate(args) => simulate::command(args),
+        Command::Linearize(args) => linearize::command(args),
         Command::Experiment(args) => cli::experiment(args),
         Command::WorkPrecision(args) => cli::work_precision(args),
         Command::Merge(args) => cli::merge(args),

@@ -132,6 +132,7 @@ fn convergence_plot() -> LinePlot {
         log_x: false,
         log_y: true,
         equal_aspect: false,
+        y_range: None,
         series: vec![
             Series {
                 label: "Chetaev".into(),
@@ -308,6 +309,7 @@ fn single(label: &str, x: Vec<f64>, y: Vec<f64>, log_y: bool) -> LinePlot {
         log_x: false,
         log_y,
         equal_aspect: false,
+        y_range: None,
         series: vec![Series {
             label: label.into(),
             x,

@@ -235,7 +235,7 @@ pub fn linearize(
         .fold((0.0, usize::MAX), |a, b| {
             if b.0 > a.0 || b.0.is_nan() { b } else { a }
         });
-    if !(residual <= opts.steady_tol) {
+    if residual.is_nan() || residual > opts.steady_tol {
         return Err(Error::InconsistentInit {
             formulation: model.formulation().name,
             reason: format!(

@@ -57,7 +57,9 @@ fn roll_steer_eigenvalues(v: f64) -> Vec<c64> {
 }
 
 /// Table 2 of Meijaard et al. (2007): eigenvalues at v = 0, 1, …, 10 m/s
-/// (weave pairs as `(re, ±im)`).
+/// (weave pairs as `(re, ±im)`), with the digits as printed (a trailing
+/// zero included).
+#[allow(clippy::excessive_precision)]
 const TABLE2: [[(f64, f64); 4]; 11] = [
     [
         (-3.13164324790656, 0.0),

@@ -237,6 +237,13 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
             exp.name
         )));
     }
+    if shard.is_some() && exp.kind == Kind::Stability {
+        return Err(CliError::Input(format!(
+            "--shard: {} is a stability experiment, which takes seconds on one machine; \
+             --shard splits compare experiments only",
+            exp.name
+        )));
+    }
     let out = match (shard, &args.out) {
         (Some(s), None) => {
             let dir = ResultsDir::open(&s.default_dir(&exp), "shard directory", true)?;
@@ -287,7 +294,8 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
             o.dir
                 .join(match exp.kind {
                     Kind::WorkPrecision => "work_precision.csv",
-                    _ => "runs.csv",
+                    Kind::Stability => "samples.csv",
+                    Kind::Compare => "runs.csv",
                 })
                 .display()
         )));
@@ -302,9 +310,9 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
 pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     let threads = threads(args.threads)?;
     let exp = load(&args.file)?;
-    if exp.kind == Kind::WorkPrecision {
+    if exp.kind != Kind::Compare {
         return Err(CliError::Input(format!(
-            "{}: work-precision experiments are not sharded, so there is nothing to merge",
+            "{}: only compare experiments are sharded, so there is nothing to merge",
             exp.name
         )));
     }
@@ -387,6 +395,8 @@ pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
     let dir = out.path().to_path_buf();
     let plots = if exp.kind == Kind::WorkPrecision {
         super::wp::redraw(&exp, out)?
+    } else if exp.kind == Kind::Stability {
+        super::stability::redraw(&exp, out)?
     } else {
         let results: Vec<super::PointResult> =
             super::files::load_points(&exp, &dir, super::point::POINT_SCHEMA)
@@ -536,6 +546,9 @@ pub(crate) fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
     let mut candidates: Vec<String> = exp.main_plot.iter().cloned().collect();
     if exp.kind == Kind::WorkPrecision {
         candidates.push(format!("wp-{}-max-time", exp.plot_point));
+    }
+    if exp.kind == Kind::Stability {
+        candidates.push("eigenvalues-re".into());
     }
     if exp.axes.len() == 2 {
         candidates.extend(

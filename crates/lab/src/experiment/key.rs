@@ -57,6 +57,8 @@ enum Measures {
         #[serde(skip_serializing_if = "is_one")]
         repeats: usize,
     },
+    /// A stability sweep stores no points; its key is never asked for.
+    Stability,
     WorkPrecision {
         repeats: usize,
     },
@@ -220,6 +222,7 @@ pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String
         Kind::WorkPrecision => Measures::WorkPrecision {
             repeats: exp.repeats,
         },
+        Kind::Stability => Measures::Stability,
     };
     serde_json::to_string(&PointKey {
         schema,

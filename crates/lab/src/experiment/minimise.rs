@@ -373,6 +373,7 @@ pub fn draw(exp: &Experiment, m: &MinimiseSpec, dir: &Path) -> Result<Vec<PathBu
                     }),
                 },
             ],
+            y_range: None,
         },
         &plots.join("minimise"),
     )?);
@@ -427,6 +428,7 @@ pub fn draw(exp: &Experiment, m: &MinimiseSpec, dir: &Path) -> Result<Vec<PathBu
             log_y: true,
             equal_aspect: false,
             series,
+            y_range: None,
         },
         &plots.join("minimise-curve"),
     )?);

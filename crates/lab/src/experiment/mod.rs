@@ -42,6 +42,7 @@ pub mod point;
 pub mod reference;
 pub mod shard;
 pub mod spec;
+pub mod stability;
 pub mod sweep;
 pub mod wp;
 
@@ -246,6 +247,16 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
             )));
         }
         return wp::run(exp, opts, out);
+    }
+    if exp.kind == spec::Kind::Stability {
+        if opts.shard.is_some() {
+            return Err(CliError::Input(format!(
+                "{}: a stability experiment takes seconds on one machine; --shard splits \
+                 compare experiments only",
+                exp.name
+            )));
+        }
+        return stability::run(exp, opts, out);
     }
     let started = std::time::SystemTime::now();
     let dir = &out.path().to_path_buf();

@@ -374,6 +374,7 @@ fn time_series(
                 log_y: false,
                 equal_aspect: true,
                 series,
+                y_range: None,
             },
             &plots.join(format!("{}{suffix}", "trajectories")),
         )?);
@@ -434,6 +435,7 @@ fn time_series(
                     log_y: true,
                     equal_aspect: false,
                     series,
+                    y_range: None,
                 },
                 &plots.join(format!("{}{suffix}", "divergence")),
             )?);
@@ -459,6 +461,7 @@ fn time_series(
                 log_y: true,
                 equal_aspect: false,
                 series: residual,
+                y_range: None,
             },
             &plots.join(format!("{}{suffix}", "residual")),
         )?);
@@ -484,6 +487,7 @@ fn time_series(
                 log_y: true,
                 equal_aspect: false,
                 series: energy,
+                y_range: None,
             },
             &plots.join(format!("{}{suffix}", "energy")),
         )?);
@@ -514,6 +518,7 @@ fn time_series(
                     log_y: false,
                     equal_aspect: false,
                     series,
+                    y_range: None,
                 },
                 &plots.join(format!("series-{name}{suffix}")),
             )?);
@@ -699,6 +704,7 @@ fn sweep_plots(
                     log_y,
                     equal_aspect: false,
                     series,
+                    y_range: None,
                 },
                 &plots.join("sweep-end"),
             )?);
@@ -770,6 +776,7 @@ fn sweep_plots(
                     log_y: spans_decades(&time),
                     equal_aspect: false,
                     series: time,
+                    y_range: None,
                 },
                 &plots.join("sweep-cost"),
             )?);
@@ -786,6 +793,7 @@ fn sweep_plots(
                     log_y: spans_decades(&evals),
                     equal_aspect: false,
                     series: evals,
+                    y_range: None,
                 },
                 &plots.join("sweep-evals"),
             )?);
@@ -844,6 +852,7 @@ fn sweep_plots(
                         log_y: spans_decades(&switch),
                         equal_aspect: false,
                         series: switch,
+                        y_range: None,
                     },
                     &plots.join("sweep-switch"),
                 )?);

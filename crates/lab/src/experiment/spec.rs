@@ -95,7 +95,7 @@ struct File {
     params: Entries,
     #[serde(default)]
     init: Entries,
-    time: TimeFile,
+    time: Option<TimeFile>,
     #[serde(default, rename = "formulation")]
     formulations: Vec<FormulationFile>,
     sweep: Option<SweepFile>,
@@ -105,7 +105,49 @@ struct File {
     plots: PlotsFile,
     work_precision: Option<WorkPrecisionFile>,
     minimise: Option<MinimiseFile>,
+    stability: Option<StabilityFile>,
 }
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StabilityFile {
+    over: Spanned<String>,
+    range: Spanned<[f64; 2]>,
+    samples: Spanned<u64>,
+    #[serde(default)]
+    independent: Vec<String>,
+    #[serde(default)]
+    marks: IndexMap<String, Spanned<f64>>,
+    steady_tol: Option<Spanned<f64>>,
+    re_range: Option<Spanned<[f64; 2]>>,
+    im_range: Option<Spanned<[f64; 2]>>,
+}
+
+/// `[stability]` (experiments of kind `stability`): every formulation is
+/// linearised about the steady motion of `[init]` (velocities not given
+/// are zero) at `samples` values of one steady value or parameter `over`
+/// (`init.<name>` or `param.<name>`) spread evenly over `range`; the
+/// eigenvalues are drawn against it and the values where real parts cross
+/// zero located (docs/stability.md).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StabilitySpec {
+    /// `init.v`, `param.c`, ...
+    pub over: String,
+    pub range: [f64; 2],
+    pub samples: usize,
+    /// State components kept independent where the constraints leave a choice.
+    pub independent: Vec<String>,
+    /// Published values of `over` drawn as vertical lines, with their names.
+    pub marks: Vec<(String, f64)>,
+    pub steady_tol: f64,
+    /// Vertical ranges of the real-part and imaginary-part figures (1/s);
+    /// default: fitted to every eigenvalue.
+    pub re_range: Option<[f64; 2]>,
+    pub im_range: Option<[f64; 2]>,
+}
+
+/// Most samples of a stability sweep.
+pub const MAX_STABILITY_SAMPLES: usize = 10_000;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -316,6 +358,9 @@ pub enum Kind {
     /// Run each formulation over a ladder of tolerances (or step counts)
     /// and measure its error against a reference and its cost.
     WorkPrecision,
+    /// Linearise each formulation about a steady motion over a range of
+    /// one value (`[stability]`).
+    Stability,
 }
 
 /// The work-precision ladder of one line.
@@ -470,6 +515,8 @@ pub struct Experiment {
     pub kind: Kind,
     /// A minimisation over one more swept name at every point.
     pub minimise: Option<MinimiseSpec>,
+    /// What a stability experiment sweeps (kind `stability` only).
+    pub stability: Option<StabilitySpec>,
     /// Timed repeats of every run, the median wall time reported
     /// (work-precision: `[work_precision] repeats`, default 5; compare:
     /// `[measures] repeats`, default 1).
@@ -715,10 +762,28 @@ impl Experiment {
         let params = entries(&ctx, "params", &file.params)?;
         let init = entries(&ctx, "init", &file.init)?;
 
-        let t_end = fields::t_end(*file.time.t_end.get_ref())
-            .map_err(|m| ctx.err(file.time.t_end.span(), "time.t_end", m))?;
-        let every = fields::output_every(*file.time.output_every.get_ref(), t_end)
-            .map_err(|m| ctx.err(file.time.output_every.span(), "time.output_every", m))?;
+        let stability_kind = file
+            .experiment
+            .kind
+            .as_ref()
+            .is_some_and(|k| k.get_ref() == "stability");
+        let (t_end, every) = match &file.time {
+            Some(time) => {
+                let t_end = fields::t_end(*time.t_end.get_ref())
+                    .map_err(|m| ctx.err(time.t_end.span(), "time.t_end", m))?;
+                let every = fields::output_every(*time.output_every.get_ref(), t_end)
+                    .map_err(|m| ctx.err(time.output_every.span(), "time.output_every", m))?;
+                (t_end, every)
+            }
+            // A linearisation has no time span.
+            None if stability_kind => (1.0, 1.0),
+            None => {
+                return Err(SpecError(format!(
+                    "{}: missing table [time] (t_end, output_every)",
+                    path.display()
+                )));
+            }
+        };
 
         if file.formulations.is_empty() {
             return Err(SpecError(format!(
@@ -830,16 +895,20 @@ impl Experiment {
             Some(k) => match k.get_ref().as_str() {
                 "compare" => Kind::Compare,
                 "work-precision" => Kind::WorkPrecision,
+                "stability" => Kind::Stability,
                 other => {
                     return Err(ctx.err(
                         k.span(),
                         "experiment.kind",
-                        format!("unknown kind `{other}`; valid: compare, work-precision"),
+                        format!(
+                            "unknown kind `{other}`; valid: compare, work-precision, stability"
+                        ),
                     ));
                 }
             },
         };
         let repeats = work_precision_lines(&ctx, kind, &file, &mut forms, t_end)?;
+        let stability = stability(&ctx, kind, &file)?;
         let labels: Vec<String> = forms.iter().map(|f| f.label.clone()).collect();
 
         let (mode, axes) = match &file.sweep {
@@ -1111,6 +1180,7 @@ impl Experiment {
             series_span,
             kind,
             minimise: None,
+            stability,
             repeats,
         };
         let mut exp = exp;
@@ -1160,6 +1230,131 @@ impl Experiment {
     }
 }
 
+/// The `[stability]` table of a stability experiment (refused elsewhere,
+/// and a stability experiment refuses the tables it does not use).
+fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>, SpecError> {
+    let whole = |msg: &str| SpecError(format!("{}: {msg}", ctx.path.display()));
+    let Some(st) = &file.stability else {
+        if kind == Kind::Stability {
+            return Err(whole(
+                "an experiment of kind \"stability\" needs a [stability] table (over, range, \
+                 samples)",
+            ));
+        }
+        return Ok(None);
+    };
+    if kind != Kind::Stability {
+        return Err(whole(
+            "[stability] belongs to experiments of kind \"stability\" (set experiment.kind)",
+        ));
+    }
+    for (present, table) in [
+        (file.sweep.is_some(), "[sweep]"),
+        (file.minimise.is_some(), "[minimise]"),
+        (file.time.is_some(), "[time]"),
+    ] {
+        if present {
+            return Err(whole(&format!(
+                "{table} has no meaning in a stability experiment: [stability] gives the values \
+                 swept, and a linearisation has no time span"
+            )));
+        }
+    }
+    for f in &file.formulations {
+        if f.formulation.get_ref() == CLOSED_FORM {
+            return Err(ctx.err(
+                f.formulation.span(),
+                "formulation.formulation",
+                "a closed form has no linearisation",
+            ));
+        }
+    }
+    let over = st.over.get_ref().clone();
+    let Some((table, name)) = over.split_once('.') else {
+        return Err(ctx.err(
+            st.over.span(),
+            "stability.over",
+            "must be `init.<name>` or `param.<name>`",
+        ));
+    };
+    let info = nonholo_scenes::info(file.experiment.scene.get_ref())
+        .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
+    let known = match table {
+        "param" => info.params.iter().any(|p| p.name == name),
+        "init" => {
+            info.coordinates
+                .iter()
+                .any(|c| c.name == name || name.strip_suffix("_dot").is_some_and(|b| b == c.name))
+                || info.velocity_chart.iter().any(|c| c.name == name)
+        }
+        _ => false,
+    };
+    if !known {
+        return Err(ctx.err(
+            st.over.span(),
+            "stability.over",
+            format!(
+                "`{over}`: must be `param.<p>` with a parameter of `{}` or `init.<v>` with a \
+                 coordinate, `<coord>_dot` or velocity-chart value of it",
+                info.name
+            ),
+        ));
+    }
+    let [a, b] = *st.range.get_ref();
+    if !(a.is_finite() && b.is_finite() && a < b) {
+        return Err(ctx.err(
+            st.range.span(),
+            "stability.range",
+            "must be [from, to] with finite from < to",
+        ));
+    }
+    let samples = *st.samples.get_ref() as usize;
+    if !(2..=MAX_STABILITY_SAMPLES).contains(&samples) {
+        return Err(ctx.err(
+            st.samples.span(),
+            "stability.samples",
+            format!("must be between 2 and {MAX_STABILITY_SAMPLES}"),
+        ));
+    }
+    let steady_tol = match &st.steady_tol {
+        None => nonholo_stability::Options::default().steady_tol,
+        Some(t) => fields::positive_finite(*t.get_ref())
+            .map_err(|m| ctx.err(t.span(), "stability.steady_tol", m))?,
+    };
+    let mut marks = Vec::new();
+    for (name, v) in &st.marks {
+        if !v.get_ref().is_finite() {
+            return Err(ctx.err(
+                v.span(),
+                &format!("stability.marks.{name}"),
+                "must be finite",
+            ));
+        }
+        marks.push((name.clone(), *v.get_ref()));
+    }
+    let plot_range = |r: &Option<Spanned<[f64; 2]>>, key: &str| match r {
+        None => Ok(None),
+        Some(r) => {
+            let [lo, hi] = *r.get_ref();
+            if lo.is_finite() && hi.is_finite() && lo < hi {
+                Ok(Some([lo, hi]))
+            } else {
+                Err(ctx.err(r.span(), key, "must be [low, high] with finite low < high"))
+            }
+        }
+    };
+    Ok(Some(StabilitySpec {
+        over,
+        range: [a, b],
+        samples,
+        independent: st.independent.clone(),
+        marks,
+        steady_tol,
+        re_range: plot_range(&st.re_range, "stability.re_range")?,
+        im_range: plot_range(&st.im_range, "stability.im_range")?,
+    }))
+}
+
 /// Fills the ladder and reference of every line of a work-precision
 /// experiment (and refuses work-precision keys elsewhere); returns the
 /// number of timed repeats.
@@ -1170,7 +1365,7 @@ fn work_precision_lines(
     forms: &mut [FormulationSpec],
     t_end: f64,
 ) -> Result<usize, SpecError> {
-    if kind == Kind::Compare {
+    if kind != Kind::WorkPrecision {
         if file.work_precision.is_some() {
             return Err(SpecError(format!(
                 "{}: `work_precision` belongs to experiments of kind \"work-precision\" \

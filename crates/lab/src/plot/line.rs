@@ -23,7 +23,8 @@ use super::write_outputs;
 /// between gaps, are also drawn as dots.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Series {
-    /// Legend text.
+    /// Legend text; a series with an empty label has no legend entry
+    /// (further branches of a family already named once).
     pub label: String,
     /// Abscissae, same length as `y`.
     pub x: Vec<f64>,
@@ -49,6 +50,10 @@ pub struct LinePlot {
     /// One data unit has the same length on both axes (for trajectories in
     /// the plane). Ignored when either axis is logarithmic.
     pub equal_aspect: bool,
+    /// A fixed range of the vertical axis (data values, low then high):
+    /// curves leaving it are cut where they cross its edges. Default: fitted
+    /// to the data.
+    pub y_range: Option<[f64; 2]>,
     /// The curves, drawn in order; each in its [`Series::pen`], or else in
     /// the Okabe–Ito palette by position (from the eighth series on the
     /// colours repeat with dashed lines).
@@ -116,8 +121,17 @@ impl LineData {
             if !run.is_empty() {
                 runs.push(run);
             }
-            let drawn: usize = runs.iter().map(Vec::len).sum();
-            let label = if drawn == s.x.len() {
+            if let Some(range) = p.y_range {
+                let lo = to_plot(range[0], p.log_y).unwrap_or(f64::NEG_INFINITY);
+                let hi = to_plot(range[1], p.log_y).unwrap_or(f64::INFINITY);
+                runs = runs.iter().flat_map(|r| clip_run(r, lo, hi)).collect();
+            }
+            let drawn: usize = if p.y_range.is_some() {
+                s.x.len()
+            } else {
+                runs.iter().map(Vec::len).sum()
+            };
+            let label = if drawn == s.x.len() || s.label.is_empty() {
                 s.label.clone()
             } else {
                 format!("{} ({})", s.label, hidden_note(s, p, drawn))
@@ -131,7 +145,14 @@ impl LineData {
         }
         let points = || series.iter().flat_map(|s| s.runs.iter().flatten());
         let x = Axis::fit(points().map(|p| p.0), p.log_x, 0.03);
-        let y = Axis::fit(points().map(|p| p.1), p.log_y, 0.05);
+        let y = match p.y_range {
+            Some([lo, hi]) if lo < hi => Axis {
+                log: p.log_y,
+                lo: to_plot(lo, p.log_y).unwrap_or(lo),
+                hi: to_plot(hi, p.log_y).unwrap_or(hi),
+            },
+            _ => Axis::fit(points().map(|p| p.1), p.log_y, 0.05),
+        };
         let empty_note = if points().next().is_some() {
             None
         } else if series.is_empty() {
@@ -148,6 +169,45 @@ impl LineData {
             empty_note,
         })
     }
+}
+
+/// The pieces of `run` inside `lo ≤ y ≤ hi` (plot coordinates), each
+/// ending at the point where the curve crosses an edge.
+fn clip_run(run: &[(f64, f64)], lo: f64, hi: f64) -> Vec<Vec<(f64, f64)>> {
+    let inside = |y: f64| (lo..=hi).contains(&y);
+    let edge = |a: (f64, f64), b: (f64, f64), y: f64| {
+        let f = (y - a.1) / (b.1 - a.1);
+        (a.0 + f * (b.0 - a.0), y)
+    };
+    let mut pieces = Vec::new();
+    let mut piece: Vec<(f64, f64)> = Vec::new();
+    for (i, &q) in run.iter().enumerate() {
+        let prev = (i > 0).then(|| run[i - 1]);
+        match (prev, inside(q.1)) {
+            (None, true) => piece.push(q),
+            (None, false) => {}
+            (Some(a), true) => {
+                if !inside(a.1) {
+                    piece.push(edge(a, q, if a.1 > hi { hi } else { lo }));
+                }
+                piece.push(q);
+            }
+            (Some(a), false) => {
+                if inside(a.1) {
+                    piece.push(edge(a, q, if q.1 > hi { hi } else { lo }));
+                    pieces.push(std::mem::take(&mut piece));
+                } else if (a.1 > hi) != (q.1 > hi) {
+                    // Across the whole range within one segment.
+                    let (first, second) = if a.1 > hi { (hi, lo) } else { (lo, hi) };
+                    pieces.push(vec![edge(a, q, first), edge(a, q, second)]);
+                }
+            }
+        }
+    }
+    if !piece.is_empty() {
+        pieces.push(piece);
+    }
+    pieces
 }
 
 /// Why points of `s` are not drawn, for its legend entry: zeros or negative
@@ -245,7 +305,7 @@ fn draw_line_plot<DB: DrawingBackend>(
     // beside it (a column to the right) or under it instead.
     let mut legend_at = None;
     let mut outside = None;
-    if !data.series.is_empty() {
+    if data.series.iter().any(|s| !s.label.is_empty()) {
         let chart = build_chart(&area, &xa, &ya, areas, right)?;
         let spot = legend_position(&chart, &xa, &ya, data)?;
         legend_at = Some(spot.at);
@@ -262,7 +322,7 @@ fn draw_line_plot<DB: DrawingBackend>(
                 // the longest entry fits in half the width, else one.
                 let half = (w as f64 * TICK_PX / LEGEND_PX) <= aw as f64 / 2.0 - 8.0;
                 let columns = if half { 2 } else { 1 };
-                let rows = data.series.len().div_ceil(columns) as i32;
+                let rows = labelled(data).count().div_ceil(columns) as i32;
                 let h = rows * legend_row_px() + 16;
                 let (plot, legend) = area.split_vertically(ah as i32 - h);
                 (plot, legend, columns)
@@ -311,8 +371,8 @@ fn draw_line_plot<DB: DrawingBackend>(
             }
         }
     }
-    // Legend entries, one per series even if nothing of it could be drawn.
-    for s in &data.series {
+    // Legend entries, one per named series even if nothing of it could be drawn.
+    for s in labelled(data) {
         let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
         let (r, mark) = marker(s.pen);
@@ -354,6 +414,11 @@ fn draw_line_plot<DB: DrawingBackend>(
     root.present().map_err(draw_err)
 }
 
+/// The series with a legend entry.
+fn labelled(data: &LineData) -> impl Iterator<Item = &SeriesData> {
+    data.series.iter().filter(|s| !s.label.is_empty())
+}
+
 fn legend_row_px() -> i32 {
     (LEGEND_PX * 1.25) as i32
 }
@@ -370,10 +435,10 @@ fn draw_outside_legend<DB: DrawingBackend>(
     let len = LEGEND_SAMPLE_PX as i32 - 14;
     let row = legend_row_px();
     let top = 12 + row / 2;
-    let per_column = data.series.len().div_ceil(columns.max(1));
+    let per_column = labelled(data).count().div_ceil(columns.max(1));
     let (aw, _) = area.dim_in_pixel();
     let col_w = aw as i32 / columns.max(1) as i32;
-    for (k, s) in data.series.iter().enumerate() {
+    for (k, s) in labelled(data).enumerate() {
         let y = top + (k % per_column) as i32 * row;
         let x0 = 4 + (k / per_column) as i32 * col_w;
         let colour = s.pen.rgb();
@@ -428,7 +493,7 @@ fn legend_position<DB: DrawingBackend>(
     let (pw, ph) = (pw as f64, ph as f64);
     let style = text(LEGEND_PX);
     let mut lines = MultiLineText::<_, &str>::new((0, 0), &style);
-    for s in &data.series {
+    for s in labelled(data) {
         lines.push_line(s.label.as_str());
     }
     let (w, h) = lines.estimate_dimension().map_err(draw_err)?;
@@ -490,4 +555,37 @@ fn legend_position<DB: DrawingBackend>(
         at: best.1,
         size: (w, h),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clip_run;
+
+    /// A curve leaving the range is cut where it crosses an edge (by
+    /// linear interpolation), and a segment across the whole range keeps
+    /// its part between the edges.
+    #[test]
+    fn runs_are_cut_at_the_edges_of_a_fixed_range() {
+        let run = [(0.0, 0.0), (1.0, 2.0), (2.0, 0.5), (3.0, -3.0), (4.0, 3.0)];
+        let pieces = clip_run(&run, -1.0, 1.0);
+        let want = [
+            vec![(0.0, 0.0), (0.5, 1.0)],
+            vec![(5.0 / 3.0, 1.0), (2.0, 0.5), (2.0 + 1.5 / 3.5, -1.0)],
+            vec![(3.0 + 2.0 / 6.0, -1.0), (3.0 + 4.0 / 6.0, 1.0)],
+        ];
+        assert_eq!(pieces.len(), want.len());
+        for (got, want) in pieces.iter().zip(&want) {
+            assert_eq!(got.len(), want.len());
+            for (a, b) in got.iter().zip(want) {
+                assert!(
+                    (a.0 - b.0).abs() < 1e-15 && (a.1 - b.1).abs() < 1e-15,
+                    "{a:?} {b:?}"
+                );
+            }
+        }
+        assert_eq!(
+            clip_run(&[(0.0, 5.0), (1.0, 6.0)], -1.0, 1.0),
+            Vec::<Vec<_>>::new()
+        );
+    }
 }

@@ -153,6 +153,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                 log_y: true,
                 equal_aspect: false,
                 series: series(x, y, with_order),
+                y_range: None,
             };
             files.extend(line_plot(
                 &plot,

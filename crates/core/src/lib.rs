@@ -28,6 +28,7 @@ pub mod model;
 pub mod monitor;
 pub mod param;
 pub mod project;
+pub mod quadrature;
 pub mod run;
 pub mod scene;
 pub mod stab;

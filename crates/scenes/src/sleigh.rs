@@ -121,7 +121,7 @@ pub const INFO: SceneInfo = SceneInfo {
     default_velocity: &[2.0, 0.7],
     closed_form: Some(ClosedFormInfo {
         formulation: "chetaev",
-        conditions: "a = 0 and ω0 ≠ 0 (either potential)",
+        conditions: "a = 0 and ω0 ≠ 0 (either potential), or a horizontal plane (g sin α = 0, any a)",
     }),
     invariants: &[],
     contacts: &[ContactInfo {
@@ -131,6 +131,57 @@ pub const INFO: SceneInfo = SceneInfo {
                support is frictionless and unloaded)",
     }],
 };
+
+impl Sleigh {
+    /// The horizontal sleigh's motion (see [`Scene::closed_form`]): `u̇ = a ω²`,
+    /// `J ω̇ = −a u ω`, energy `½ m (u² + J ω²)` conserved.
+    fn horizontal(&self, q0: &[f64], qd0: &[f64], t: f64, q: &mut [f64], qd: &mut [f64]) {
+        let (a, j) = (self.a, self.j);
+        let phi0 = q0[2];
+        let (u0, w0) = (qd0[0] * phi0.cos() + qd0[1] * phi0.sin(), qd0[2]);
+        if w0 == 0.0 {
+            q[0] = q0[0] + u0 * phi0.cos() * t;
+            q[1] = q0[1] + u0 * phi0.sin() * t;
+            q[2] = phi0;
+            qd[0] = u0 * phi0.cos();
+            qd[1] = u0 * phi0.sin();
+            qd[2] = 0.0;
+            return;
+        }
+        let v = (u0 * u0 + j * w0 * w0).sqrt();
+        let sign = w0.signum();
+        let c = (u0 / (j.sqrt() * w0.abs())).asinh();
+        let gd = |s: f64| s.sinh().atan();
+        let phi_at = |s: f64| phi0 + sign * (j.sqrt() / a) * (gd(s) - gd(c));
+        let s_t = a * v * t / j + c;
+        // x, y: (J/a) ∫ tanh σ (cos φ, sin φ) dσ from c to s(t), by 16-point
+        // Gauss–Legendre panels no wider than 1/4 of a turn of φ's fastest rate.
+        static RULE: std::sync::OnceLock<(Vec<f64>, Vec<f64>)> = std::sync::OnceLock::new();
+        let (nodes, weights) = RULE.get_or_init(|| nonholo_core::quadrature::gauss_legendre(16));
+        let rate = (j.sqrt() / a.abs()).max(1.0);
+        let panels = (((s_t - c).abs() * rate * 4.0).ceil() as usize).max(1);
+        let h = (s_t - c) / panels as f64;
+        let (mut ix, mut iy) = (0.0, 0.0);
+        for p in 0..panels {
+            let mid = c + (p as f64 + 0.5) * h;
+            for (x, w) in nodes.iter().zip(weights) {
+                let sigma = mid + 0.5 * h * x;
+                let (sp, cp) = phi_at(sigma).sin_cos();
+                let f = sigma.tanh() * 0.5 * h * w;
+                ix += f * cp;
+                iy += f * sp;
+            }
+        }
+        let phi = phi_at(s_t);
+        let u = v * s_t.tanh();
+        q[0] = q0[0] + j / a * ix;
+        q[1] = q0[1] + j / a * iy;
+        q[2] = phi;
+        qd[0] = u * phi.cos();
+        qd[1] = u * phi.sin();
+        qd[2] = sign * v / j.sqrt() / s_t.cosh();
+    }
+}
 
 impl Scene for Sleigh {
     const INFO: &'static SceneInfo = &INFO;
@@ -239,8 +290,16 @@ impl Scene for Sleigh {
         true
     }
 
-    /// The spec's closed form for `a = 0`, `ω0 ≠ 0`: `ω = ω0`, `φ = φ0 + ω0 t`,
-    /// `u = C + K sin φ` with `K = g sin α/ω0`, `C = u0 − K sin φ0`.
+    /// Two closed forms (docs/scenes.md, docs/stability.md):
+    ///
+    /// * `a = 0`, `ω0 ≠ 0` (the spec's): `ω = ω0`, `φ = φ0 + ω0 t`,
+    ///   `u = C + K sin φ` with `K = g sin α/ω0`, `C = u0 − K sin φ0`;
+    /// * a horizontal plane (`g sin α = 0`), any `a ≠ 0`: with
+    ///   `V² = u0² + J ω0²` and `sinh c = u0/(√J |ω0|)`,
+    ///   `u = V tanh s`, `ω = sgn(ω0) (V/√J) sech s`, `s = a V t/J + c`,
+    ///   `φ = φ0 + sgn(ω0) (√J/a) (gd s − gd c)` (`gd s = atan(sinh s)`);
+    ///   `x`, `y` by Gauss–Legendre quadrature of `u (cos φ, sin φ)` in `s`
+    ///   (to rounding). With `ω0 = 0` the sleigh goes straight at `u0`.
     fn closed_form(
         &self,
         q0: &[f64],
@@ -250,7 +309,15 @@ impl Scene for Sleigh {
         qd: &mut [f64],
     ) -> Result<(), String> {
         if self.a != 0.0 {
-            return Err(format!("the closed form needs a = 0 (a = {})", self.a));
+            if self.g * self.alpha.sin() != 0.0 {
+                return Err(format!(
+                    "the closed forms need a = 0 or a horizontal plane (a = {}, g sin α = {})",
+                    self.a,
+                    self.g * self.alpha.sin()
+                ));
+            }
+            self.horizontal(q0, qd0, t, q, qd);
+            return Ok(());
         }
         let (x0, y0, phi0) = (q0[0], q0[1], q0[2]);
         let omega0 = qd0[2];

@@ -291,11 +291,29 @@ fn jacobian_matches_finite_differences() {
 /// velocity, to 1e-9.
 #[test]
 fn horizontal_sleigh_matches_the_tanh_closed_form() {
-    for (a, j, potential) in [("0.4", "1", "paper"), ("-0.3", "0.5", "com"), ("1.2", "2", "paper")] {
+    for (a, j, potential) in [
+        ("0.4", "1", "paper"),
+        ("-0.3", "0.5", "com"),
+        ("1.2", "2", "paper"),
+    ] {
         let s: Sleigh = scene(&[("a", a), ("J", j), ("alpha", "0"), ("potential", potential)]);
         for (u, omega) in [("2", "0.7"), ("-1.5", "0.4"), ("0.3", "-2.0")] {
-            let init = [("phi", "0.2"), ("u", u), ("omega", omega), ("x", "0"), ("y", "0")];
-            let run = run_b(&s, &[], &init, Method::Dop853, 1e-13, 20.0, grid(20.0, 0.05));
+            let init = [
+                ("phi", "0.2"),
+                ("u", u),
+                ("omega", omega),
+                ("x", "0"),
+                ("y", "0"),
+            ];
+            let run = run_b(
+                &s,
+                &[],
+                &init,
+                Method::Dop853,
+                1e-13,
+                20.0,
+                grid(20.0, 0.05),
+            );
             assert!(run.completed(), "{:?}", run.failure);
             let (q0, qd0) = (&run.initial.q, &run.initial.qd);
             let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
@@ -308,7 +326,10 @@ fn horizontal_sleigh_matches_the_tanh_closed_form() {
                 }
             }
             println!("a {a}, u0 {u}, ω0 {omega}: velocities {vel:.1e}, positions {pos:.1e}");
-            assert!(vel < 1e-10 && pos < 1e-9, "a {a} u0 {u} ω0 {omega}: {vel:e} {pos:e}");
+            assert!(
+                vel < 1e-10 && pos < 1e-9,
+                "a {a} u0 {u} ω0 {omega}: {vel:e} {pos:e}"
+            );
         }
     }
 }

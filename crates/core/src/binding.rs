@@ -646,16 +646,14 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
         self.hooks.diagnostics().clone()
     }
 
+    fn has_state_chart(&self) -> bool {
+        self.eq.cartesian()
+    }
+
     fn state_chart(&mut self, t: f64, y: &[f64]) -> Result<StateChart, Error> {
         let info = self.scene.info();
         if !self.eq.cartesian() {
-            return Err(Error::NotApplicable {
-                formulation: E::INFO.name.into(),
-                scene: info.name.into(),
-                reason: "linearisation needs a state that begins with (q, q̇); this form of \
-                         the formulation holds other velocities"
-                    .into(),
-            });
+            return Err(self.no_state_chart());
         }
         let (n, k, s) = (self.n, info.k(), info.s());
         let mut names: Vec<String> = info.coordinates.iter().map(|c| c.name.into()).collect();

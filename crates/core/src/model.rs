@@ -163,11 +163,22 @@ pub trait Model: Send {
     /// invariant); `Err` if the formulation's state does not begin with
     /// `(q, q̇)` (formulation A), so that it cannot be linearised this way.
     fn state_chart(&mut self, _t: f64, _y: &[f64]) -> Result<StateChart, Error> {
-        Err(Error::NotApplicable {
+        Err(self.no_state_chart())
+    }
+    /// Whether [`Model::state_chart`] is available (checked before any
+    /// initial data are asked for).
+    fn has_state_chart(&self) -> bool {
+        false
+    }
+    /// Why the model cannot be linearised through a state chart.
+    fn no_state_chart(&self) -> Error {
+        Error::NotApplicable {
             formulation: self.formulation().name.into(),
             scene: self.scene_info().name.into(),
-            reason: "linearisation needs a state that begins with (q, q̇)".into(),
-        })
+            reason: "linearisation needs a state that begins with (q, q̇); this formulation's \
+                     state holds other quantities"
+                .into(),
+        }
     }
 }
 

@@ -800,3 +800,118 @@ fn friction_work_precision_as_docs_state() {
         "its fitted order (5.7) says little",
     ]);
 }
+
+/// figures.md, bicycle-eigenvalues: B's weave and capsize speeds within
+/// 1e-12 m/s of Table 2 of Meijaard et al. (2007), self-stable at 35 of the
+/// 201 sampled speeds; C with three unstable eigenvalues at each of the 200
+/// sampled speeds above zero, its spectrum symmetric about the imaginary
+/// axis to 2e-12.
+#[test]
+fn bicycle_eigenvalues_as_figures_md_states() {
+    let crossings = table("bicycle-eigenvalues", "crossings.csv");
+    let b: Vec<_> = crossings.iter().filter(|r| r["label"] == "B").collect();
+    assert_eq!(b.len(), 2, "{b:?}");
+    for (row, published, mode, below, above) in [
+        (b[0], 4.29238253634111, "complex pair", "2", "0"),
+        (b[1], 6.02426201538837, "real", "0", "1"),
+    ] {
+        assert!((num(row, "init.v") - published).abs() < 1e-12, "{row:?}");
+        assert_eq!(
+            (
+                row["mode"].as_str(),
+                row["unstable_below"].as_str(),
+                row["unstable_above"].as_str()
+            ),
+            (mode, below, above)
+        );
+    }
+    let samples = table("bicycle-eigenvalues", "samples.csv");
+    assert!(samples.iter().all(|r| r["status"] == "linearised"));
+    let stable = samples
+        .iter()
+        .filter(|r| r["label"] == "B" && r["unstable"] == "0")
+        .count();
+    assert_eq!(stable, 35);
+    let c: Vec<_> = samples
+        .iter()
+        .filter(|r| r["label"] == "C" && num(r, "init.v") > 0.0)
+        .collect();
+    assert_eq!(c.len(), 200);
+    assert!(c.iter().all(|r| r["unstable"] == "3"));
+    // C's spectrum is symmetric about the imaginary axis: −λ̄ is an eigenvalue with λ.
+    let mut spectra: HashMap<String, Vec<(f64, f64)>> = HashMap::new();
+    for r in table("bicycle-eigenvalues", "eigenvalues.csv") {
+        if r["label"] == "C" {
+            spectra
+                .entry(r["init.v"].clone())
+                .or_default()
+                .push((num(&r, "re"), num(&r, "im")));
+        }
+    }
+    let mut worst: f64 = 0.0;
+    for s in spectra.values() {
+        let scale = s.iter().map(|z| z.0.hypot(z.1)).fold(1.0, f64::max);
+        for z in s {
+            let d = s
+                .iter()
+                .map(|w| (w.0 + z.0).hypot(w.1 - z.1))
+                .fold(f64::INFINITY, f64::min);
+            worst = worst.max(d / scale);
+        }
+    }
+    assert!(worst < 2e-12, "{worst:e}");
+    figures_md_says(&[
+        "its real parts cross zero at 4.2923825363 m/s (weave) and 6.0242620154 m/s (capsize), within 1e-12 m/s of Table 2",
+        "self-stable between them (35 of the 201 sampled speeds)",
+        "three eigenvalues with positive real part at each of the 200 sampled speeds from 0.05 to 10 m/s",
+        "symmetric about the imaginary axis to 2e-12",
+    ]);
+}
+
+/// figures.md, sleigh-phase: B reverses at most once and stays within
+/// 6e-11 m of the closed form, whose ω is below 2.6e-3 rad/s at 20 s; C
+/// reverses 4 to 6 times and ends 15 to 22 m from B.
+#[test]
+fn sleigh_phase_as_figures_md_states() {
+    use nonholo_core::{Params, Scene};
+    let rows = runs("sleigh-phase");
+    let points: Vec<&str> = rows
+        .iter()
+        .filter(|r| r["label"] == "B")
+        .map(|r| r["point"].as_str())
+        .collect();
+    assert_eq!(points.len(), 8);
+    let p = Params::resolve(
+        nonholo_scenes::sleigh::INFO.params,
+        &[("a".into(), "0.4".into()), ("alpha".into(), "0".into())],
+        "parameter",
+    )
+    .unwrap();
+    let sleigh = nonholo_scenes::Sleigh::from_params(&p).unwrap();
+    let (mut omega_end, mut reversals_c, mut far) = (0.0f64, Vec::new(), Vec::new());
+    for point in points {
+        let b = find(&rows, point, "B");
+        assert_eq!(b["status"], "completed");
+        assert!(num(b, "reversals") <= 1.0);
+        let exact = find(&rows, point, "exact");
+        assert!(num(exact, "div_xy_max") < 6e-11);
+        let c = find(&rows, point, "C");
+        reversals_c.push(num(c, "reversals"));
+        far.push(num(c, "div_xy_end"));
+        let (u0, w0): (f64, f64) = (num(b, "init.u"), num(b, "init.omega"));
+        let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
+        sleigh
+            .closed_form(&[0.0, 0.0, 0.0], &[u0, 0.0, w0], 20.0, &mut q, &mut qd)
+            .unwrap();
+        omega_end = omega_end.max(qd[2].abs());
+    }
+    assert!(omega_end < 2.6e-3 && omega_end > 2.4e-3, "{omega_end}");
+    let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!((min(&reversals_c), max(&reversals_c)), (4.0, 6.0));
+    assert!(min(&far) > 14.5 && max(&far) < 22.0, "{far:?}");
+    figures_md_says(&[
+        "at most one reversal of u in 20 s, within 6e-11 m of the closed form u = V tanh(a V t/J + c), whose ω is below 2.6e-3 rad/s at 20 s",
+        "4 to 6 reversals of u in 20 s, and 15 to 22 m from B at the end",
+    ]);
+}

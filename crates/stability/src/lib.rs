@@ -119,6 +119,9 @@ pub fn linearize(
     init: &Initial,
     opts: &Options,
 ) -> Result<Linearisation, Error> {
+    if !model.has_state_chart() {
+        return Err(model.no_state_chart());
+    }
     let mut init = init.clone();
     model.make_consistent(&mut init, false)?;
     let y = model.initial_state(&init)?;

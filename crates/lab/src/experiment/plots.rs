@@ -150,7 +150,13 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
 
 /// `name [unit]` of a velocity-chart value, coordinate or velocity.
 fn quantity_label(exp: &Experiment, name: &str) -> String {
-    let Ok(info) = nonholo_scenes::info(&exp.scene) else {
+    quantity_label_in(&exp.scene, name)
+}
+
+/// `name [unit]` for a coordinate, `<coord>_dot` or velocity-chart value of
+/// `scene` (`[–]` where it has no unit).
+pub(crate) fn quantity_label_in(scene: &str, name: &str) -> String {
+    let Ok(info) = nonholo_scenes::info(scene) else {
         return format!("{name} [–]");
     };
     let unit = info
@@ -292,10 +298,103 @@ pub fn draw(exp: &Experiment, dir: &Path, results: &[PointResult]) -> Result<Vec
         files.extend(time_series(exp, dir, results, i, &format!("-p{i}"))?);
     }
     files.extend(sweep_plots(exp, &dir.join("plots"), results)?);
+    if let Some(pair) = &exp.phase {
+        files.extend(phase_portrait(exp, dir, results, pair)?);
+    }
     if let Some(m) = &exp.minimise {
         files.extend(super::minimise::draw(exp, m, dir)?);
     }
     super::files::remove_other_figures(&dir.join("plots"), &files)?;
+    Ok(files)
+}
+
+/// `pair[1]` against `pair[0]` along every trajectory of every point that
+/// keeps its trajectories (all with `plots.all_trajectories`, else the
+/// plotted ones): one figure per formulation (`phase-<label>`, in its
+/// colour, since formulations conserving the same energy would hide each
+/// other's curves), a dot at each start and a black dot at each end.
+fn phase_portrait(
+    exp: &Experiment,
+    dir: &Path,
+    results: &[PointResult],
+    pair: &[String; 2],
+) -> Result<Vec<PathBuf>, String> {
+    let pens = pens::of_experiment(exp);
+    let points: Vec<usize> = if exp.all_trajectories {
+        results.iter().map(|r| r.index).collect()
+    } else {
+        std::iter::once(exp.plot_point)
+            .chain(exp.also_points.iter().copied())
+            .collect()
+    };
+    let mut by_label: Vec<(String, Vec<Series>)> = exp
+        .formulations
+        .iter()
+        .map(|f| (f.label.clone(), Vec::new()))
+        .collect();
+    for p in points {
+        for (label, t) in trajectories(exp, dir, results, p)? {
+            let (Some(x), Some(y), Some(time)) =
+                (t.column(&pair[0]), t.column(&pair[1]), t.column("t"))
+            else {
+                continue;
+            };
+            let Some((_, series)) = by_label.iter_mut().find(|(l, _)| *l == label) else {
+                continue;
+            };
+            let (Some((&x0, &y0)), Some((xe, ye, te))) = (
+                x.first().zip(y.first()),
+                x.last()
+                    .zip(y.last())
+                    .zip(time.last())
+                    .map(|((a, b), c)| (*a, *b, *c)),
+            ) else {
+                continue;
+            };
+            let pen = pens::find(&pens, &label);
+            let first = series.is_empty();
+            let named = |text: String| if first { text } else { String::new() };
+            series.push(Series {
+                label: named("start".into()),
+                x: vec![x0],
+                y: vec![y0],
+                pen,
+            });
+            series.push(Series {
+                label: named(format!("end (t = {} s)", crate::fields::num(te))),
+                x: vec![xe],
+                y: vec![ye],
+                pen: Some(crate::plot::Pen {
+                    colour: pens::colour_of(super::spec::CLOSED_FORM),
+                    dash: crate::plot::Dash::Solid,
+                }),
+            });
+            series.push(Series {
+                label: String::new(),
+                x,
+                y,
+                pen,
+            });
+        }
+    }
+    let mut files = Vec::new();
+    for (label, series) in by_label {
+        if series.is_empty() {
+            continue;
+        }
+        let f = exp.formulations.iter().find(|f| f.label == label);
+        let what = f.map_or(label.clone(), |f| format!("{label} ({})", f.formulation));
+        files.extend(line_plot(
+            &LinePlot {
+                title: format!("{what}: {} against {}, every start", pair[1], pair[0]),
+                x_label: quantity_label(exp, &pair[0]),
+                y_label: quantity_label(exp, &pair[1]),
+                series,
+                ..LinePlot::default()
+            },
+            &dir.join("plots").join(format!("phase-{label}")),
+        )?);
+    }
     Ok(files)
 }
 

@@ -49,6 +49,7 @@
 //! sweep_max = true                   # sweep figures: largest divergence, not the end value
 //! main = "divergence"                # the figure shown for it in docs/figures.md
 //! series = ["u"]                     # quantities drawn against time (series-<name>)
+//! phase = ["u", "omega"]             # one against the other, every point with trajectories
 //! series_span = [0.0, 5.0]           # their time window (default: the whole span)
 //!
 //! [work_precision]                   # experiments of kind = "work-precision" only
@@ -315,6 +316,8 @@ struct PlotsFile {
     #[serde(default)]
     series: Vec<Spanned<String>>,
     series_span: Option<Spanned<[f64; 2]>>,
+    #[serde(default)]
+    phase: Vec<Spanned<String>>,
 }
 
 /// The pseudo-formulation that samples a scene's closed-form solution.
@@ -512,6 +515,9 @@ pub struct Experiment {
     /// over `series_span` (default: the whole span).
     pub series: Vec<String>,
     pub series_span: Option<[f64; 2]>,
+    /// Two quantities drawn against each other for every point with
+    /// trajectories (`phase`): a phase portrait, one colour per formulation.
+    pub phase: Option<[String; 2]>,
     pub kind: Kind,
     /// A minimisation over one more swept name at every point.
     pub minimise: Option<MinimiseSpec>,
@@ -1117,12 +1123,33 @@ impl Experiment {
             .as_ref()
             .map(|q| quantity(q, "measures.reversals"))
             .transpose()?;
-        let series = file
+        let mut series = file
             .plots
             .series
             .iter()
             .map(|q| quantity(q, "plots.series"))
             .collect::<Result<Vec<_>, _>>()?;
+        let phase = match file.plots.phase.as_slice() {
+            [] => None,
+            [a, b] => {
+                let pair = [quantity(a, "plots.phase")?, quantity(b, "plots.phase")?];
+                // The trajectories carry the pair's columns as they carry a series'.
+                for q in &pair {
+                    if !series.contains(q) {
+                        series.push(q.clone());
+                    }
+                }
+                Some(pair)
+            }
+            more => {
+                let span = more[0].span().start..more[more.len() - 1].span().end;
+                return Err(ctx.err(
+                    span,
+                    "plots.phase",
+                    "must name two quantities: the horizontal and the vertical axis",
+                ));
+            }
+        };
         let series_span = match &file.plots.series_span {
             None => None,
             Some(s) => {
@@ -1178,6 +1205,7 @@ impl Experiment {
             main_plot: file.plots.main.clone(),
             series,
             series_span,
+            phase,
             kind,
             minimise: None,
             stability,

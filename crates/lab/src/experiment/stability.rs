@@ -527,28 +527,19 @@ fn write_summary(
     write_json(&dir.join("summary.json"), &summary)
 }
 
-/// The unit of the swept name, for axis labels.
-fn unit_of(scene: &str, over: &str) -> String {
-    let Ok(info) = nonholo_scenes::info(scene) else {
-        return "–".into();
-    };
-    let (table, name) = over.split_once('.').unwrap_or(("", over));
-    let unit = match table {
-        "param" => info.params.iter().find(|p| p.name == name).map(|p| p.unit),
-        _ => info
-            .velocity_chart
-            .iter()
-            .chain(info.coordinates)
-            .find(|c| c.name == name)
-            .map(|c| c.unit)
-            .or_else(|| {
-                name.strip_suffix("_dot")
-                    .and_then(|b| info.coordinates.iter().find(|c| c.name == b).map(|_| "1/s"))
-            }),
-    };
-    match unit {
-        Some(u) if !u.is_empty() => u.to_string(),
-        _ => "–".into(),
+/// The axis label of the swept name: `name [unit]`.
+fn swept_label(scene: &str, over: &str) -> String {
+    match over.split_once('.') {
+        Some(("param", name)) => {
+            let unit = nonholo_scenes::info(scene)
+                .ok()
+                .and_then(|i| i.params.iter().find(|p| p.name == name).map(|p| p.unit))
+                .filter(|u| !u.is_empty())
+                .unwrap_or("–");
+            format!("{name} [{unit}]")
+        }
+        Some((_, name)) => super::plots::quantity_label_in(scene, name),
+        None => format!("{over} [–]"),
     }
 }
 
@@ -563,13 +554,7 @@ fn draw(
     r: &StabilityResult,
 ) -> Result<Vec<PathBuf>, String> {
     let pens = super::pens::of_experiment(exp);
-    let x_label = format!(
-        "{} [{}]",
-        spec.over
-            .split_once('.')
-            .map_or(spec.over.as_str(), |p| p.1),
-        unit_of(&exp.scene, &spec.over)
-    );
+    let x_label = swept_label(&exp.scene, &spec.over);
     let mut written = Vec::new();
     for (part, stem, what, fixed) in [
         (0, "eigenvalues-re", "Re λ [1/s]", spec.re_range),

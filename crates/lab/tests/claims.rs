@@ -915,3 +915,30 @@ fn sleigh_phase_as_figures_md_states() {
         "4 to 6 reversals of u in 20 s, and 15 to 22 m from B at the end",
     ]);
 }
+
+/// figures.md, coin-incline: visc within 1.7e-4 m of B, C reversing 32
+/// times (B none) and 10.9 m from B at 5 s, mass parting from C at 0.33 s
+/// (1e-6 m) and 2.3 m from it at most.
+#[test]
+fn coin_incline_as_figures_md_states() {
+    let rows = runs("coin-incline");
+    let b = find(&rows, "0", "B");
+    assert_eq!(num(b, "reversals"), 0.0);
+    let visc = find(&rows, "0", "visc");
+    assert!(num(visc, "div_xy_max") < 1.7e-4, "{visc:?}");
+    let c = find(&rows, "0", "C");
+    assert_eq!(num(c, "reversals"), 32.0);
+    assert!((num(c, "div_xy_end") - 10.9).abs() < 0.05);
+    let pairs = table("coin-incline", "pairs.csv");
+    let cm = pairs
+        .iter()
+        .find(|r| r["a"] == "C" && r["b"] == "mass")
+        .unwrap();
+    assert_eq!(num(cm, "t_exceed"), 0.33);
+    assert!((num(cm, "div_xy_max") - 2.3).abs() < 0.05);
+    figures_md_says(&[
+        "stays within 1.7e-4 m of B over 5 s",
+        "reversing 32 times in 5 s against B's none and ending 10.9 m from B",
+        "exceeds 1e-6 m from C at 0.33 s and is 2.3 m from it at most",
+    ]);
+}

@@ -220,97 +220,10 @@ pub const INFO: SceneInfo = SceneInfo {
     contacts: &[],
 };
 
-type V<D> = [D; 3];
-type R<D> = [[D; 3]; 3];
-
-fn c<D: Scalar>(x: f64) -> D {
-    D::from(x)
-}
-
-fn vc<D: Scalar>(v: [f64; 3]) -> V<D> {
-    [c(v[0]), c(v[1]), c(v[2])]
-}
-
-fn add<D: Scalar>(a: V<D>, b: V<D>) -> V<D> {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn sub<D: Scalar>(a: V<D>, b: V<D>) -> V<D> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn scale<D: Scalar>(a: V<D>, s: D) -> V<D> {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-fn dot<D: Scalar>(a: V<D>, b: V<D>) -> D {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross<D: Scalar>(a: V<D>, b: V<D>) -> V<D> {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-/// `r v`.
-fn mv<D: Scalar>(r: &R<D>, v: V<D>) -> V<D> {
-    [dot(r[0], v), dot(r[1], v), dot(r[2], v)]
-}
-
-/// `rᵀ v`.
-fn mtv<D: Scalar>(r: &R<D>, v: V<D>) -> V<D> {
-    [
-        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
-        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
-        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
-    ]
-}
-
-fn mm<D: Scalar>(a: &R<D>, b: &R<D>) -> R<D> {
-    let mut out = [[c(0.0); 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            out[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    out
-}
-
-/// Rotation by `a` about the unit axis `s` (Rodrigues).
-fn rotation<D: Scalar>(s: [f64; 3], a: D) -> R<D> {
-    let (sn, cs) = (a.sin(), a.cos());
-    let k = c::<D>(1.0) - cs;
-    let mut out = [[c(0.0); 3]; 3];
-    let skew = [[0.0, -s[2], s[1]], [s[2], 0.0, -s[0]], [-s[1], s[0], 0.0]];
-    for i in 0..3 {
-        for j in 0..3 {
-            let id = if i == j { cs } else { c(0.0) };
-            out[i][j] = id + k * (s[i] * s[j]) + sn * skew[i][j];
-        }
-    }
-    out
-}
-
-/// `½ ωᵀ I ω` for a symmetric inertia `I` in body axes.
-fn spin<D: Scalar>(i: &[[f64; 3]; 3], w: V<D>) -> D {
-    let mut e = c::<D>(0.0);
-    for a in 0..3 {
-        for b in 0..3 {
-            e += w[a] * w[b] * i[a][b];
-        }
-    }
-    e * 0.5
-}
-
-/// `½ ωᵀ I ω` of an axisymmetric wheel with axle `a` (unit), moments `ixx`
-/// about a diameter and `iyy` about the axle.
-fn wheel_spin<D: Scalar>(ixx: f64, iyy: f64, w: V<D>, a: V<D>) -> D {
-    let along = dot(w, a);
-    ((dot(w, w) - along * along) * ixx + along * along * iyy) * 0.5
-}
+use crate::rigid::{
+    R, V, add, c, column, cross, dot, mm, mtv, mv, rot_x, rot_y, rot_z, rotation, scale, spin, sub,
+    vc, wheel_spin,
+};
 
 /// Positions, velocities and angular velocities of the four bodies.
 struct Kinematics<D> {
@@ -352,15 +265,9 @@ impl Bicycle {
     /// wheel centre and the hinge point, from positions only.
     #[allow(clippy::type_complexity)]
     fn frames<D: Scalar>(&self, q: &[D]) -> (R<D>, R<D>, R<D>, V<D>, V<D>) {
-        let (z, o) = (c::<D>(0.0), c::<D>(1.0));
-        let (sy, cy) = (q[2].sin(), q[2].cos());
-        let (sr, cr) = (q[3].sin(), q[3].cos());
-        let (sp, cp) = (q[4].sin(), q[4].cos());
-        let yaw = [[cy, -sy, z], [sy, cy, z], [z, z, o]];
-        let roll = [[o, z, z], [z, cr, -sr], [z, sr, cr]];
-        let pitch = [[cp, z, sp], [z, o, z], [-sp, z, cp]];
-        let lean = mm(&yaw, &roll);
-        let r_b = mm(&lean, &pitch);
+        let z = c::<D>(0.0);
+        let lean = mm(&rot_z(q[2]), &rot_x(q[3]));
+        let r_b = mm(&lean, &rot_y(q[4]));
         let r_h = mm(&r_b, &rotation(self.steer_axis(), q[5]));
         let p_r = [q[0], q[1], z];
         let c_r = add(p_r, mv(&lean, vc([0.0, 0.0, -self.r_r])));
@@ -382,11 +289,10 @@ impl Bicycle {
         let z = c::<D>(0.0);
         let (lean, r_b, r_h, c_r, hinge) = self.frames(q);
         let p_r = [q[0], q[1], z];
-        let col = |r: &R<D>, j: usize| [r[0][j], r[1][j], r[2][j]];
         // ω of the leaning frame, of the rear frame (pitch about the axle),
         // of the front frame (steer about the steering axis) and the wheels.
-        let w_lean = add([z, z, qd[2]], scale(col(&lean, 0), qd[3]));
-        let a_r = col(&lean, 1);
+        let w_lean = add([z, z, qd[2]], scale(column(&lean, 0), qd[3]));
+        let a_r = column(&lean, 1);
         let w_b = add(w_lean, scale(a_r, qd[4]));
         let w_h = add(w_b, scale(mv(&r_b, vc(self.steer_axis())), qd[5]));
         let w_r = add(w_b, scale(a_r, qd[6]));

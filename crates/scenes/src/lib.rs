@@ -6,6 +6,7 @@
 //! | `rolling-disk` | x, y, θ, ψ | 2 linear nonholonomic | θ = atan2(ẏ, ẋ), ψ̇ = ±speed/R (ψ cyclic) | B |
 //! | `appell-hamel` | x, y, z | 1 nonlinear nonholonomic | — | B |
 //! | `pendulum` | x, y | 1 holonomic | — | — |
+//! | `coin-incline` | x, y, ψ, θ, φ | 2 linear nonholonomic | — | — |
 //! | `bicycle` | x, y, ψ, φ, θ, δ, θR, θF | 1 holonomic, 4 linear nonholonomic | — | — |
 //!
 //! Code that must work with any scene receives it through [`SceneVisitor`],
@@ -14,14 +15,17 @@
 
 pub mod appell;
 pub mod bicycle;
+pub mod coin;
 pub mod disk;
 pub mod pendulum;
+mod rigid;
 pub mod sleigh;
 
 use nonholo_core::{Error, Params, Scene, SceneInfo};
 
 pub use appell::AppellHamel;
 pub use bicycle::Bicycle;
+pub use coin::Coin;
 pub use disk::RollingDisk;
 pub use pendulum::Pendulum;
 pub use sleigh::{Potential, Sleigh};
@@ -33,6 +37,7 @@ pub const ALL: &[&SceneInfo] = &[
     &appell::INFO,
     &pendulum::INFO,
     &bicycle::INFO,
+    &coin::INFO,
 ];
 
 /// Something to do with a scene of any type.
@@ -50,6 +55,7 @@ pub enum AnyScene {
     Pendulum(Pendulum),
     /// Boxed: its 26 parameters make it several times larger than the others.
     Bicycle(Box<Bicycle>),
+    Coin(Coin),
 }
 
 impl AnyScene {
@@ -60,6 +66,7 @@ impl AnyScene {
             AnyScene::AppellHamel(s) => s.info(),
             AnyScene::Pendulum(s) => s.info(),
             AnyScene::Bicycle(s) => s.info(),
+            AnyScene::Coin(s) => s.info(),
         }
     }
 
@@ -70,6 +77,7 @@ impl AnyScene {
             AnyScene::AppellHamel(s) => s.params(),
             AnyScene::Pendulum(s) => s.params(),
             AnyScene::Bicycle(s) => s.params(),
+            AnyScene::Coin(s) => s.params(),
         }
     }
 
@@ -81,6 +89,7 @@ impl AnyScene {
             AnyScene::AppellHamel(s) => v.visit(s),
             AnyScene::Pendulum(s) => v.visit(s),
             AnyScene::Bicycle(s) => v.visit(*s),
+            AnyScene::Coin(s) => v.visit(s),
         }
     }
 }
@@ -107,6 +116,7 @@ pub fn build(name: &str, params: &[(String, String)]) -> Result<AnyScene, Error>
         "appell-hamel" => AnyScene::AppellHamel(AppellHamel::from_params(&p)?),
         "pendulum" => AnyScene::Pendulum(Pendulum::from_params(&p)?),
         "bicycle" => AnyScene::Bicycle(Box::new(Bicycle::from_params(&p)?)),
+        "coin-incline" => AnyScene::Coin(Coin::from_params(&p)?),
         other => unreachable!("scene `{other}` listed in ALL but not built"),
     })
 }

@@ -317,16 +317,22 @@ fn pivot_columns(
             }
         }
         let Some((r, c, _)) = best.filter(|&(r, c, _)| w[(r, c)].abs() > RANK_TOL * scale) else {
-            let names: Vec<&str> = left
-                .iter()
-                .map(|&r| row_names[rows.start + r].as_str())
+            let name = |r: usize| row_names[rows.start + r].as_str();
+            let dependent: Vec<&str> = left.iter().map(|&r| name(r)).collect();
+            let others: Vec<&str> = (0..rows.len())
+                .filter(|r| !left.contains(r))
+                .map(name)
                 .collect();
             return Err(Error::numerical(
                 "the reduction to the constraint manifold",
                 format!(
-                    "the constraint rows {} are dependent on the others at this state \
-                     (singular reduction)",
-                    names.join(", ")
+                    "the constraint rows {} depend on {} at this state (singular reduction)",
+                    dependent.join(", "),
+                    if others.is_empty() {
+                        "nothing: they vanish".to_string()
+                    } else {
+                        others.join(", ")
+                    }
                 ),
             ));
         };
@@ -383,4 +389,31 @@ pub fn modes(a: &DMatrix<f64>) -> Result<Vec<Mode>, Error> {
             .then(y.value.im.total_cmp(&x.value.im))
     });
     Ok(modes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows that depend on the others are refused, naming them; a
+    /// column the caller prefers independent is avoided where the others
+    /// will do.
+    #[test]
+    fn pivoting_names_dependent_rows_and_avoids_preferred_columns() {
+        let names: Vec<String> = ["f", "g1", "g2"].map(String::from).to_vec();
+        // g2 = 2 g1 in the velocity columns 2..4.
+        let d = DMatrix::from_row_slice(
+            3,
+            4,
+            &[1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0, 2.0, 6.0],
+        );
+        let err = pivot_columns(&d, 1..3, 2..4, &[false; 4], &names).unwrap_err();
+        assert!(err.to_string().contains("rows g1 depend on g2"), "{err}");
+        assert!(err.to_string().contains("singular reduction"), "{err}");
+        // Column 3 has the larger entry but is preferred independent: 2 is chosen.
+        let chosen = pivot_columns(&d, 1..2, 2..4, &[false, false, false, true], &names).unwrap();
+        assert_eq!(chosen, vec![2]);
+        let chosen = pivot_columns(&d, 1..2, 2..4, &[false; 4], &names).unwrap();
+        assert_eq!(chosen, vec![3]);
+    }
 }

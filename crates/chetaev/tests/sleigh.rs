@@ -333,3 +333,36 @@ fn horizontal_sleigh_matches_the_tanh_closed_form() {
         }
     }
 }
+
+/// Far along (`a V t/J` well past the quadrature's range), the horizontal
+/// closed form is straight motion at speed `V` along its limiting heading,
+/// and with `ω0 = 0` it is straight from the start (any `a`, `a = 0` too).
+#[test]
+fn horizontal_closed_form_far_out_and_without_turning() {
+    let s: Sleigh = scene(&[("a", "0.4"), ("alpha", "0")]);
+    let (q0, qd0) = (
+        [0.0, 0.0, 0.2],
+        [2.0 * 0.2f64.cos(), 2.0 * 0.2f64.sin(), 0.7],
+    );
+    let v = (4.0f64 + 0.49).sqrt();
+    let (mut q1, mut qd1, mut q2, mut qd2) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
+    s.closed_form(&q0, &qd0, 1000.0, &mut q1, &mut qd1).unwrap();
+    s.closed_form(&q0, &qd0, 1010.0, &mut q2, &mut qd2).unwrap();
+    assert!((q2[2] - q1[2]).abs() < 1e-14 && qd2[2].abs() < 1e-14);
+    let moved = (q2[0] - q1[0]).hypot(q2[1] - q1[1]);
+    assert!((moved - 10.0 * v).abs() < 1e-9, "{moved} vs {}", 10.0 * v);
+    assert!(((q2[1] - q1[1]).atan2(q2[0] - q1[0]) - q1[2]).abs() < 1e-12);
+    for a in ["0", "0.4"] {
+        let s: Sleigh = scene(&[("a", a), ("alpha", "0")]);
+        let (mut q, mut qd) = ([0.0; 3], [0.0; 3]);
+        s.closed_form(
+            &[1.0, 2.0, 0.3],
+            &[0.3f64.cos(), 0.3f64.sin(), 0.0],
+            5.0,
+            &mut q,
+            &mut qd,
+        )
+        .unwrap();
+        assert!((q[0] - 1.0 - 5.0 * 0.3f64.cos()).abs() < 1e-14 && (q[2] - 0.3).abs() == 0.0);
+    }
+}

@@ -7,7 +7,7 @@ use nonholo_stability::{Linearisation, Options, linearize};
 use serde::Serialize;
 
 use crate::formulations;
-use crate::simulate::{ResolveInit, flag, pairs};
+use crate::simulate::{ResolveInit, flag, pairs, scene_and_formulation};
 use crate::{CliError, fields};
 
 #[derive(Debug, Clone, Args)]
@@ -61,7 +61,9 @@ pub fn steady_pairs(
                 out.push((c.name.into(), "0".into()));
             }
         }
-    } else if info.velocity_chart.is_empty() {
+    } else {
+        // Velocities stated component by component: the others are zero
+        // (not the scene's default chart values).
         for c in info.coordinates {
             let name = format!("{}_dot", c.name);
             if !has(&name) {
@@ -201,23 +203,7 @@ fn text(args: &LinearizeArgs, lin: &Linearisation) -> String {
 
 /// `nonholo linearize`.
 pub fn command(args: &LinearizeArgs) -> Result<(), CliError> {
-    let scene = flag(
-        "--scene",
-        nonholo_scenes::info(&args.scene).map_err(|e| e.to_string()),
-    )?;
-    let f = flag(
-        "--formulation",
-        formulations::info(&args.formulation).map_err(|e| e.to_string()),
-    )?;
-    flag(
-        "--formulation",
-        (f.applicable)(scene).map_err(|reason| {
-            format!(
-                "formulation `{}` is not applicable to scene `{}`: {reason}",
-                f.name, scene.name
-            )
-        }),
-    )?;
+    scene_and_formulation(&args.scene, &args.formulation)?;
     let steady_tol = flag("--steady-tol", fields::positive_finite(args.steady_tol))?;
     let opts = Options {
         independent: args.independent.clone(),

@@ -225,15 +225,16 @@ pub fn execute(spec: &RunSpec) -> Result<(Run, Option<MatchReport>), CliError> {
     Ok((run, matching))
 }
 
-/// The run `args` describe, every value checked (nothing runs).
-pub fn spec(args: &SimulateArgs) -> Result<RunSpec, CliError> {
+/// `--scene` and `--formulation` checked: known names, and the formulation
+/// applicable to the scene.
+pub fn scene_and_formulation(scene: &str, formulation: &str) -> Result<(), CliError> {
     let scene = flag(
         "--scene",
-        nonholo_scenes::info(&args.scene).map_err(|e| e.to_string()),
+        nonholo_scenes::info(scene).map_err(|e| e.to_string()),
     )?;
     let f = flag(
         "--formulation",
-        formulations::info(&args.formulation).map_err(|e| e.to_string()),
+        formulations::info(formulation).map_err(|e| e.to_string()),
     )?;
     flag(
         "--formulation",
@@ -243,7 +244,12 @@ pub fn spec(args: &SimulateArgs) -> Result<RunSpec, CliError> {
                 f.name, scene.name
             )
         }),
-    )?;
+    )
+}
+
+/// The run `args` describe, every value checked (nothing runs).
+pub fn spec(args: &SimulateArgs) -> Result<RunSpec, CliError> {
+    scene_and_formulation(&args.scene, &args.formulation)?;
     let t_end = flag("--t-end", fields::t_end(args.t_end))?;
     let every = args.output_every.unwrap_or(t_end / 100.0);
     let (method, mut options) = integrator(args)?;

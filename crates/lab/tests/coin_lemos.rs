@@ -50,7 +50,8 @@ fn config() -> RunConfig {
     }
 }
 
-/// `(q, q̇)` at `T` under B, or under C from `λ(0)`; and B's energy drift.
+/// `(q, q̇)` at `T` under B, or under C from `λ(0)`; and the energy drift
+/// relative to the initial energy.
 fn end_state(c: &Coin, q: [f64; 5], chart: [f64; 3], lambda: Option<[f64; 2]>) -> (Vec<f64>, f64) {
     let model: Box<dyn nonholo_core::Model> = match lambda {
         None => Box::new(
@@ -73,7 +74,7 @@ fn end_state(c: &Coin, q: [f64; 5], chart: [f64; 3], lambda: Option<[f64; 2]>) -
     let o = run.samples.last().unwrap();
     (
         o.q.iter().chain(&o.qd).copied().collect(),
-        run.diagnostics.energy_drift_max,
+        run.diagnostics.energy_drift_max / run.diagnostics.energy_initial.abs(),
     )
 }
 
@@ -183,7 +184,7 @@ fn nelder_mead(f: &dyn Fn([f64; 2]) -> f64, start: [f64; 2]) -> ([f64; 2], f64, 
 /// The smallest `‖(q, q̇)_C(T; λ0) − (q, q̇)_B(T)‖` found by
 /// Levenberg–Marquardt from each start, and whether the smallest of those
 /// is a converged local minimum: Nelder–Mead started there collapses
-/// ([`nelder_mead`]) without finding a lower value. The starts are
+/// ([`nelder_mead`]) without finding a value lower by more than 1 %. The starts are
 /// `λ(0) = 0` and the three best points of a 7 × 7 grid over `[−3, 3]²`.
 fn minimise(c: &Coin, q: [f64; 5], chart: [f64; 3]) -> (f64, [f64; 2], bool) {
     let (b, _) = end_state(c, q, chart, None);
@@ -212,12 +213,13 @@ fn minimise(c: &Coin, q: [f64; 5], chart: [f64; 3]) -> (f64, [f64; 2], bool) {
     }
     // The smallest of the local minima, checked by Nelder–Mead from there.
     let (l, d, converged) = nelder_mead(&|l| residual(l).norm(), best_l);
-    let all_converged = converged && d <= best;
+    let all_converged = converged && d >= best * (1.0 - 1e-2);
     let (best, best_l) = (d.min(best), if d <= best { l } else { best_l });
     (best, best_l, all_converged)
 }
 
-/// B conserves the energy to 1e-10 (relative) over 1 s at tolerance 1e-11.
+/// B conserves the energy to 1e-10 of its initial value over 1 s at
+/// tolerance 1e-11.
 #[test]
 fn b_conserves_energy() {
     let c = coin();
@@ -226,8 +228,7 @@ fn b_conserves_energy() {
         ([0.0, 0.0, -1.2, 0.25, 0.0], [-1.5, 0.8, -0.4]),
     ] {
         let (_, drift) = end_state(&c, q, chart, None);
-        let energy = 7.81;
-        assert!(drift < 1e-10 * energy, "{drift:e}");
+        assert!(drift < 1e-10, "{drift:e}");
     }
 }
 

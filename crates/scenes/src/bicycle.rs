@@ -60,44 +60,27 @@ pub struct Bicycle {
     pub i_fyy: f64,
 }
 
-const fn positive(
+/// A real parameter bounded below by `lo` only.
+const fn real(
     name: &'static str,
     unit: &'static str,
     default: f64,
+    lo: Bound,
     description: &'static str,
 ) -> ParamSpec {
-    ParamSpec::real(
-        name,
-        unit,
-        default,
-        Bound::Exclusive(0.0),
-        Bound::Unbounded,
-        description,
-    )
+    ParamSpec::real(name, unit, default, lo, Bound::Unbounded, description)
 }
 
-const fn free(
-    name: &'static str,
-    unit: &'static str,
-    default: f64,
-    description: &'static str,
-) -> ParamSpec {
-    ParamSpec::real(
-        name,
-        unit,
-        default,
-        Bound::Unbounded,
-        Bound::Unbounded,
-        description,
-    )
-}
+const POSITIVE: Bound = Bound::Exclusive(0.0);
+const ANY: Bound = Bound::Unbounded;
 
 const PARAMS: &[ParamSpec] = &[
-    positive("w", "m", 1.02, "wheelbase"),
-    free(
+    real("w", "m", 1.02, POSITIVE, "wheelbase"),
+    real(
         "c",
         "m",
         0.08,
+        ANY,
         "trail (steering axis meets the ground ahead of the front contact)",
     ),
     ParamSpec::real(
@@ -116,38 +99,64 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Unbounded,
         "gravitational acceleration",
     ),
-    positive("rR", "m", 0.3, "rear wheel radius"),
-    positive("mR", "kg", 2.0, "rear wheel mass"),
-    positive(
+    real("rR", "m", 0.3, POSITIVE, "rear wheel radius"),
+    real("mR", "kg", 2.0, POSITIVE, "rear wheel mass"),
+    real(
         "IRxx",
         "kg m^2",
         0.0603,
+        POSITIVE,
         "rear wheel moment about a diameter",
     ),
-    positive("IRyy", "kg m^2", 0.12, "rear wheel moment about its axle"),
-    free("xB", "m", 0.3, "rear frame centre of mass, x"),
-    free("zB", "m", -0.9, "rear frame centre of mass, z (down)"),
-    positive("mB", "kg", 85.0, "rear frame (with rider) mass"),
-    positive("IBxx", "kg m^2", 9.2, "rear frame inertia, xx"),
-    positive("IByy", "kg m^2", 11.0, "rear frame inertia, yy"),
-    positive("IBzz", "kg m^2", 2.8, "rear frame inertia, zz"),
-    free("IBxz", "kg m^2", 2.4, "rear frame inertia, xz"),
-    free("xH", "m", 0.9, "front frame centre of mass, x"),
-    free("zH", "m", -0.7, "front frame centre of mass, z (down)"),
-    positive("mH", "kg", 4.0, "front frame mass"),
-    positive("IHxx", "kg m^2", 0.05892, "front frame inertia, xx"),
-    positive("IHyy", "kg m^2", 0.06, "front frame inertia, yy"),
-    positive("IHzz", "kg m^2", 0.00708, "front frame inertia, zz"),
-    free("IHxz", "kg m^2", -0.00756, "front frame inertia, xz"),
-    positive("rF", "m", 0.35, "front wheel radius"),
-    positive("mF", "kg", 3.0, "front wheel mass"),
-    positive(
+    real(
+        "IRyy",
+        "kg m^2",
+        0.12,
+        POSITIVE,
+        "rear wheel moment about its axle",
+    ),
+    real("xB", "m", 0.3, ANY, "rear frame centre of mass, x"),
+    real("zB", "m", -0.9, ANY, "rear frame centre of mass, z (down)"),
+    real("mB", "kg", 85.0, POSITIVE, "rear frame (with rider) mass"),
+    real("IBxx", "kg m^2", 9.2, POSITIVE, "rear frame inertia, xx"),
+    real("IByy", "kg m^2", 11.0, POSITIVE, "rear frame inertia, yy"),
+    real("IBzz", "kg m^2", 2.8, POSITIVE, "rear frame inertia, zz"),
+    real("IBxz", "kg m^2", 2.4, ANY, "rear frame inertia, xz"),
+    real("xH", "m", 0.9, ANY, "front frame centre of mass, x"),
+    real("zH", "m", -0.7, ANY, "front frame centre of mass, z (down)"),
+    real("mH", "kg", 4.0, POSITIVE, "front frame mass"),
+    real(
+        "IHxx",
+        "kg m^2",
+        0.05892,
+        POSITIVE,
+        "front frame inertia, xx",
+    ),
+    real("IHyy", "kg m^2", 0.06, POSITIVE, "front frame inertia, yy"),
+    real(
+        "IHzz",
+        "kg m^2",
+        0.00708,
+        POSITIVE,
+        "front frame inertia, zz",
+    ),
+    real("IHxz", "kg m^2", -0.00756, ANY, "front frame inertia, xz"),
+    real("rF", "m", 0.35, POSITIVE, "front wheel radius"),
+    real("mF", "kg", 3.0, POSITIVE, "front wheel mass"),
+    real(
         "IFxx",
         "kg m^2",
         0.1405,
+        POSITIVE,
         "front wheel moment about a diameter",
     ),
-    positive("IFyy", "kg m^2", 0.28, "front wheel moment about its axle"),
+    real(
+        "IFyy",
+        "kg m^2",
+        0.28,
+        POSITIVE,
+        "front wheel moment about its axle",
+    ),
 ];
 
 pub const INFO: SceneInfo = SceneInfo {
@@ -456,15 +465,19 @@ impl Scene for Bicycle {
         const UNKNOWN: [usize; 6] = [0, 1, 2, 4, 6, 7];
         let z = c::<D>(0.0);
         let mut a = [[z; 7]; 6];
-        // ḟ: the gradient of f by one dual pass per unknown.
+        // ḟ = ∇f · q̇: the gradient of f by one dual pass per coordinate.
+        let mut grad = [z; 8];
         let mut qx = [Dual::<D>::from_re(z); 8];
-        for (col, &j) in UNKNOWN.iter().enumerate() {
+        for j in 0..8 {
             for i in 0..8 {
                 qx[i] = Dual::new(q[i], if i == j { c(1.0) } else { z });
             }
             let mut f = [Dual::from_re(z)];
             self.holonomic(Dual::from_re(z), &qx, &mut f);
-            a[0][col] = f[0].eps;
+            grad[j] = f[0].eps;
+        }
+        for (col, &j) in UNKNOWN.iter().enumerate() {
+            a[0][col] = grad[j];
         }
         // g is linear in q̇: its columns from unit velocities.
         let mut unit = [z; 8];
@@ -481,15 +494,7 @@ impl Scene for Bicycle {
         unit[3] = chart[1];
         unit[5] = chart[2];
         self.nonholonomic(z, q, &unit, &mut g);
-        let mut f_known = c::<D>(0.0);
-        for (i, &j) in [3usize, 5].iter().enumerate() {
-            for k in 0..8 {
-                qx[k] = Dual::new(q[k], if k == j { c(1.0) } else { z });
-            }
-            let mut f = [Dual::from_re(z)];
-            self.holonomic(Dual::from_re(z), &qx, &mut f);
-            f_known += f[0].eps * chart[1 + i];
-        }
+        let f_known = grad[3] * chart[1] + grad[5] * chart[2];
         a[0][6] = -f_known;
         for r in 0..4 {
             a[1 + r][6] = -g[r];

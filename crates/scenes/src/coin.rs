@@ -122,13 +122,34 @@ pub const INFO: SceneInfo = SceneInfo {
     contacts: &[],
 };
 
+/// The disk's position and motion at `(q, q̇)`.
+struct Motion<D> {
+    /// Contact point, centre, axle.
+    p: V<D>,
+    centre: V<D>,
+    axle: V<D>,
+    /// Angular velocity of the disk, velocity of its centre.
+    w: V<D>,
+    v_c: V<D>,
+}
+
 impl Coin {
-    /// The disk frame, the contact point and the centre.
-    fn frame<D: Scalar>(&self, q: &[D]) -> ([[D; 3]; 3], V<D>, V<D>) {
+    /// Disk frame `Rz(ψ) Rx(θ)`; `ω = ψ̇ n + θ̇ e_heading + φ̇ a`, and the
+    /// centre moving with the frame (the spin does not move it).
+    fn motion<D: Scalar>(&self, q: &[D], qd: &[D]) -> Motion<D> {
+        let z = c::<D>(0.0);
         let frame = mm(&rot_z(q[2]), &rot_x(q[3]));
-        let p = [q[0], q[1], c(0.0)];
+        let p = [q[0], q[1], z];
         let centre = add(p, mv(&frame, vc([0.0, 0.0, -self.r])));
-        (frame, p, centre)
+        let w_frame = add([z, z, qd[2]], scale(column(&frame, 0), qd[3]));
+        let axle = column(&frame, 1);
+        Motion {
+            p,
+            centre,
+            axle,
+            w: add(w_frame, scale(axle, qd[4])),
+            v_c: add([qd[0], qd[1], z], cross(w_frame, sub(centre, p))),
+        }
     }
 }
 
@@ -154,27 +175,18 @@ impl Scene for Coin {
     /// `½ m |v_C|² + ½ (Id |ω⊥|² + Ia (ω·a)²) + m g·r_C`, with `ω = ψ̇ n +
     /// θ̇ e_heading + φ̇ a`.
     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], qd: &[D]) -> D {
-        let (frame, p, centre) = self.frame(q);
-        let z = c::<D>(0.0);
-        let w_frame = add([z, z, qd[2]], scale(column(&frame, 0), qd[3]));
-        let axle = column(&frame, 1);
-        let w = add(w_frame, scale(axle, qd[4]));
-        let v_c = add([qd[0], qd[1], z], cross(w_frame, sub(centre, p)));
+        let m = self.motion(q, qd);
         let gravity = vc([self.g * self.alpha.sin(), 0.0, self.g * self.alpha.cos()]);
-        dot(v_c, v_c) * (0.5 * self.m)
-            + wheel_spin(self.i_d, self.i_a, w, axle)
-            + dot(gravity, centre) * self.m
+        dot(m.v_c, m.v_c) * (0.5 * self.m)
+            + wheel_spin(self.i_d, self.i_a, m.w, m.axle)
+            + dot(gravity, m.centre) * self.m
     }
 
     /// The velocity of the disk's material point at the contact, in the
     /// plane.
     fn nonholonomic<D: Scalar>(&self, _t: D, q: &[D], qd: &[D], out: &mut [D]) {
-        let (frame, p, centre) = self.frame(q);
-        let z = c::<D>(0.0);
-        let w_frame = add([z, z, qd[2]], scale(column(&frame, 0), qd[3]));
-        let w = add(w_frame, scale(column(&frame, 1), qd[4]));
-        let v_c = add([qd[0], qd[1], z], cross(w_frame, sub(centre, p)));
-        let slip = add(v_c, cross(w, sub(p, centre)));
+        let m = self.motion(q, qd);
+        let slip = add(m.v_c, cross(m.w, sub(m.p, m.centre)));
         out[0] = slip[0];
         out[1] = slip[1];
     }

@@ -134,7 +134,8 @@ pub const INFO: SceneInfo = SceneInfo {
 
 impl Sleigh {
     /// The horizontal sleigh's motion (see [`Scene::closed_form`]): `u̇ = a ω²`,
-    /// `J ω̇ = −a u ω`, energy `½ m (u² + J ω²)` conserved.
+    /// `J ω̇ = −a u ω`, energy `½ m (u² + J ω²)` conserved; called with
+    /// `a ≠ 0` or `ω0 = 0`.
     fn horizontal(&self, q0: &[f64], qd0: &[f64], t: f64, q: &mut [f64], qd: &mut [f64]) {
         let (a, j) = (self.a, self.j);
         let phi0 = q0[2];
@@ -155,21 +156,35 @@ impl Sleigh {
         let phi_at = |s: f64| phi0 + sign * (j.sqrt() / a) * (gd(s) - gd(c));
         let s_t = a * v * t / j + c;
         // x, y: (J/a) ∫ tanh σ (cos φ, sin φ) dσ from c to s(t), by 16-point
-        // Gauss–Legendre panels no wider than 1/4 of a turn of φ's fastest rate.
+        // Gauss–Legendre panels no wider than 1/4 of a turn of φ's fastest
+        // rate over |σ| ≤ 36; beyond, sech σ < 5e-16 and φ is constant to
+        // rounding, so the rest is (ln cosh) times a fixed direction.
+        const FAR: f64 = 36.0;
         static RULE: std::sync::OnceLock<(Vec<f64>, Vec<f64>)> = std::sync::OnceLock::new();
         let (nodes, weights) = RULE.get_or_init(|| nonholo_core::quadrature::gauss_legendre(16));
+        let (lo, hi) = (c.clamp(-FAR, FAR), s_t.clamp(-FAR, FAR));
         let rate = (j.sqrt() / a.abs()).max(1.0);
-        let panels = (((s_t - c).abs() * rate * 4.0).ceil() as usize).max(1);
-        let h = (s_t - c) / panels as f64;
+        let panels = (((hi - lo).abs() * rate * 4.0).ceil() as usize).max(1);
+        let h = (hi - lo) / panels as f64;
         let (mut ix, mut iy) = (0.0, 0.0);
         for p in 0..panels {
-            let mid = c + (p as f64 + 0.5) * h;
+            let mid = lo + (p as f64 + 0.5) * h;
             for (x, w) in nodes.iter().zip(weights) {
                 let sigma = mid + 0.5 * h * x;
                 let (sp, cp) = phi_at(sigma).sin_cos();
                 let f = sigma.tanh() * 0.5 * h * w;
                 ix += f * cp;
                 iy += f * sp;
+            }
+        }
+        // ∫ tanh = ln cosh, stable for large arguments.
+        let ln_cosh = |x: f64| x.abs() + (-2.0 * x.abs()).exp().ln_1p() - std::f64::consts::LN_2;
+        for (from, to) in [(c, lo), (hi, s_t)] {
+            if from != to {
+                let (sp, cp) = phi_at(to).sin_cos();
+                let area = ln_cosh(to) - ln_cosh(from);
+                ix += area * cp;
+                iy += area * sp;
             }
         }
         let phi = phi_at(s_t);
@@ -308,8 +323,9 @@ impl Scene for Sleigh {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<(), String> {
-        if self.a != 0.0 {
-            if self.g * self.alpha.sin() != 0.0 {
+        let level = self.g * self.alpha.sin() == 0.0;
+        if self.a != 0.0 || (level && qd0[2] == 0.0) {
+            if !level {
                 return Err(format!(
                     "the closed forms need a = 0 or a horizontal plane (a = {}, g sin α = {})",
                     self.a,

@@ -8,16 +8,19 @@
 //! 1. **Jacobian.** `J = ∂f/∂y` of the formulation's right-hand side at the
 //!    state, by automatic differentiation (the model's own Jacobian).
 //! 2. **Reduction to the constraint manifold.** A formulation that keeps
-//!    `f = ḟ = g = 0` along every motion leaves that manifold invariant, so
-//!    `J` maps its tangent space into itself. Its rows (the Jacobian `D` of
-//!    `(f, ḟ, g)` with respect to `y`) are solved for as many dependent
-//!    components — positions for `f`, velocities for `ḟ` and `g`, chosen by
-//!    pivoting — and the other components `z` are the chart: `y = y* + E z`
-//!    with `D E = 0`, and the reduced matrix is `J_z = P J E`, `P` selecting
-//!    the independent components.
+//!    `f = ḟ = g = 0` along every motion has its motions on that manifold.
+//!    The rows of the Jacobian `D` of `(f, ḟ, g)` with respect to `y` are
+//!    solved for as many dependent components — positions for `f`,
+//!    velocities for `ḟ` and `g`, chosen by pivoting — and the other
+//!    components `z` chart the manifold: `y(z)` on it with `∂y/∂z = E`,
+//!    `D E = 0`. On the manifold the motion is `ż = P f(y(z))`, `P`
+//!    selecting the independent components, whose Jacobian at `y*` is
+//!    `J_z = P J E`.
 //! 3. **Quotient by the cyclic coordinates.** An independent coordinate on
 //!    which no other remaining component's rate depends (its column of
-//!    `J_z` vanishes off the diagonal and on it) is cyclic at this motion:
+//!    `J_z` vanishes off the diagonal and on it) is cyclic at this motion
+//!    (tested at `y*`, not along the orbit: the scenes' cyclic coordinates
+//!    are symmetries of their Lagrangians and constraints by construction):
 //!    with it ordered last, `J_z` is block triangular, its own eigenvalue is
 //!    zero, and it is dropped. Repeated until none is left (the bicycle's
 //!    `x`, `y` go first, then its heading `ψ`, whose only influence was on
@@ -160,7 +163,20 @@ pub fn linearize(
                 "the formulation gives no Jacobian of its right-hand side",
             ));
         }
-        (DMatrix::from_row_slice(dim, dim, &jac), rate)
+        let jac = DMatrix::from_row_slice(dim, dim, &jac);
+        for (i, j) in (0..dim).flat_map(|i| (0..dim).map(move |j| (i, j))) {
+            if !jac[(i, j)].is_finite() {
+                return Err(Error::numerical(
+                    "the Jacobian at the steady motion",
+                    format!(
+                        "∂(rate of {})/∂{} is not finite at t = {t}: the state is at a singular \
+                         configuration",
+                        chart.names[i], chart.names[j]
+                    ),
+                ));
+            }
+        }
+        (jac, rate)
     };
 
     // Step 2: the chart of the constraint manifold.

@@ -1249,6 +1249,7 @@ impl Experiment {
                 ))
             })?;
         }
+        super::stability::check(&exp).map_err(|m| SpecError(format!("{}: {m}", path.display())))?;
         Ok(exp)
     }
 
@@ -1308,7 +1309,10 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
     let info = nonholo_scenes::info(file.experiment.scene.get_ref())
         .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
     let known = match table {
-        "param" => info.params.iter().any(|p| p.name == name),
+        "param" => info
+            .params
+            .iter()
+            .any(|p| p.name == name && matches!(p.kind, nonholo_core::Kind::Real { .. })),
         "init" => {
             info.coordinates
                 .iter()
@@ -1322,8 +1326,8 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
             st.over.span(),
             "stability.over",
             format!(
-                "`{over}`: must be `param.<p>` with a parameter of `{}` or `init.<v>` with a \
-                 coordinate, `<coord>_dot` or velocity-chart value of it",
+                "`{over}`: must be `param.<p>` with a real parameter of `{}` or `init.<v>` with \
+                 a coordinate, `<coord>_dot` or velocity-chart value of it",
                 info.name
             ),
         ));
@@ -1343,6 +1347,23 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
             "stability.samples",
             format!("must be between 2 and {MAX_STABILITY_SAMPLES}"),
         ));
+    }
+    for name in &st.independent {
+        let coordinate = |n: &str| info.coordinates.iter().any(|c| c.name == n);
+        let known = coordinate(name)
+            || name.strip_suffix("_dot").is_some_and(coordinate)
+            || name.strip_prefix("lambda").is_some_and(|k| {
+                k.is_empty()
+                    || k.parse::<usize>()
+                        .is_ok_and(|k| (1..=info.s()).contains(&k))
+            });
+        if !known {
+            return Err(whole(&format!(
+                "`stability.independent`: `{name}` is not a state component of `{}` (a \
+                 coordinate, `<coord>_dot`, or a multiplier `lambda…` of C)",
+                info.name
+            )));
+        }
     }
     let steady_tol = match &st.steady_tol {
         None => nonholo_stability::Options::default().steady_tol,

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::files::{remove_other_figures, write_json};
 use super::manifest::write_manifest;
 use super::page::Page;
-use super::spec::{Experiment, StabilitySpec};
+use super::spec::{Experiment, StabilitySpec, override_with};
 use super::{Outcome, RunOptions};
 use crate::CliError;
 use crate::linearize::linearise_at;
@@ -33,9 +33,10 @@ use crate::table::{self, Table};
 /// Schema of `stability.json`.
 pub const SCHEMA: &str = "nonholo.stability/1";
 
-/// Real parts below this (relative to the largest eigenvalue, at least 1)
-/// count as zero: an eigenvalue there is neither stable nor unstable at the
-/// precision of the linearisation (structural zeros are ~1e-15).
+/// Eigenvalues of modulus below this (relative to the largest, at least 1)
+/// count as zero, and so do real parts below it: structural zeros come out
+/// at 1e-15 (a cyclic speed) to 1e-14 (C's repeated zeros), and a crossing
+/// located by bisection is not affected by the level.
 const ZERO: f64 = 1e-9;
 
 /// Bisection steps locating a crossing (the bracket shrinks below 1e-13
@@ -81,6 +82,10 @@ pub struct Crossing {
     pub mode: String,
     /// `|Im λ|` of the crossing eigenvalue (1/s): zero for a real one.
     pub frequency: f64,
+    /// Why it could not be located (a linearisation failed inside the
+    /// bracket); `value` is then the bracket's lower end.
+    #[serde(default)]
+    pub error: Option<String>,
 }
 
 /// Eigenvalues with real part above the zero level of [`ZERO`].
@@ -103,6 +108,59 @@ pub fn sample(spec: &StabilitySpec, k: usize) -> f64 {
 /// and cyclic coordinates.
 type Sample = (Vec<[f64; 2]>, Vec<String>, Vec<String>);
 
+/// `name=value` pairs, as the command line gives them.
+type Pairs = Vec<(String, String)>;
+
+/// The scene parameters and steady values of line `f` at `value` of `over`.
+fn inputs(
+    exp: &Experiment,
+    spec: &StabilitySpec,
+    f: &super::spec::FormulationSpec,
+    value: f64,
+) -> (Pairs, Pairs) {
+    let (table, name) = spec.over.split_once('.').unwrap_or(("", ""));
+    let set = [(name.to_string(), format!("{value:?}"))];
+    let with = |base: &[(String, String)], own: &[(String, String)], here: bool| {
+        let merged = override_with(base, own);
+        if here {
+            override_with(&merged, &set)
+        } else {
+            merged
+        }
+    };
+    (
+        with(&exp.params, &f.params, table == "param"),
+        with(&exp.init, &f.init, table == "init"),
+    )
+}
+
+/// Checks, when the file is read, that every line's steady state resolves
+/// at both ends of the range (parameters in range, names known, no
+/// velocities given twice); nothing is linearised.
+pub fn check(exp: &Experiment) -> Result<(), String> {
+    let Some(spec) = &exp.stability else {
+        return Ok(());
+    };
+    for f in &exp.formulations {
+        for value in spec.range {
+            let (params, init) = inputs(exp, spec, f, value);
+            let scene = nonholo_scenes::build(&exp.scene, &params)
+                .map_err(|e| format!("{} at {} = {value}: {e}", f.label, spec.over))?;
+            let model = crate::formulations::build_model(scene.clone(), &f.formulation, &f.options)
+                .map_err(|e| format!("{}: {e}", f.label))?;
+            let steady =
+                crate::linearize::steady_pairs(&exp.scene, &init).map_err(|e| e.to_string())?;
+            scene
+                .visit(crate::simulate::ResolveInit {
+                    given: steady,
+                    extra: model.extra_init_names(),
+                })
+                .map_err(|e| format!("{} at {} = {value}: {e}", f.label, spec.over))?;
+        }
+    }
+    Ok(())
+}
+
 /// The spectrum of line `f` of `exp` at `value` of `over`.
 fn spectrum(
     exp: &Experiment,
@@ -110,22 +168,7 @@ fn spectrum(
     f: &super::spec::FormulationSpec,
     value: f64,
 ) -> Result<Sample, String> {
-    let (table, name) = spec.over.split_once('.').unwrap_or(("", ""));
-    let with = |base: &[(String, String)], extra: &[(String, String)], set: bool| {
-        let mut out: Vec<(String, String)> = base
-            .iter()
-            .filter(|(k, _)| !extra.iter().any(|(e, _)| e == k))
-            .chain(extra)
-            .filter(|(k, _)| !(set && k == name))
-            .cloned()
-            .collect();
-        if set {
-            out.push((name.to_string(), format!("{value:?}")));
-        }
-        out
-    };
-    let params = with(&exp.params, &f.params, table == "param");
-    let init = with(&exp.init, &f.init, table == "init");
+    let (params, init) = inputs(exp, spec, f, value);
     let opts = nonholo_stability::Options {
         independent: spec.independent.clone(),
         steady_tol: spec.steady_tol,
@@ -190,6 +233,25 @@ fn locate(
             .count()
     };
     let zeros = near_zero(ends.0).min(near_zero(ends.1));
+    if near_zero(ends.0) != near_zero(ends.1) {
+        // Eigenvalues leave zero at the end with more of them (C's ± pair
+        // at v = 0): the crossing is that sample. A bisection towards it
+        // would only find where the pair's size meets the rounding of the
+        // repeated zero (about √ε).
+        let value = if near_zero(ends.0) > near_zero(ends.1) {
+            lo
+        } else {
+            hi
+        };
+        return Ok(Crossing {
+            value,
+            unstable_below: below,
+            unstable_above: above,
+            mode: "real".into(),
+            frequency: 0.0,
+            error: None,
+        });
+    }
     let k = below.min(above);
     let sign_at = |s: &[[f64; 2]]| ordered(s, zeros, k).map(|z| z[0] > 0.0);
     let by_part = match (sign_at(ends.0), sign_at(ends.1)) {
@@ -225,6 +287,7 @@ fn locate(
         unstable_above: above,
         mode: if complex { "complex pair" } else { "real" }.into(),
         frequency: if complex { crossing[1].abs() } else { 0.0 },
+        error: None,
     })
 }
 
@@ -275,10 +338,19 @@ fn compute(
                 .par_iter()
                 .map(|&(k, a, b)| {
                     let ends = (spectra[k].as_slice(), spectra[k + 1].as_slice());
-                    locate(exp, spec, f, (values[k], values[k + 1]), ends, (a, b))
+                    locate(exp, spec, f, (values[k], values[k + 1]), ends, (a, b)).unwrap_or_else(
+                        |e| Crossing {
+                            value: values[k],
+                            unstable_below: a,
+                            unstable_above: b,
+                            mode: "not located".into(),
+                            frequency: 0.0,
+                            error: Some(e),
+                        },
+                    )
                 })
-                .collect::<Result<_, _>>()
-        })?;
+                .collect()
+        });
         lines.push(Line {
             label: f.label.clone(),
             formulation: f.formulation.clone(),
@@ -377,7 +449,11 @@ pub fn redraw(exp: &Experiment, out: super::ResultsDir) -> Result<Vec<PathBuf>, 
         .lines
         .iter()
         .map(|l| (&l.label, &l.formulation))
-        .eq(exp.formulations.iter().map(|f| (&f.label, &f.formulation)));
+        .eq(exp.formulations.iter().map(|f| (&f.label, &f.formulation)))
+        && result
+            .lines
+            .iter()
+            .all(|l| l.spectra.len() == current.len() && l.errors.len() == current.len());
     if result.schema != SCHEMA
         || result.over != spec.over
         || result.values != current
@@ -417,6 +493,7 @@ fn write_tables(dir: &Path, r: &StabilityResult) -> Result<(), String> {
         "unstable_above",
         "mode",
         "frequency",
+        "error",
     ])?;
     for l in &r.lines {
         for (k, v) in r.values.iter().enumerate() {
@@ -465,6 +542,7 @@ fn write_tables(dir: &Path, r: &StabilityResult) -> Result<(), String> {
                 c.unstable_above,
                 &c.mode,
                 table::Plain(c.frequency),
+                c.error.as_deref().unwrap_or(""),
             ))?;
         }
     }

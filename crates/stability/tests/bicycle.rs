@@ -520,3 +520,40 @@ fn manoeuvres_conserve_energy_and_lean_as_the_eigenvalues_say() {
         }
     }
 }
+
+/// C at upright straight running: the multipliers a steady motion admits
+/// are the longitudinal ones (`lambda1` rear, `lambda3` front, world `x`
+/// at heading 0); a lateral one makes the state move. On that family
+/// (25 pairs in `{−5, −1, 0, 1, 5}²` at 5 m/s) the spectrum stays
+/// symmetric about the imaginary axis with three unstable eigenvalues:
+/// no multiplier makes the vakonomic bicycle self-stable.
+#[test]
+fn vakonomic_bicycle_is_unstable_for_every_admissible_multiplier() {
+    let b = bicycle();
+    let o = || Params::resolve(nonholo_vakonomic::INFO.options, &[], "option").unwrap();
+    let opts = Options::default();
+    let at = |l: [f64; 4]| {
+        let mut init = upright(&b, 5.0);
+        init.extra = (0..4).map(|i| (format!("lambda{}", i + 1), l[i])).collect();
+        let mut model = nonholo_vakonomic::Vakonomic::new(b.clone(), o()).unwrap();
+        linearize(&mut model, &init, &opts)
+    };
+    assert!(at([0.0, 0.3, 0.0, 0.0]).is_err());
+    assert!(at([0.0, 0.0, 0.0, 0.3]).is_err());
+    for l1 in [-5.0, -1.0, 0.0, 1.0, 5.0] {
+        for l3 in [-5.0, -1.0, 0.0, 1.0, 5.0] {
+            let lin = at([l1, 0.0, l3, 0.0]).unwrap();
+            let ev = lin.eigenvalues();
+            let scale = ev.iter().map(|z| z.norm()).fold(1.0, f64::max);
+            let unstable = ev.iter().filter(|z| z.re > 1e-9 * scale).count();
+            assert_eq!(unstable, 3, "λ1 {l1}, λ3 {l3}: {ev:?}");
+            for z in &ev {
+                let mirror = ev
+                    .iter()
+                    .map(|w| (w + z.conj()).norm())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(mirror < 1e-10 * scale, "λ1 {l1}, λ3 {l3}: {z}");
+            }
+        }
+    }
+}

@@ -24,14 +24,7 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Unbounded,
         "mass",
     ),
-    ParamSpec::real(
-        "g",
-        "m/s^2",
-        9.81,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "gravitational acceleration",
-    ),
+    crate::GRAVITY,
     ParamSpec::real(
         "c",
         "",

@@ -91,14 +91,7 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Exclusive(FRAC_PI_2),
         "steer-axis tilt back from the vertical",
     ),
-    ParamSpec::real(
-        "g",
-        "m/s^2",
-        9.81,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "gravitational acceleration",
-    ),
+    crate::GRAVITY,
     real("rR", "m", 0.3, POSITIVE, "rear wheel radius"),
     real("mR", "kg", 2.0, POSITIVE, "rear wheel mass"),
     real(

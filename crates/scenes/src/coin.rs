@@ -64,14 +64,7 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Unbounded,
         "moment of inertia about the axle (a thin uniform disk: m R²/2)",
     ),
-    ParamSpec::real(
-        "g",
-        "m/s^2",
-        9.81,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "gravitational acceleration",
-    ),
+    crate::GRAVITY,
     ParamSpec::real(
         "alpha",
         "rad",

@@ -30,6 +30,17 @@ pub use disk::RollingDisk;
 pub use pendulum::Pendulum;
 pub use sleigh::{Potential, Sleigh};
 
+/// The gravitational acceleration `g` (m/s², default 9.81, at least 0),
+/// a parameter of every scene with weight.
+pub(crate) const GRAVITY: nonholo_core::ParamSpec = nonholo_core::ParamSpec::real(
+    "g",
+    "m/s^2",
+    9.81,
+    nonholo_core::Bound::Inclusive(0.0),
+    nonholo_core::Bound::Unbounded,
+    "gravitational acceleration",
+);
+
 /// Every scene, in listing order.
 pub const ALL: &[&SceneInfo] = &[
     &sleigh::INFO,

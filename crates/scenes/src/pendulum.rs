@@ -22,14 +22,7 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Unbounded,
         "mass of the bob",
     ),
-    ParamSpec::real(
-        "g",
-        "m/s^2",
-        9.81,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "gravitational acceleration",
-    ),
+    crate::GRAVITY,
     ParamSpec::real(
         "l",
         "m",

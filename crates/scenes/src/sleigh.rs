@@ -58,14 +58,7 @@ const PARAMS: &[ParamSpec] = &[
         Bound::Unbounded,
         "distance of the centre of mass ahead of the blade",
     ),
-    ParamSpec::real(
-        "g",
-        "m/s^2",
-        9.81,
-        Bound::Inclusive(0.0),
-        Bound::Unbounded,
-        "gravitational acceleration",
-    ),
+    crate::GRAVITY,
     ParamSpec::real(
         "alpha",
         "rad",

@@ -171,11 +171,14 @@ fn text(args: &LinearizeArgs, lin: &Linearisation) -> String {
         lin.residual
     ));
     s.push_str("eigenvalues (1/s), by decreasing real part, with their eigenvectors:\n");
+    // Real parts within 1e-9 of the largest modulus are zero to the
+    // precision of the linearisation (as in experiments of kind stability).
+    let level = 1e-9 * lin.modes.iter().map(|m| m.value.norm()).fold(1.0, f64::max);
     for md in &lin.modes {
         let v = md.value;
-        let kind = if v.re > 0.0 {
+        let kind = if v.re > level {
             "unstable"
-        } else if v.re < 0.0 {
+        } else if v.re < -level {
             "decays"
         } else {
             "neutral"

@@ -244,3 +244,49 @@ samples = 3
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The viscous realisation (Cartesian form), linearised without reduction
+/// about the horizontal sleigh's straight motion, has B's turning
+/// eigenvalue −a u0/J = −0.4 1/s up to O(1/k), plus a fast one near −k/m
+/// that damps the constraint violation.
+#[test]
+fn viscous_realisation_approaches_b_eigenvalue_like_one_over_k() {
+    let mut errors = Vec::new();
+    for k in ["100", "10000"] {
+        let o = nonholo(&[
+            "linearize",
+            "--scene",
+            "sleigh-incline",
+            "--param",
+            "alpha=0",
+            "--steady",
+            "u=1",
+            "--formulation",
+            "visc",
+            "--option",
+            "form=cartesian",
+            "--option",
+            &format!("k={k}"),
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&out(&o)).unwrap();
+        let re: Vec<f64> = v["modes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["re"].as_f64().unwrap())
+            .collect();
+        let turning = re
+            .iter()
+            .copied()
+            .min_by(|a, b| (a + 0.4).abs().total_cmp(&(b + 0.4).abs()))
+            .unwrap();
+        let fastest = re.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(fastest < -0.5 * k.parse::<f64>().unwrap(), "{re:?}");
+        errors.push((turning + 0.4).abs());
+    }
+    // 100 times the gain, about 100 times closer.
+    let ratio = errors[0] / errors[1];
+    assert!((50.0..200.0).contains(&ratio), "{errors:?}");
+}

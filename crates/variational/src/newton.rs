@@ -1,0 +1,524 @@
+//! Newton's method on the stationarity conditions, with the KKT matrix
+//! assembled sparse from the blocks' local derivatives and factored by
+//! faer's sparse LU (symbolic analysis once, numeric factorisation per
+//! iteration).
+//!
+//! Unknowns `z = (free coordinates, multipliers μ)`; conditions
+//! `F = (∇S + Σ μ_b ∇c_b, c)`; Newton matrix
+//! `K = [∇²S + Σ μ_b ∇²c_b, ∇cᵀ; ∇c, 0]`. Each block's gradient, Jacobian
+//! and Hessian come from hyper-dual passes over its free local variables
+//! (`p(p + 1)/2` passes for `p` of them; `p` without the Hessian).
+
+use std::time::Instant;
+
+use faer::Mat;
+use faer::linalg::solvers::SolveCore;
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
+use faer::Conj;
+use nonholo_core::Scene;
+use num_dual::HyperDual;
+
+use crate::Error;
+use crate::problem::{Kind, Problem};
+
+/// Newton's options.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    /// Largest number of Newton iterations.
+    pub max_iter: usize,
+    /// Converged when the scaled residual (stationarity rows over `h`, in
+    /// force units; constraint rows as they are) is at most this.
+    pub tol: f64,
+    /// Refuse a grid whose matrices would need more memory than this
+    /// (bytes, estimated before anything is allocated).
+    pub max_bytes: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            max_iter: 40,
+            tol: 1e-10,
+            max_bytes: 8.0 * 1024.0 * 1024.0 * 1024.0,
+        }
+    }
+}
+
+/// What a solve did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Report {
+    pub nodes: usize,
+    pub unknowns: usize,
+    /// Stored entries of the Newton matrix (after summing duplicates).
+    pub nonzeros: usize,
+    pub iterations: usize,
+    /// Scaled residual before each iteration and at the end.
+    pub residual_history: Vec<f64>,
+    /// Largest coordinate change of each Newton step.
+    pub step_history: Vec<f64>,
+    /// Steps shortened by the line search.
+    pub damped_steps: usize,
+    pub assembly_seconds: f64,
+    pub factor_seconds: f64,
+    pub wall_seconds: f64,
+}
+
+/// A stationary path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Node times.
+    pub t: Vec<f64>,
+    /// Coordinates at the nodes, node after node (`n` each).
+    pub q: Vec<f64>,
+    pub n: usize,
+    /// The multipliers, in the order of the constraint blocks.
+    pub multipliers: Vec<f64>,
+    pub report: Report,
+}
+
+impl Solution {
+    /// Coordinate `i` at node `k`.
+    pub fn at(&self, k: usize, i: usize) -> f64 {
+        self.q[k * self.n + i]
+    }
+
+    /// Velocities at the nodes: central differences, one-sided of second
+    /// order at the ends.
+    pub fn velocities(&self) -> Vec<f64> {
+        let (n, nodes) = (self.n, self.t.len());
+        let mut v = vec![0.0; self.q.len()];
+        let h = (self.t[nodes - 1] - self.t[0]) / (nodes - 1) as f64;
+        for k in 0..nodes {
+            for i in 0..n {
+                let q = |j: usize| self.q[j * n + i];
+                v[k * n + i] = if k == 0 {
+                    (-3.0 * q(0) + 4.0 * q(1) - q(2)) / (2.0 * h)
+                } else if k == nodes - 1 {
+                    (q(k - 2) - 4.0 * q(k - 1) + 3.0 * q(k)) / (2.0 * h)
+                } else {
+                    (q(k + 1) - q(k - 1)) / (2.0 * h)
+                };
+            }
+        }
+        v
+    }
+}
+
+/// Assembly state: the sparsity pattern (symbolic, once) and buffers.
+pub struct Solver<'p, 'a, S: Scene> {
+    pub problem: &'p Problem<'a, S>,
+    symbolic: SymbolicSparseColMat<usize>,
+    argsort: Argsort<usize>,
+    lu_symbolic: Option<SymbolicLu<usize>>,
+    values: Vec<f64>,
+    residual: Vec<f64>,
+}
+
+/// A full Newton step below this, relative to the largest coordinate,
+/// ends the iteration.
+const STEP_TOL: f64 = 1e-11;
+
+/// Bytes per pattern entry (indices, values, sort) and per factor entry,
+/// with the factor's fill for banded matrices taken as three times the
+/// pattern.
+const BYTES_PER_ENTRY: f64 = 16.0 + 8.0 + 8.0 + 3.0 * 16.0;
+
+impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
+    /// Builds the sparsity pattern; refuses grids that would not fit in
+    /// `options.max_bytes`.
+    pub fn new(problem: &'p Problem<'a, S>, options: &Options) -> Result<Self, Error> {
+        let u = problem.unknowns();
+        let entries: usize = u + problem
+            .blocks
+            .iter()
+            .map(|b| {
+                let p = b.free.len();
+                p * p + if b.kind == Kind::Interval { 0 } else { 2 * b.rows * p }
+            })
+            .sum::<usize>();
+        let bytes = entries as f64 * BYTES_PER_ENTRY + u as f64 * 64.0;
+        if bytes > options.max_bytes {
+            return Err(Error::TooLarge {
+                nodes: problem.nodes(),
+                unknowns: u,
+                bytes,
+                limit: options.max_bytes,
+            });
+        }
+        let mut pairs = Vec::with_capacity(entries);
+        let path = problem.start_line();
+        let mu = vec![0.0; u - problem.free_coordinates()];
+        let mut residual = vec![0.0; u];
+        assemble(
+            problem,
+            &path,
+            &mu,
+            true,
+            &mut residual,
+            &mut |row, col, _| {
+                pairs.push(Pair { row, col });
+            },
+        );
+        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(u, u, &pairs)
+            .map_err(|e| Error::Input {
+                field: "nodes".into(),
+                reason: format!("the sparsity pattern could not be built: {e:?}"),
+            })?;
+        Ok(Solver {
+            problem,
+            symbolic,
+            argsort,
+            lu_symbolic: None,
+            values: Vec::with_capacity(entries),
+            residual,
+        })
+    }
+
+    /// Stored entries of the Newton matrix.
+    pub fn nonzeros(&self) -> usize {
+        self.symbolic.compute_nnz()
+    }
+
+    /// Assembles `F` (into the solver's residual) and, with `hessian`, the
+    /// Newton matrix; without it the matrix `[I, ∇cᵀ; ∇c, 0]` of the
+    /// projection onto the constraints' tangent space.
+    fn assemble_at(&mut self, path: &[f64], mu: &[f64], hessian: bool) {
+        self.values.clear();
+        let values = &mut self.values;
+        assemble(
+            self.problem,
+            path,
+            mu,
+            hessian,
+            &mut self.residual,
+            &mut |_, _, v| values.push(v),
+        );
+    }
+
+    /// Factors the matrix of the last assembly and solves with `rhs`.
+    fn factor_solve(&mut self, rhs: &mut [f64]) -> Result<(), Error> {
+        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, &self.values)
+            .map_err(|e| Error::Input {
+                field: "nodes".into(),
+                reason: format!("the Newton matrix could not be stored: {e:?}"),
+            })?;
+        if self.lu_symbolic.is_none() {
+            self.lu_symbolic =
+                Some(SymbolicLu::try_new(mat.symbolic()).map_err(|e| self.singular_lu(e))?);
+        }
+        let symbolic = self.lu_symbolic.clone().expect("set above");
+        let lu = Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| self.singular_lu(e))?;
+        let mut b = Mat::<f64>::zeros(rhs.len(), 1);
+        for (i, v) in rhs.iter().enumerate() {
+            b[(i, 0)] = *v;
+        }
+        lu.solve_in_place_with_conj(Conj::No, b.as_mut());
+        for (i, v) in rhs.iter_mut().enumerate() {
+            *v = b[(i, 0)];
+        }
+        if let Some(bad) = rhs.iter().position(|v| !v.is_finite()) {
+            let (node, t, what) = self.problem.describe_unknown(bad);
+            return Err(Error::Singular { node, t, what });
+        }
+        Ok(())
+    }
+
+    fn singular_lu<E: std::fmt::Debug>(&self, e: E) -> Error {
+        let text = format!("{e:?}");
+        let index = text
+            .split(|c: char| !c.is_ascii_digit())
+            .find_map(|w| w.parse::<usize>().ok())
+            .unwrap_or(0);
+        let (node, t, what) = self.problem.describe_unknown(index);
+        Error::Singular { node, t, what }
+    }
+
+    /// Scaled residual of the last assembly: stationarity rows over `h`
+    /// (force units), constraint rows as they are.
+    fn scaled_norm(&self) -> f64 {
+        let (h, nv) = (self.problem.h(), self.problem.free_coordinates());
+        let mut worst = 0.0f64;
+        for (u, v) in self.residual.iter().enumerate() {
+            let x = if u < nv { v.abs() / h } else { v.abs() };
+            worst = if x.is_nan() { f64::NAN } else { worst.max(x) };
+        }
+        worst
+    }
+
+    /// Newton's method from the path `start` (nodes × n; end data are
+    /// imposed on it).
+    pub fn solve(&mut self, start: &[f64], options: &Options) -> Result<Solution, Error> {
+        let wall = Instant::now();
+        let p = self.problem;
+        let (n, nv, u) = (p.n, p.free_coordinates(), p.unknowns());
+        if start.len() != p.nodes() * n || start.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Input {
+                field: "start".into(),
+                reason: format!(
+                    "a starting path needs {} finite values ({} nodes × {n})",
+                    p.nodes() * n,
+                    p.nodes()
+                ),
+            });
+        }
+        let mut path = start.to_vec();
+        p.impose_ends(&mut path);
+        let mut mu = vec![0.0; u - nv];
+        let mut report = Report {
+            nodes: p.nodes(),
+            unknowns: u,
+            nonzeros: self.nonzeros(),
+            ..Report::default()
+        };
+        let mut dz = vec![0.0; u];
+        let (mut trial, mut trial_mu) = (path.clone(), mu.clone());
+        loop {
+            let t = Instant::now();
+            self.assemble_at(&path, &mu, true);
+            report.assembly_seconds += t.elapsed().as_secs_f64();
+            let norm = self.scaled_norm();
+            report.residual_history.push(norm);
+            if !norm.is_finite() {
+                let bad = self.residual.iter().position(|v| !v.is_finite()).unwrap_or(0);
+                let (node, t, what) = p.describe_unknown(bad);
+                return Err(Error::NotFinite { node, t, what });
+            }
+            if norm <= options.tol {
+                break;
+            }
+            // Stagnation at the round-off floor (about ε p/h for momenta p,
+            // above `tol` on fine grids): a residual already below √tol
+            // (where Newton converges quadratically) that a step did not
+            // halve.
+            if let [.., before, _] = report.residual_history[..] {
+                if norm <= options.tol.sqrt() && norm > 0.5 * before {
+                    break;
+                }
+            }
+            if report.iterations >= options.max_iter {
+                return Err(self.not_converged(&report));
+            }
+            report.iterations += 1;
+            for (d, r) in dz.iter_mut().zip(&self.residual) {
+                *d = -r;
+            }
+            let t = Instant::now();
+            self.factor_solve(&mut dz)?;
+            report.factor_seconds += t.elapsed().as_secs_f64();
+            // Backtracking on the scaled residual.
+            let mut alpha = 1.0;
+            let mut halvings = 0;
+            let step = loop {
+                let mut step = 0.0f64;
+                trial.copy_from_slice(&path);
+                for (idx, &v) in p.var_of.iter().enumerate() {
+                    if v != usize::MAX {
+                        trial[idx] = path[idx] + alpha * dz[v];
+                        step = step.max((alpha * dz[v]).abs());
+                    }
+                }
+                for (j, m) in trial_mu.iter_mut().enumerate() {
+                    *m = mu[j] + alpha * dz[nv + j];
+                }
+                let t = Instant::now();
+                assemble(
+                    p,
+                    &trial,
+                    &trial_mu,
+                    false,
+                    &mut self.residual,
+                    &mut |_, _, _| {},
+                );
+                report.assembly_seconds += t.elapsed().as_secs_f64();
+                let trial_norm = self.scaled_norm();
+                if trial_norm <= (1.0 - 1e-4 * alpha) * norm || halvings >= 10 {
+                    break step;
+                }
+                alpha *= 0.5;
+                halvings += 1;
+            };
+            if halvings > 0 {
+                report.damped_steps += 1;
+            }
+            report.step_history.push(step);
+            std::mem::swap(&mut path, &mut trial);
+            std::mem::swap(&mut mu, &mut trial_mu);
+            let scale = path.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+            if halvings == 0 && step <= STEP_TOL * scale {
+                // A full Newton step this small leaves an error of its
+                // square: the residual is then at its round-off floor
+                // (about ε p/h for momenta p), which on fine grids is above
+                // `tol`. The final residual is recorded.
+                self.assemble_at(&path, &mu, false);
+                report.residual_history.push(self.scaled_norm());
+                break;
+            }
+        }
+        report.wall_seconds = wall.elapsed().as_secs_f64();
+        Ok(Solution {
+            t: p.times(),
+            q: path,
+            n,
+            multipliers: mu,
+            report,
+        })
+    }
+
+    fn not_converged(&self, report: &Report) -> Error {
+        let (h, nv) = (self.problem.h(), self.problem.free_coordinates());
+        let mut order: Vec<(usize, f64)> = self
+            .residual
+            .iter()
+            .enumerate()
+            .map(|(u, v)| (u, if u < nv { v.abs() / h } else { v.abs() }))
+            .collect();
+        order.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let worst = order
+            .iter()
+            .take(3)
+            .map(|&(u, r)| {
+                let (node, t, what) = self.problem.describe_unknown(u);
+                (node, t, what, r)
+            })
+            .collect();
+        Error::NotConverged {
+            iterations: report.iterations,
+            history: report.residual_history.clone(),
+            worst,
+        }
+    }
+
+    /// The stationarity residual of a given path: the component of `∇S`
+    /// orthogonal to the constraints' normals (the least-squares
+    /// multipliers removed), per free coordinate, over `h` (force units).
+    /// Zero up to the discretisation error on a stationary path.
+    pub fn stationarity(&mut self, path: &[f64]) -> Result<Stationarity, Error> {
+        let p = self.problem;
+        let (nv, u) = (p.free_coordinates(), p.unknowns());
+        let mu = vec![0.0; u - nv];
+        self.assemble_at(path, &mu, false);
+        let constraint_max = self.residual[nv..]
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        let mut rhs = self.residual.clone();
+        for r in &mut rhs[nv..] {
+            *r = 0.0;
+        }
+        self.factor_solve(&mut rhs)?;
+        let h = p.h();
+        let (mut worst, mut at, mut sum2) = (0.0f64, 0, 0.0);
+        for (v, r) in rhs[..nv].iter().enumerate() {
+            let f = r.abs() / h;
+            sum2 += f * f;
+            if f > worst {
+                worst = f;
+                at = v;
+            }
+        }
+        let (node, t, what) = p.describe_unknown(at);
+        Ok(Stationarity {
+            max: worst,
+            rms: (sum2 / nv.max(1) as f64).sqrt(),
+            node,
+            t,
+            coordinate: what,
+            constraint_max,
+        })
+    }
+}
+
+/// The stationarity residual of a path ([`Solver::stationarity`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stationarity {
+    /// Largest component (force units: N, or N m for an angle).
+    pub max: f64,
+    /// Root mean square over the free coordinates.
+    pub rms: f64,
+    /// Where the largest is.
+    pub node: usize,
+    pub t: f64,
+    pub coordinate: String,
+    /// Largest constraint value of the path (the discrete constraints).
+    pub constraint_max: f64,
+}
+
+/// Walks the blocks: adds their contributions to `residual` (zeroed here)
+/// and hands each matrix entry to `sink` in a fixed order (diagonal first).
+fn assemble<S: Scene>(
+    p: &Problem<'_, S>,
+    path: &[f64],
+    mu: &[f64],
+    hessian: bool,
+    residual: &mut [f64],
+    sink: &mut dyn FnMut(usize, usize, f64),
+) {
+    let nv = p.free_coordinates();
+    residual.iter_mut().for_each(|r| *r = 0.0);
+    for u in 0..p.unknowns() {
+        sink(u, u, if !hessian && u < nv { 1.0 } else { 0.0 });
+    }
+    let mut xf = [0.0f64; 64];
+    let mut xs = [HyperDual::<f64>::from(0.0); 64];
+    let mut out = [HyperDual::<f64>::from(0.0); 64];
+    let mut value = [0.0f64; 64];
+    let mut jac = vec![0.0f64; 64 * 64];
+    let mut hess = vec![0.0f64; 64 * 64];
+    for b in &p.blocks {
+        let nl = b.vars.len();
+        p.gather::<f64>(b, path, &mut xf[..nl]);
+        let np = b.free.len();
+        let is_action = b.kind == Kind::Interval;
+        let weights: &[f64] = if is_action {
+            &[1.0]
+        } else {
+            &mu[b.offset - nv..b.offset - nv + b.rows]
+        };
+        for ia in 0..np {
+            let last = if hessian { np } else { ia + 1 };
+            for ib in ia..last {
+                for l in 0..nl {
+                    xs[l] = HyperDual::new(xf[l], 0.0, 0.0, 0.0);
+                }
+                xs[b.free[ia].0].eps1 = 1.0;
+                xs[b.free[ib].0].eps2 = 1.0;
+                p.eval(b, path, &xs[..nl], &mut out[..b.rows]);
+                if ia == ib {
+                    for r in 0..b.rows {
+                        value[r] = out[r].re;
+                        jac[r * np + ia] = out[r].eps1;
+                    }
+                }
+                if hessian {
+                    let hv: f64 = (0..b.rows).map(|r| weights[r] * out[r].eps1eps2).sum();
+                    hess[ia * np + ib] = hv;
+                    hess[ib * np + ia] = hv;
+                }
+            }
+        }
+        // Residual.
+        for (a, &(_, ga)) in b.free.iter().enumerate() {
+            residual[ga] += (0..b.rows).map(|r| weights[r] * jac[r * np + a]).sum::<f64>();
+        }
+        if !is_action {
+            for r in 0..b.rows {
+                residual[b.offset + r] = value[r];
+            }
+        }
+        // Matrix entries.
+        for (a, &(_, ga)) in b.free.iter().enumerate() {
+            for (c, &(_, gc)) in b.free.iter().enumerate() {
+                sink(ga, gc, if hessian { hess[a * np + c] } else { 0.0 });
+            }
+        }
+        if !is_action {
+            for r in 0..b.rows {
+                for (a, &(_, ga)) in b.free.iter().enumerate() {
+                    let j = jac[r * np + a];
+                    sink(b.offset + r, ga, j);
+                    sink(ga, b.offset + r, j);
+                }
+            }
+        }
+    }
+}

@@ -258,3 +258,61 @@ fn bad_input_is_refused_with_the_reason() {
         other => panic!("{other:?}"),
     }
 }
+
+/// Over `[0, 1.5]` C's motion reverses once (its forward speed changes
+/// sign). C's boundary-value problem reproduces it through the reversal;
+/// A's, with the map `φ = atan2(ẏ, ẋ)` on the branch nearest the current
+/// heading, started on C's motion, fails on some of six grids (its largest
+/// residuals within 0.04 s of the reversal) and converges on the others to
+/// paths more than 1e-4 m from C's, with no order: the map's discretisation
+/// error grows like `h²/|v|` there (docs/variational.md).
+#[test]
+fn a_reversal_stops_the_map_but_not_the_vakonomic_bvp() {
+    for potential in ["paper", "com"] {
+        let s: Sleigh = scene(&[("potential", potential)]);
+        let (t1, fine) = (1.5, 3200);
+        let (q, qd) = c_motion(&s, t1, fine);
+        let u: Vec<f64> = q
+            .chunks(3)
+            .zip(qd.chunks(3))
+            .map(|(q, v)| v[0] * q[2].cos() + v[1] * q[2].sin())
+            .collect();
+        let reversals: Vec<f64> = (0..fine)
+            .filter(|&k| u[k] * u[k + 1] < 0.0)
+            .map(|k| t1 * k as f64 / fine as f64)
+            .collect();
+        assert_eq!(reversals.len(), 1, "{potential}: {reversals:?}");
+        let ends = ends_of(&q, &qd, 3);
+        // Started on C's motion: from the straight line Newton finds
+        // another stationary path with the same ends (1.6 m away).
+        let start = every(&q, 3, fine / 400);
+        let o = Options::default();
+        let r = refine(&s, &Formulation::Vakonomic, (0.0, t1), 400, &ends, Some(&start), &o)
+            .unwrap();
+        assert!((r.order - 2.0).abs() < 0.2, "{potential}: {}", r.order);
+        let d = max_diff(&r.extrapolated, &every(&q, 3, fine / 400));
+        assert!(d < 1e-8, "{potential}: {d:e}, estimate {:e}", r.extrapolated_error);
+        let raw_c = max_diff(&sample(&r.solutions[2], &grid(t1, 400)), &start);
+        assert!(raw_c < 1e-5, "{potential}: C's BVP {raw_c:e}");
+        let (mut failed, mut converged) = (0, Vec::new());
+        for base in [100, 160, 200, 320, 400, 800] {
+            let start = every(&q, 3, fine / base);
+            let f = Formulation::Map {
+                ends: MapEnds::Configuration,
+            };
+            let p = Problem::new(&s, f, 0.0, t1, base, ends.clone()).unwrap();
+            match Solver::new(&p, &o).unwrap().solve(&start, &o) {
+                Err(Error::NotConverged { worst, .. }) => {
+                    failed += 1;
+                    for (_, t, _, _) in &worst {
+                        assert!((t - reversals[0]).abs() < 0.04, "{potential}: {worst:?}");
+                    }
+                }
+                Ok(sol) => converged.push(max_diff(&sol.q, &start)),
+                Err(e) => panic!("{potential} {base}: {e}"),
+            }
+        }
+        assert!(failed >= 2, "{potential}: {failed} failures");
+        assert!(converged.iter().all(|d| *d > 1e-4), "{potential}: {converged:?}");
+    }
+}

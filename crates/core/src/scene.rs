@@ -338,6 +338,29 @@ pub trait Scene: Send + Sync + 'static {
     ) {
     }
 
+    /// The embedding map in implicit form, into `out` (length `s`, in the
+    /// order of [`EmbeddingInfo::dependent`]): for a dependent coordinate
+    /// that is not cyclic, a residual `r(t, q_I, q̇_I, q_D)` that vanishes
+    /// exactly where `q_D` is a value of the map on one of its branches and
+    /// stays differentiable on the map's singular set, where the explicit
+    /// map has no value (the sleigh: the blade constraint `ẏ cos φ − ẋ sin φ`,
+    /// which holds for `φ = atan2(ẏ, ẋ)` and `φ + π` and is smooth at zero
+    /// speed); for a cyclic one, its rate computed with the given values of
+    /// the others instead of the map's (the disk: `ψ̇ = (ẋ cos θ + ẏ sin θ)/R`
+    /// at the given `θ`). `q_dep` has the same layout; its cyclic entries
+    /// are not read. Returns `false` if the scene gives none (the default);
+    /// the boundary-value solver then uses the explicit map.
+    fn embedding_implicit<D: Scalar>(
+        &self,
+        _t: D,
+        _q_ind: &[D],
+        _qd_ind: &[D],
+        _q_dep: &[D],
+        _out: &mut [D],
+    ) -> bool {
+        false
+    }
+
     /// A vector `r(t, q_I, q̇_I)` whose zero set is the singular set of the
     /// embedding map (the sleigh: the velocity `(ẋ, ẏ)`); see
     /// [`Scene::constraint_singularity`].

@@ -161,6 +161,25 @@ impl Scene for RollingDisk {
         q_dep[1] = (qd_ind[0] * c + qd_ind[1] * s) / self.r;
     }
 
+    /// The heading's defining equation, the combination of the two rolling
+    /// constraints free of `ψ̇`: `−sin θ g₁ + cos θ g₂ = ẏ cos θ − ẋ sin θ = 0`
+    /// (both branches of the heading satisfy it; smooth at zero speed); and
+    /// the rolling rate at the given heading, `ψ̇ = (ẋ cos θ + ẏ sin θ)/R`
+    /// (the signed speed over `R`, smooth through a reversal).
+    fn embedding_implicit<D: Scalar>(
+        &self,
+        _t: D,
+        _q_ind: &[D],
+        qd_ind: &[D],
+        q_dep: &[D],
+        out: &mut [D],
+    ) -> bool {
+        let (s, c) = q_dep[0].sin_cos();
+        out[0] = qd_ind[1] * c - qd_ind[0] * s;
+        out[1] = (qd_ind[0] * c + qd_ind[1] * s) / self.r;
+        true
+    }
+
     /// The velocity `(ẋ, ẏ)`: the heading has no value at zero speed.
     fn embedding_singularity(
         &self,

@@ -269,6 +269,23 @@ impl Scene for Sleigh {
         q_dep[0] = atan2_near(qd_ind[1], qd_ind[0], near.first().copied());
     }
 
+    /// The map's defining equation: the blade constraint itself,
+    /// `ẏ cos φ − ẋ sin φ = 0`, which both branches `atan2(ẏ, ẋ)` and
+    /// `atan2(ẏ, ẋ) + π` satisfy and which stays smooth at zero speed.
+    fn embedding_implicit<D: Scalar>(
+        &self,
+        t: D,
+        q_ind: &[D],
+        qd_ind: &[D],
+        q_dep: &[D],
+        out: &mut [D],
+    ) -> bool {
+        let q = [q_ind[0], q_ind[1], q_dep[0]];
+        let qd = [qd_ind[0], qd_ind[1], D::from(0.0)];
+        self.nonholonomic(t, &q, &qd, out);
+        true
+    }
+
     /// The velocity `(ẋ, ẏ)`: atan2 has no value at zero speed.
     fn embedding_singularity(
         &self,

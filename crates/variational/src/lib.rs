@@ -28,7 +28,7 @@ mod reduced;
 mod refine;
 
 pub use newton::{Options, Report, Solution, Solver, Stationarity};
-pub use problem::{DependentEnd, END_TOL, Ends, Formulation, MapEnds, Problem};
+pub use problem::{DependentEnd, END_TOL, Ends, Formulation, MapEnds, MapForm, Problem};
 pub use reduced::reduced_gradient;
 pub use refine::{Refinement, refine, sample};
 
@@ -46,11 +46,7 @@ pub enum Error {
         reason: String,
     },
     #[error("inconsistent end conditions at t = {t}: {what} has residual {residual:e}")]
-    InconsistentEnds {
-        t: f64,
-        what: String,
-        residual: f64,
-    },
+    InconsistentEnds { t: f64, what: String, residual: f64 },
     #[error(
         "{nodes} nodes need {unknowns} unknowns and about {:.1} GB for the Newton matrix and \
          its factors, more than the limit of {:.1} GB",

@@ -11,11 +11,11 @@
 
 use std::time::Instant;
 
+use faer::Conj;
 use faer::Mat;
 use faer::linalg::solvers::SolveCore;
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
-use faer::Conj;
 use nonholo_core::Scene;
 use num_dual::HyperDual;
 
@@ -134,7 +134,12 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             .iter()
             .map(|b| {
                 let p = b.free.len();
-                p * p + if b.kind == Kind::Interval { 0 } else { 2 * b.rows * p }
+                p * p
+                    + if b.kind == Kind::Interval {
+                        0
+                    } else {
+                        2 * b.rows * p
+                    }
             })
             .sum::<usize>();
         let bytes = entries as f64 * BYTES_PER_ENTRY + u as f64 * 64.0;
@@ -198,17 +203,19 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
 
     /// Factors the matrix of the last assembly and solves with `rhs`.
     fn factor_solve(&mut self, rhs: &mut [f64]) -> Result<(), Error> {
-        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, &self.values)
-            .map_err(|e| Error::Input {
-                field: "nodes".into(),
-                reason: format!("the Newton matrix could not be stored: {e:?}"),
-            })?;
+        let mat =
+            SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, &self.values)
+                .map_err(|e| Error::Input {
+                    field: "nodes".into(),
+                    reason: format!("the Newton matrix could not be stored: {e:?}"),
+                })?;
         if self.lu_symbolic.is_none() {
             self.lu_symbolic =
                 Some(SymbolicLu::try_new(mat.symbolic()).map_err(|e| self.singular_lu(e))?);
         }
         let symbolic = self.lu_symbolic.clone().expect("set above");
-        let lu = Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| self.singular_lu(e))?;
+        let lu =
+            Lu::try_new_with_symbolic(symbolic, mat.as_ref()).map_err(|e| self.singular_lu(e))?;
         let mut b = Mat::<f64>::zeros(rhs.len(), 1);
         for (i, v) in rhs.iter().enumerate() {
             b[(i, 0)] = *v;
@@ -280,7 +287,11 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             let norm = self.scaled_norm();
             report.residual_history.push(norm);
             if !norm.is_finite() {
-                let bad = self.residual.iter().position(|v| !v.is_finite()).unwrap_or(0);
+                let bad = self
+                    .residual
+                    .iter()
+                    .position(|v| !v.is_finite())
+                    .unwrap_or(0);
                 let (node, t, what) = p.describe_unknown(bad);
                 return Err(Error::NotFinite { node, t, what });
             }
@@ -291,10 +302,11 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             // above `tol` on fine grids): a residual already below √tol
             // (where Newton converges quadratically) that a step did not
             // halve.
-            if let [.., before, _] = report.residual_history[..] {
-                if norm <= options.tol.sqrt() && norm > 0.5 * before {
-                    break;
-                }
+            if let [.., before, _] = report.residual_history[..]
+                && norm <= options.tol.sqrt()
+                && norm > 0.5 * before
+            {
+                break;
             }
             if report.iterations >= options.max_iter {
                 return Err(self.not_converged(&report));
@@ -498,7 +510,9 @@ fn assemble<S: Scene>(
         }
         // Residual.
         for (a, &(_, ga)) in b.free.iter().enumerate() {
-            residual[ga] += (0..b.rows).map(|r| weights[r] * jac[r * np + a]).sum::<f64>();
+            residual[ga] += (0..b.rows)
+                .map(|r| weights[r] * jac[r * np + a])
+                .sum::<f64>();
         }
         if !is_action {
             for r in 0..b.rows {

@@ -75,6 +75,31 @@ impl MapEnds {
     }
 }
 
+/// How the embedding map is imposed at the nodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MapForm {
+    /// `q_D,k − φ(t_k, q_I,k, D_k q_I) = 0`: the map as the paper writes it
+    /// (eq. 14). Its derivatives grow like `1/|v|` towards the map's
+    /// singular set (the sleigh's zero speed), and the discretised map's
+    /// error there like `h²/|v|`: a node near a reversal of the motion
+    /// breaks the scheme (docs/variational.md).
+    Explicit,
+    /// `r(t_k, q_I,k, D_k q_I, q_D,k) = 0` with the scene's implicit form of
+    /// the map ([`Scene::embedding_implicit`]): the same solutions, on the
+    /// branch the path follows, and rows that stay regular through the
+    /// singular set.
+    Implicit,
+}
+
+impl MapForm {
+    pub fn name(self) -> &'static str {
+        match self {
+            MapForm::Explicit => "explicit",
+            MapForm::Implicit => "implicit",
+        }
+    }
+}
+
 /// The admissible variations and constraints.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Formulation {
@@ -94,8 +119,8 @@ pub enum Formulation {
         dependent: Vec<usize>,
         end: DependentEnd,
     },
-    /// A with the scene's embedding map (eq. 14).
-    Map { ends: MapEnds },
+    /// A with the scene's embedding map (eq. 14), imposed in `form`.
+    Map { ends: MapEnds, form: MapForm },
 }
 
 impl Formulation {
@@ -113,7 +138,7 @@ impl Formulation {
         match self {
             Formulation::Vakonomic => "fixed",
             Formulation::General { end, .. } => end.name(),
-            Formulation::Map { ends } => ends.name(),
+            Formulation::Map { ends, .. } => ends.name(),
         }
     }
 }
@@ -265,7 +290,7 @@ impl<'a, S: Scene> Problem<'a, S> {
                 let ind = (0..n).filter(|i| !seen[*i]).collect();
                 (ind, dependent.clone(), Vec::new(), 2)
             }
-            Formulation::Map { ends: me } => {
+            Formulation::Map { ends: me, form } => {
                 let Some(e) = info.embedding else {
                     return Err(Error::NotApplicable {
                         formulation: formulation.name(),
@@ -275,6 +300,15 @@ impl<'a, S: Scene> Problem<'a, S> {
                             .into(),
                     });
                 };
+                if *form == MapForm::Implicit && !has_implicit_map(scene, &e) {
+                    return Err(Error::NotApplicable {
+                        formulation: formulation.name(),
+                        scene: info.name,
+                        reason: "the scene gives no implicit form of its embedding map: use the \
+                                 explicit form"
+                            .into(),
+                    });
+                }
                 if *me == MapEnds::Full && (ends.qd0.is_none() || ends.qd1.is_none()) {
                     return Err(Error::Input {
                         field: "ends".into(),
@@ -321,6 +355,7 @@ impl<'a, S: Scene> Problem<'a, S> {
         p.layout()?;
         if let Formulation::Map {
             ends: MapEnds::Full,
+            ..
         } = p.formulation
         {
             p.check_end_velocities()?;
@@ -376,7 +411,7 @@ impl<'a, S: Scene> Problem<'a, S> {
             Formulation::General { end, .. } => {
                 k == 0 || *end == DependentEnd::Fixed || !self.dependent.contains(&i)
             }
-            Formulation::Map { ends } => {
+            Formulation::Map { ends, .. } => {
                 if self.cyclic.contains(&i) {
                     // A eliminates a cyclic coordinate: its value at t0 is
                     // given, at t1 it follows from the quadrature.
@@ -429,7 +464,8 @@ impl<'a, S: Scene> Problem<'a, S> {
                     push(Kind::Midpoint, k, all(k).chain(all(k + 1)).collect(), s);
                 }
             }
-            Formulation::Map { ends } => {
+            Formulation::Map { ends, form } => {
+                let implicit = *form == MapForm::Implicit;
                 let non_cyclic: Vec<usize> = self
                     .dependent
                     .iter()
@@ -447,7 +483,7 @@ impl<'a, S: Scene> Problem<'a, S> {
                     // path only through the action, and the solution
                     // oscillates between odd and even nodes with an
                     // amplitude of order h².)
-let end = k == 0 || k == last;
+                    let end = k == 0 || k == last;
                     if *ends == MapEnds::Full && end {
                         push(
                             Kind::EndVelocity,
@@ -469,7 +505,19 @@ let end = k == 0 || k == last;
                             .chain(self.cyclic.iter().map(|&c| (k + 1, c)))
                             .chain(self.independent.iter().map(|&i| (k, i)))
                             .chain(self.independent.iter().map(|&i| (k + 1, i)));
-                        push(Kind::Cyclic, k, vars.collect(), self.cyclic.len());
+                        // The implicit form takes the rate at the path's
+                        // other dependent values (the disk's heading).
+                        let others = non_cyclic
+                            .iter()
+                            .map(|&d| (k, d))
+                            .chain(non_cyclic.iter().map(|&d| (k + 1, d)))
+                            .filter(|_| implicit);
+                        push(
+                            Kind::Cyclic,
+                            k,
+                            vars.chain(others).collect(),
+                            self.cyclic.len(),
+                        );
                     }
                 }
             }
@@ -486,7 +534,10 @@ let end = k == 0 || k == last;
             if b.vars.len() > MAX_LOCAL {
                 return Err(Error::Input {
                     field: "scene".into(),
-                    reason: format!("a block has {} variables (at most {MAX_LOCAL})", b.vars.len()),
+                    reason: format!(
+                        "a block has {} variables (at most {MAX_LOCAL})",
+                        b.vars.len()
+                    ),
                 });
             }
             b.free = b
@@ -523,7 +574,7 @@ let end = k == 0 || k == last;
         let mut out = vec![0.0; b.rows];
         self.eval(b, &path, &x, &mut out);
         let worst = out.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        if !(worst <= END_TOL) {
+        if worst.is_nan() || worst > END_TOL {
             return Err(Error::InconsistentEnds {
                 t: self.t(b.k),
                 what: self.block_name(b),
@@ -550,9 +601,13 @@ let end = k == 0 || k == last;
             self.scene
                 .embedding(self.t(k), &qi[..m], &vi[..m], &near, &mut c);
             for (j, &d) in self.dependent.iter().enumerate() {
-                let given = if self.cyclic.contains(&d) { qd[d] } else { q[d] };
+                let given = if self.cyclic.contains(&d) {
+                    qd[d]
+                } else {
+                    q[d]
+                };
                 let r = (given - c[j]).abs();
-                if !(r <= END_TOL * (1.0 + c[j].abs())) {
+                if r.is_nan() || r > END_TOL * (1.0 + c[j].abs()) {
                     return Err(Error::InconsistentEnds {
                         t: self.t(k),
                         what: format!(
@@ -588,6 +643,7 @@ let end = k == 0 || k == last;
         }
         if let Formulation::Map {
             ends: MapEnds::Natural,
+            ..
         } = self.formulation
         {
             // The dependent end values are unknowns: start them (and the
@@ -699,7 +755,8 @@ let end = k == 0 || k == last;
                 if b.kind == Kind::Interval {
                     out[0] = self.scene.lagrangian(tm, &a[..n], &bb[..n]) * h;
                 } else {
-                    self.scene.nonholonomic(tm, &a[..n], &bb[..n], &mut out[..b.rows]);
+                    self.scene
+                        .nonholonomic(tm, &a[..n], &bb[..n], &mut out[..b.rows]);
                 }
             }
             Kind::Holonomic => {
@@ -729,15 +786,32 @@ let end = k == 0 || k == last;
                     }
                     return;
                 }
-                let near = self.near(path, b.k, b.k);
+                let t = T::from(self.t(b.k));
                 let s = self.dependent.len();
-                self.scene.embedding(
-                    T::from(self.t(b.k)),
-                    &a[..m],
-                    &bb[..m],
-                    &near[..s],
-                    &mut c[..s],
-                );
+                if self.implicit() {
+                    // The non-cyclic dependent values come first in `x`.
+                    let mut q_dep = [zero; MAX_N];
+                    let mut r = 0;
+                    for (jd, dep) in self.dependent.iter().enumerate() {
+                        if !self.cyclic.contains(dep) {
+                            q_dep[jd] = x[r];
+                            r += 1;
+                        }
+                    }
+                    self.scene
+                        .embedding_implicit(t, &a[..m], &bb[..m], &q_dep[..s], &mut c[..s]);
+                    let mut r = 0;
+                    for dep in &self.dependent {
+                        if !self.cyclic.contains(dep) {
+                            out[r] = c[r];
+                            r += 1;
+                        }
+                    }
+                    return;
+                }
+                let near = self.near(path, b.k, b.k);
+                self.scene
+                    .embedding(t, &a[..m], &bb[..m], &near[..s], &mut c[..s]);
                 let mut r = 0;
                 for (jd, dep) in self.dependent.iter().enumerate() {
                     if !self.cyclic.contains(dep) {
@@ -754,11 +828,28 @@ let end = k == 0 || k == last;
                     a[j] = (x[off + j] + x[off + m + j]) * 0.5;
                     bb[j] = (x[off + m + j] - x[off + j]) / h;
                 }
-                let near = self.near(path, b.k, b.k + 1);
                 let s = self.dependent.len();
                 let tm = T::from(0.5 * (self.t(b.k) + self.t(b.k + 1)));
-                self.scene
-                    .embedding(tm, &a[..m], &bb[..m], &near[..s], &mut c[..s]);
+                if self.implicit() {
+                    // The other dependent values at the midpoint follow
+                    // the independent ones in `x`.
+                    let ndc = s - nc;
+                    let base = off + 2 * m;
+                    let mut q_dep = [zero; MAX_N];
+                    let mut r = 0;
+                    for (jd, dep) in self.dependent.iter().enumerate() {
+                        if !self.cyclic.contains(dep) {
+                            q_dep[jd] = (x[base + r] + x[base + ndc + r]) * 0.5;
+                            r += 1;
+                        }
+                    }
+                    self.scene
+                        .embedding_implicit(tm, &a[..m], &bb[..m], &q_dep[..s], &mut c[..s]);
+                } else {
+                    let near = self.near(path, b.k, b.k + 1);
+                    self.scene
+                        .embedding(tm, &a[..m], &bb[..m], &near[..s], &mut c[..s]);
+                }
                 let mut r = 0;
                 for (jd, dep) in self.dependent.iter().enumerate() {
                     if self.cyclic.contains(dep) {
@@ -768,6 +859,51 @@ let end = k == 0 || k == last;
                 }
             }
         }
+    }
+
+    /// The multipliers of the nonholonomic constraints at the nodes (node
+    /// after node, `s` each) for the formulations that impose them on every
+    /// interval (C and the general case): `λ(t_{k+½}) = μ_k/h`, with `μ_k`
+    /// the multipliers of the discrete constraints on interval `k` (so `λ`
+    /// is C's, of the action `L + λᵀg`), averaged at interior nodes and
+    /// extrapolated linearly at the two ends (second order). `None` for the
+    /// map, whose multipliers are not those of `g`.
+    pub fn node_multipliers(&self, multipliers: &[f64]) -> Option<Vec<f64>> {
+        let s = self.scene.info().s();
+        let last = self.intervals;
+        let nv = self.n_vars;
+        let mut mid = vec![0.0; last * s];
+        let mut found = 0;
+        for b in self.blocks.iter().filter(|b| b.kind == Kind::Midpoint) {
+            for r in 0..s {
+                mid[b.k * s + r] = multipliers.get(b.offset - nv + r)? / self.h();
+            }
+            found += 1;
+        }
+        if found != last || last < 2 {
+            return None;
+        }
+        let mut out = vec![0.0; (last + 1) * s];
+        for r in 0..s {
+            let m = |k: usize| mid[k * s + r];
+            out[r] = 1.5 * m(0) - 0.5 * m(1);
+            out[last * s + r] = 1.5 * m(last - 1) - 0.5 * m(last - 2);
+            for k in 1..last {
+                out[k * s + r] = 0.5 * (m(k - 1) + m(k));
+            }
+        }
+        Some(out)
+    }
+
+    /// Whether the map is imposed in implicit form.
+    fn implicit(&self) -> bool {
+        matches!(
+            self.formulation,
+            Formulation::Map {
+                form: MapForm::Implicit,
+                ..
+            }
+        )
     }
 
     /// The branch references of the map: the current dependent values,
@@ -794,6 +930,13 @@ let end = k == 0 || k == last;
     pub fn cyclic(&self) -> &[usize] {
         &self.cyclic
     }
+}
+
+/// Whether `scene` gives the implicit form of its map (asked once, at zero).
+fn has_implicit_map<S: Scene>(scene: &S, e: &nonholo_core::scene::EmbeddingInfo) -> bool {
+    let (m, s) = (e.independent.len(), e.dependent.len());
+    let (z, mut out) = ([0.0f64; MAX_N], [0.0f64; MAX_N]);
+    scene.embedding_implicit(0.0, &z[..m], &z[..m], &z[..s], &mut out[..s])
 }
 
 /// Nodes of the difference stencil at node `k` of `0..=last`.

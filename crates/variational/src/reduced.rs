@@ -44,8 +44,12 @@ pub fn reduced_gradient<S: Scene>(
         for k in 0..last {
             solve_step(problem, dependent, k, &mut q, s)?;
             let tm = Dual::from_re(0.5 * (problem.t(k) + problem.t(k + 1)));
-            let mid: Vec<_> = (0..n).map(|i| (q[k * n + i] + q[(k + 1) * n + i]) * 0.5).collect();
-            let vel: Vec<_> = (0..n).map(|i| (q[(k + 1) * n + i] - q[k * n + i]) / h).collect();
+            let mid: Vec<_> = (0..n)
+                .map(|i| (q[k * n + i] + q[(k + 1) * n + i]) * 0.5)
+                .collect();
+            let vel: Vec<_> = (0..n)
+                .map(|i| (q[(k + 1) * n + i] - q[k * n + i]) / h)
+                .collect();
             action += problem.scene.lagrangian(tm, &mid, &vel) * h;
         }
         grad.push(action.eps / h);

@@ -5,9 +5,9 @@
 
 use nonholo_core::Scene;
 
+use crate::Error;
 use crate::newton::{Options, Solution, Solver};
 use crate::problem::{Ends, Formulation, Problem};
-use crate::Error;
 
 /// The design order of the discretisation.
 pub const DESIGN_ORDER: f64 = 2.0;

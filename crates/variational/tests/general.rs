@@ -31,8 +31,22 @@ fn solve_against<S: Scene>(
 ) -> (Refinement, f64) {
     let n = s.info().n();
     let fine = q.len() / n - 1;
-    let r = refine(s, f, (0.0, t1), base, &ends_of(q, qd, n), None, &Options::default()).unwrap();
-    let coarse: Vec<f64> = q.chunks(n).step_by(fine / base).flatten().copied().collect();
+    let r = refine(
+        s,
+        f,
+        (0.0, t1),
+        base,
+        &ends_of(q, qd, n),
+        None,
+        &Options::default(),
+    )
+    .unwrap();
+    let coarse: Vec<f64> = q
+        .chunks(n)
+        .step_by(fine / base)
+        .flatten()
+        .copied()
+        .collect();
     let d = max_diff(&r.extrapolated, &coarse);
     (r, d)
 }
@@ -71,14 +85,32 @@ fn disk_general_case_free_end_gives_b_and_fixed_end_gives_c() {
     for end in [DependentEnd::Free, DependentEnd::Fixed] {
         let (r, d) = solve_against(&s, &general(&[0, 1], end), t1, &qb, &qdb, 100);
         assert!(d < 1e-9, "{end:?}: {d:e}");
-        assert!((r.order - 2.0).abs() < 0.2 || r.differences[1] < 1e-12, "{end:?}: {}", r.order);
+        assert!(
+            (r.order - 2.0).abs() < 0.2 || r.differences[1] < 1e-12,
+            "{end:?}: {}",
+            r.order
+        );
     }
     // Ends from a vakonomic motion that is not B's (λ0 = (0, 0.3)).
     let (qc, qdc) = reference(vakonomic(s.clone()), &q0, &qd0, &[0.0, 0.3], &grid(t1, 400));
-    let (r, d) = solve_against(&s, &general(&[0, 1], DependentEnd::Fixed), t1, &qc, &qdc, 100);
+    let (r, d) = solve_against(
+        &s,
+        &general(&[0, 1], DependentEnd::Fixed),
+        t1,
+        &qc,
+        &qdc,
+        100,
+    );
     assert!(d < 1e-9, "fixed: {d:e}");
     assert!((r.order - 2.0).abs() < 0.2, "fixed: {}", r.order);
-    let (r, d) = solve_against(&s, &general(&[0, 1], DependentEnd::Free), t1, &qc, &qdc, 100);
+    let (r, d) = solve_against(
+        &s,
+        &general(&[0, 1], DependentEnd::Free),
+        t1,
+        &qc,
+        &qdc,
+        100,
+    );
     assert!(d > 1e-2, "free: {d:e}");
     // θ and ψ are linear in time between their ends (B's uniform rates).
     let n = 4;
@@ -87,7 +119,10 @@ fn disk_general_case_free_end_gives_b_and_fixed_end_gives_c() {
         let w = k as f64 / last as f64;
         for i in [2, 3] {
             let line = qc[i] + w * (qc[400 * n + i] - qc[i]);
-            assert!((r.extrapolated[k * n + i] - line).abs() < 1e-11, "k {k} i {i}");
+            assert!(
+                (r.extrapolated[k * n + i] - line).abs() < 1e-11,
+                "k {k} i {i}"
+            );
         }
     }
 }
@@ -107,8 +142,13 @@ fn disk_free_end_motion_depends_on_the_horizon() {
     for end in [DependentEnd::Fixed, DependentEnd::Free] {
         let mut on_common = Vec::new();
         for (t1, base) in [(0.5, 50), (1.0, 100)] {
-            let (qc, qdc) =
-                reference(vakonomic(s.clone()), &q0, &qd0, &[0.0, 0.3], &grid(t1, 4 * base));
+            let (qc, qdc) = reference(
+                vakonomic(s.clone()),
+                &q0,
+                &qd0,
+                &[0.0, 0.3],
+                &grid(t1, 4 * base),
+            );
             let (r, _) = solve_against(&s, &general(&[0, 1], end), t1, &qc, &qdc, base);
             on_common.push(r.extrapolated[..51 * n].to_vec());
         }
@@ -127,8 +167,19 @@ fn eliminated_form_is_stationary_at_the_solutions() {
     let disk: RollingDisk = scene(&[]);
     let (th, wth, wpsi) = (0.4f64, 0.5, 1.0);
     let q0 = [0.0, 0.0, th, 0.0];
-    let qd0 = [disk.r * wpsi * th.cos(), disk.r * wpsi * th.sin(), wth, wpsi];
-    let (qc, qdc) = reference(vakonomic(disk.clone()), &q0, &qd0, &[0.0, 0.3], &grid(1.0, 40));
+    let qd0 = [
+        disk.r * wpsi * th.cos(),
+        disk.r * wpsi * th.sin(),
+        wth,
+        wpsi,
+    ];
+    let (qc, qdc) = reference(
+        vakonomic(disk.clone()),
+        &q0,
+        &qd0,
+        &[0.0, 0.3],
+        &grid(1.0, 40),
+    );
     check_eliminated(&disk, &[0, 1], &qc, &qdc);
     let ah: AppellHamel = scene(&[]);
     let qd0 = [1.0, 0.5, -0.5 * 1.25f64.sqrt()];
@@ -136,7 +187,10 @@ fn eliminated_form_is_stationary_at_the_solutions() {
     let ends = ends_of(&qb, &qdb, 3);
     let p = Problem::new(&ah, general(&[2], DependentEnd::Free), 0.0, 1.0, 40, ends).unwrap();
     let o = Options::default();
-    let sol = Solver::new(&p, &o).unwrap().solve(&p.start_line(), &o).unwrap();
+    let sol = Solver::new(&p, &o)
+        .unwrap()
+        .solve(&p.start_line(), &o)
+        .unwrap();
     let g = reduced_gradient(&p, &sol.q).unwrap();
     assert!(g.iter().all(|v| v.abs() < 1e-9), "{g:?}");
 }
@@ -146,13 +200,69 @@ fn check_eliminated<S: Scene>(s: &S, dep: &[usize], q: &[f64], qd: &[f64]) {
     for end in [DependentEnd::Free, DependentEnd::Fixed] {
         let p = Problem::new(s, general(dep, end), 0.0, 1.0, 40, ends_of(q, qd, n)).unwrap();
         let o = Options::default();
-        let sol = Solver::new(&p, &o).unwrap().solve(&p.start_line(), &o).unwrap();
+        let sol = Solver::new(&p, &o)
+            .unwrap()
+            .solve(&p.start_line(), &o)
+            .unwrap();
         let g = reduced_gradient(&p, &sol.q).unwrap();
         let mut off = sol.q.clone();
         off[20 * n + p.independent()[0]] += 1e-3;
         let g_off = reduced_gradient(&p, &off).unwrap();
         let size = g_off.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let at = g.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        assert!(size > 0.1 && at < 1e-9 * size, "{end:?}: {at:e} against {size:e}");
+        assert!(
+            size > 0.1 && at < 1e-9 * size,
+            "{end:?}: {at:e} against {size:e}"
+        );
+    }
+}
+
+/// The disk's map (the heading; the rolling angle `ψ` cyclic, its end value
+/// free): A's boundary-value problem reproduces the vakonomic motion whose
+/// rolling momentum `P_ψ = J_r ψ̇ − R(λ₁ cos θ + λ₂ sin θ)` vanishes
+/// (docs/embedding.md §7) — `ψ` included — at order 2, with the map
+/// explicit or implicit, over a span with an instant of zero speed (the
+/// disk reverses its rolling at t ≈ 1.2 s) for the implicit form.
+#[test]
+fn disk_map_reproduces_the_vakonomic_motion_with_zero_rolling_momentum() {
+    let s: RollingDisk = scene(&[]);
+    let (th, wth, wpsi) = (0.4f64, 0.5, 1.0);
+    let q0 = [0.0, 0.0, th, 0.0];
+    let qd0 = [s.r * wpsi * th.cos(), s.r * wpsi * th.sin(), wth, wpsi];
+    let l2 = 0.3;
+    let l1 = (s.jr * wpsi / s.r - l2 * th.sin()) / th.cos();
+    let n = 4;
+    for (t1, form, base) in [
+        (1.0, MapForm::Explicit, 200),
+        (1.0, MapForm::Implicit, 200),
+        (2.0, MapForm::Implicit, 400),
+    ] {
+        let (q, qd) = reference(
+            vakonomic(s.clone()),
+            &q0,
+            &qd0,
+            &[l1, l2],
+            &grid(t1, 4 * base),
+        );
+        let speed: Vec<f64> = qd.chunks(n).map(|v| v[3]).collect();
+        let reverses = speed.windows(2).any(|w| w[0] * w[1] < 0.0);
+        assert_eq!(reverses, t1 > 1.5, "{t1}: ψ̇ {:?}", speed.last());
+        let f = Formulation::Map {
+            ends: MapEnds::Configuration,
+            form,
+        };
+        // Started on C's motion (from the straight line Newton does not
+        // find its way through the reversal).
+        let coarse: Vec<f64> = q.chunks(n).step_by(4).flatten().copied().collect();
+        let o = Options::default();
+        let ends = ends_of(&q, &qd, n);
+        let r = refine(&s, &f, (0.0, t1), base, &ends, Some(&coarse), &o).unwrap();
+        let d = max_diff(&r.extrapolated, &coarse);
+        assert!(
+            (r.order - 2.0).abs() < 0.2,
+            "{form:?} {t1}: order {}",
+            r.order
+        );
+        assert!(d < 1e-8, "{form:?} {t1}: {d:e}");
     }
 }

@@ -20,7 +20,13 @@ fn qd0() -> [f64; 3] {
 
 /// C's motion on `[0, t1]` at `fine + 1` nodes.
 fn c_motion(s: &Sleigh, t1: f64, fine: usize) -> (Vec<f64>, Vec<f64>) {
-    reference(vakonomic(s.clone()), &Q0, &qd0(), &[LAMBDA0], &grid(t1, fine))
+    reference(
+        vakonomic(s.clone()),
+        &Q0,
+        &qd0(),
+        &[LAMBDA0],
+        &grid(t1, fine),
+    )
 }
 
 /// Every `step`-th node of a node-major path.
@@ -71,14 +77,17 @@ fn vakonomic_bvp_reproduces_the_initial_value_motion() {
 fn embedding_map_with_configuration_ends_reproduces_the_vakonomic_motion() {
     for potential in ["paper", "com"] {
         let s: Sleigh = scene(&[("potential", potential)]);
-        check_reproduces(
-            &s,
-            Formulation::Map {
-                ends: MapEnds::Configuration,
-            },
-            800,
-            1e-8,
-        );
+        for form in [MapForm::Explicit, MapForm::Implicit] {
+            check_reproduces(
+                &s,
+                Formulation::Map {
+                    ends: MapEnds::Configuration,
+                    form,
+                },
+                800,
+                1e-8,
+            );
+        }
     }
 }
 
@@ -106,6 +115,7 @@ fn embedding_map_with_full_ends_is_over_determined() {
             let reference = every(&q, 3, fine / nint);
             let f = Formulation::Map {
                 ends: MapEnds::Full,
+                form: MapForm::Explicit,
             };
             let p = Problem::new(&s, f, 0.0, 1.0, nint, ends.clone()).unwrap();
             let o = Options::default();
@@ -128,8 +138,12 @@ fn embedding_map_with_full_ends_is_over_determined() {
     // The extra speed condition is met in a layer of a few steps: two steps
     // from the end the speed differs by the same amount on every grid,
     // at t = 0.9 by less and less.
-    let layer: Vec<f64> = (0..3).map(|i| (inside[1][i].0 - inside[0][i].0).abs()).collect();
-    let at_09: Vec<f64> = (0..3).map(|i| (inside[1][i].1 - inside[0][i].1).abs()).collect();
+    let layer: Vec<f64> = (0..3)
+        .map(|i| (inside[1][i].0 - inside[0][i].0).abs())
+        .collect();
+    let at_09: Vec<f64> = (0..3)
+        .map(|i| (inside[1][i].1 - inside[0][i].1).abs())
+        .collect();
     assert!(layer[0] > 0.05 * 0.1 * speed1, "{layer:?}");
     assert!((layer[2] / layer[0] - 1.0).abs() < 0.1, "{layer:?}");
     assert!(at_09[2] < 0.3 * at_09[0] && at_09[2] < 1e-3, "{at_09:?}");
@@ -153,6 +167,7 @@ fn embedding_map_with_natural_ends_stops_turning_at_the_ends() {
         let reference = every(&q, 3, fine / nint);
         let f = Formulation::Map {
             ends: MapEnds::Natural,
+            form: MapForm::Explicit,
         };
         let p = Problem::new(&s, f, 0.0, 1.0, nint, ends.clone()).unwrap();
         let o = Options::default();
@@ -179,8 +194,15 @@ fn stationarity_residual_of_b_against_c() {
         let (qc, qdc) = reference(vakonomic(s.clone()), &Q0, &qd0(), &[LAMBDA0], &t);
         let (qb, qdb) = reference(chetaev(s.clone()), &Q0, &qd0(), &[], &t);
         for (q, qd, out) in [(&qc, &qdc, &mut c_res), (&qb, &qdb, &mut b_res)] {
-            let p = Problem::new(&s, Formulation::Vakonomic, 0.0, 1.0, nint, ends_of(q, qd, 3))
-                .unwrap();
+            let p = Problem::new(
+                &s,
+                Formulation::Vakonomic,
+                0.0,
+                1.0,
+                nint,
+                ends_of(q, qd, 3),
+            )
+            .unwrap();
             let st = Solver::new(&p, &Options::default())
                 .unwrap()
                 .stationarity(q)
@@ -205,6 +227,7 @@ fn bad_input_is_refused_with_the_reason() {
     bad.q1[2] += 0.1;
     let full = Formulation::Map {
         ends: MapEnds::Full,
+        form: MapForm::Explicit,
     };
     match Problem::new(&s, full.clone(), 0.0, 1.0, 100, bad) {
         Err(Error::InconsistentEnds { t, residual, .. }) => {
@@ -229,7 +252,7 @@ fn bad_input_is_refused_with_the_reason() {
     ));
     assert!(Problem::new(&s, Formulation::Vakonomic, 1.0, 1.0, 10, ends.clone()).is_err());
     assert!(matches!(
-        Problem::new(&s, Formulation::Map { ends: MapEnds::Configuration }, 0.0, 1.0, 3, ends.clone()),
+        Problem::new(&s, Formulation::Map { ends: MapEnds::Configuration, form: MapForm::Implicit }, 0.0, 1.0, 3, ends.clone()),
         Err(Error::Input { field, .. }) if field == "nodes"
     ));
     // A grid too large for the memory limit is refused before allocating.
@@ -238,7 +261,10 @@ fn bad_input_is_refused_with_the_reason() {
         max_bytes: 1e6,
         ..Options::default()
     };
-    assert!(matches!(Solver::new(&p, &small), Err(Error::TooLarge { nodes: 1001, .. })));
+    assert!(matches!(
+        Solver::new(&p, &small),
+        Err(Error::TooLarge { nodes: 1001, .. })
+    ));
     // Newton that cannot converge names the iterations and the worst nodes.
     let p = Problem::new(&s, Formulation::Vakonomic, 0.0, 1.0, 50, ends.clone()).unwrap();
     let few = Options {
@@ -260,14 +286,16 @@ fn bad_input_is_refused_with_the_reason() {
 }
 
 /// Over `[0, 1.5]` C's motion reverses once (its forward speed changes
-/// sign). C's boundary-value problem reproduces it through the reversal;
-/// A's, with the map `φ = atan2(ẏ, ẋ)` on the branch nearest the current
-/// heading, started on C's motion, fails on some of six grids (its largest
-/// residuals within 0.04 s of the reversal) and converges on the others to
-/// paths more than 1e-4 m from C's, with no order: the map's discretisation
-/// error grows like `h²/|v|` there (docs/variational.md).
+/// sign). C's boundary-value problem reproduces it through the reversal,
+/// and so does A's with the map in implicit form (the blade constraint at
+/// the nodes), both at order 2. A's with the explicit map
+/// `φ = atan2(ẏ, ẋ)` on the branch nearest the current heading, started on
+/// C's motion, fails on some of six grids (its largest residuals within
+/// 0.04 s of the reversal) and converges on the others to paths more than
+/// 1e-4 m from C's, with no order: the explicit map's discretisation error
+/// grows like `h²/|v|` there (docs/variational.md).
 #[test]
-fn a_reversal_stops_the_map_but_not_the_vakonomic_bvp() {
+fn a_reversal_stops_the_explicit_map_but_not_the_implicit_map_or_the_vakonomic_bvp() {
     for potential in ["paper", "com"] {
         let s: Sleigh = scene(&[("potential", potential)]);
         let (t1, fine) = (1.5, 3200);
@@ -287,18 +315,51 @@ fn a_reversal_stops_the_map_but_not_the_vakonomic_bvp() {
         // another stationary path with the same ends (1.6 m away).
         let start = every(&q, 3, fine / 400);
         let o = Options::default();
-        let r = refine(&s, &Formulation::Vakonomic, (0.0, t1), 400, &ends, Some(&start), &o)
-            .unwrap();
+        let r = refine(
+            &s,
+            &Formulation::Vakonomic,
+            (0.0, t1),
+            400,
+            &ends,
+            Some(&start),
+            &o,
+        )
+        .unwrap();
         assert!((r.order - 2.0).abs() < 0.2, "{potential}: {}", r.order);
         let d = max_diff(&r.extrapolated, &every(&q, 3, fine / 400));
-        assert!(d < 1e-8, "{potential}: {d:e}, estimate {:e}", r.extrapolated_error);
+        assert!(
+            d < 1e-8,
+            "{potential}: {d:e}, estimate {:e}",
+            r.extrapolated_error
+        );
         let raw_c = max_diff(&sample(&r.solutions[2], &grid(t1, 400)), &start);
         assert!(raw_c < 1e-5, "{potential}: C's BVP {raw_c:e}");
+        let implicit = Formulation::Map {
+            ends: MapEnds::Configuration,
+            form: MapForm::Implicit,
+        };
+        // Its error constant is 5–20 times C's (the map rows' central
+        // differences): grids from 1600 intervals bring the extrapolation
+        // to 1e-8 (at 400: 1e-6 and 6e-8).
+        let start = every(&q, 3, fine / 1600);
+        let r = refine(&s, &implicit, (0.0, t1), 1600, &ends, Some(&start), &o).unwrap();
+        assert!(
+            (r.order - 2.0).abs() < 0.2,
+            "{potential}: A implicit, order {}",
+            r.order
+        );
+        let d = max_diff(&r.extrapolated, &start);
+        assert!(
+            d < 1e-8,
+            "{potential}: A implicit {d:e}, estimate {:e}",
+            r.extrapolated_error
+        );
         let (mut failed, mut converged) = (0, Vec::new());
         for base in [100, 160, 200, 320, 400, 800] {
             let start = every(&q, 3, fine / base);
             let f = Formulation::Map {
                 ends: MapEnds::Configuration,
+                form: MapForm::Explicit,
             };
             let p = Problem::new(&s, f, 0.0, t1, base, ends.clone()).unwrap();
             match Solver::new(&p, &o).unwrap().solve(&start, &o) {
@@ -313,6 +374,60 @@ fn a_reversal_stops_the_map_but_not_the_vakonomic_bvp() {
             }
         }
         assert!(failed >= 2, "{potential}: {failed} failures");
-        assert!(converged.iter().all(|d| *d > 1e-4), "{potential}: {converged:?}");
+        assert!(
+            converged.iter().all(|d| *d > 1e-4),
+            "{potential}: {converged:?}"
+        );
     }
+}
+
+/// C's multipliers read off the boundary-value problem (`λ = μ/h` at the
+/// midpoints, averaged to the nodes) are the initial-value run's state `λ`
+/// to second order.
+#[test]
+fn vakonomic_bvp_multipliers_are_cs_lambda() {
+    let s: Sleigh = scene(&[]);
+    let mut errs = Vec::new();
+    for nint in [100, 200, 400] {
+        let t = grid(1.0, nint);
+        let run = nonholo_core::simulate(
+            vakonomic(s.clone()),
+            nonholo_core::Initial {
+                t0: 0.0,
+                q: Q0.to_vec(),
+                qd: qd0().to_vec(),
+                extra: vec![("lambda".into(), LAMBDA0)],
+            },
+            nonholo_core::RunConfig {
+                method: nonholo_core::integrate::Method::Dop853,
+                options: nonholo_core::integrate::Options {
+                    rtol: 1e-13,
+                    atol: 1e-13,
+                    output: t.clone(),
+                    ..Default::default()
+                },
+                t_end: 1.0,
+                project_init: false,
+            },
+        )
+        .unwrap();
+        let q: Vec<f64> = run.samples.iter().flat_map(|o| o.q.clone()).collect();
+        let qd: Vec<f64> = run.samples.iter().flat_map(|o| o.qd.clone()).collect();
+        let lambda: Vec<f64> = run.samples.iter().map(|o| o.multipliers[0]).collect();
+        let p = Problem::new(
+            &s,
+            Formulation::Vakonomic,
+            0.0,
+            1.0,
+            nint,
+            ends_of(&q, &qd, 3),
+        )
+        .unwrap();
+        let o = Options::default();
+        let sol = Solver::new(&p, &o).unwrap().solve(&q, &o).unwrap();
+        let l = p.node_multipliers(&sol.multipliers).unwrap();
+        errs.push(max_diff(&l, &lambda));
+    }
+    let order = (errs[0] / errs[2]).log2() / 2.0;
+    assert!((order - 2.0).abs() < 0.2 && errs[2] < 1e-3, "{errs:?}");
 }

@@ -15,15 +15,12 @@ pub fn scene<S: Scene>(params: &[(&str, &str)]) -> S {
 
 pub fn vakonomic<S: Scene>(s: S) -> Box<dyn Model> {
     Box::new(
-        nonholo_vakonomic::Vakonomic::new(s, Params::defaults(nonholo_vakonomic::OPTIONS))
-            .unwrap(),
+        nonholo_vakonomic::Vakonomic::new(s, Params::defaults(nonholo_vakonomic::OPTIONS)).unwrap(),
     )
 }
 
 pub fn chetaev<S: Scene>(s: S) -> Box<dyn Model> {
-    Box::new(
-        nonholo_chetaev::Chetaev::new(s, Params::defaults(nonholo_chetaev::OPTIONS)).unwrap(),
-    )
+    Box::new(nonholo_chetaev::Chetaev::new(s, Params::defaults(nonholo_chetaev::OPTIONS)).unwrap())
 }
 
 /// Positions and velocities of `model` from `(q0, q̇0, extra)` at the
@@ -79,7 +76,9 @@ pub fn ends_of(q: &[f64], qd: &[f64], n: usize) -> Ends {
 
 /// Largest difference between two node-major paths.
 pub fn max_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
 /// `0, T/N, …, T`.

@@ -93,9 +93,11 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
         return Err(if scene.s() == 0 {
             "the scene has no nonholonomic constraints to embed".into()
         } else {
-            "the scene provides no embedding map q_D = φ(q_I, q̇_I, t) (eq. 14); for general \
-             constraints (eq. 27–30) the map needs ψ from integrating eq. (28), which this scene \
-             cannot provide"
+            "the scene provides no embedding map q_D = φ(q_I, q̇_I, t) (eq. 14): for general \
+             constraints (eq. 27–30) the dependent coordinates follow from integrating eq. (28) \
+             along the whole path, which an initial-value problem cannot do; the paper's general \
+             case is solved as a boundary-value problem by `nonholo bvp --formulation embedding \
+             --dependent …` (docs/variational.md)"
                 .into()
         });
     };

@@ -1,6 +1,7 @@
 //! The `nonholo` command line and the lab: formulations registry, runs,
 //! result files.
 
+pub mod bvp;
 pub mod experiment;
 pub mod fields;
 pub mod formulations;

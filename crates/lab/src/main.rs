@@ -1,4 +1,5 @@
 use clap::{Parser, Subcommand};
+use nonholo_lab::bvp::{self, BvpArgs};
 use nonholo_lab::experiment::cli::{
     self, ExperimentArgs, MergeArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
 };
@@ -32,6 +33,8 @@ enum Command {
     Simulate(Box<SimulateArgs>),
     /// Linearise a formulation about a steady motion: eigenvalues and eigenvectors of the essential dynamics.
     Linearize(Box<LinearizeArgs>),
+    /// Hamilton's principle as it is stated: a path with fixed ends made stationary (C, or A by its map or the paper's general case), or the stationarity residual of a given motion.
+    Bvp(Box<BvpArgs>),
     /// Run an experiment file: sweeps, comparisons, plots, reports in results/<name>/.
     Experiment(ExperimentArgs),
     /// Error against cost: run work-precision experiments (all of experiments/ by default).
@@ -82,6 +85,7 @@ fn main() {
         Command::Scenes { json } => scenes(*json),
         Command::Simulate(args) => simulate::command(args),
         Command::Linearize(args) => linearize::command(args),
+        Command::Bvp(args) => bvp::command(args),
         Command::Experiment(args) => cli::experiment(args),
         Command::WorkPrecision(args) => cli::work_precision(args),
         Command::Merge(args) => cli::merge(args),

@@ -80,6 +80,30 @@ pub struct DiagnosticsRecord {
     pub states_checked: usize,
 }
 
+impl From<&nonholo_core::Diagnostics> for DiagnosticsRecord {
+    fn from(d: &nonholo_core::Diagnostics) -> Self {
+        DiagnosticsRecord {
+            constraint_residual_max: d.constraint_residual_max,
+            nonholonomic_residual_max: d.nonholonomic_residual_max,
+            holonomic_residual_max: d.holonomic_residual_max,
+            holonomic_velocity_residual_max: d.holonomic_velocity_residual_max,
+            energy_initial: d.energy_initial,
+            energy_final: d.energy_final,
+            energy_drift_max: d.energy_drift_max,
+            invariants: d
+                .invariants
+                .iter()
+                .map(|i| InvariantRecord {
+                    name: i.name.clone(),
+                    initial: i.initial,
+                    drift_max: i.drift_max,
+                })
+                .collect(),
+            states_checked: d.states_checked,
+        }
+    }
+}
+
 /// The work counters of one integration, as every result file reports them
 /// (in this order).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -157,6 +181,10 @@ pub struct RunRecord {
     /// Formulation A: how its initial derivatives were matched with C.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub matching: Option<crate::matching::MatchReport>,
+    /// `nonholo bvp`: the boundary-value problem and how it was solved
+    /// (docs/schema.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bvp: Option<crate::bvp::BvpRecord>,
 }
 
 /// The meaning of the multipliers a formulation reports.
@@ -344,25 +372,7 @@ impl RunRecord {
                 .then(|| multiplier_convention(run.model.formulation().name)),
             lambda,
             nu,
-            diagnostics: DiagnosticsRecord {
-                constraint_residual_max: d.constraint_residual_max,
-                nonholonomic_residual_max: d.nonholonomic_residual_max,
-                holonomic_residual_max: d.holonomic_residual_max,
-                holonomic_velocity_residual_max: d.holonomic_velocity_residual_max,
-                energy_initial: d.energy_initial,
-                energy_final: d.energy_final,
-                energy_drift_max: d.energy_drift_max,
-                invariants: d
-                    .invariants
-                    .iter()
-                    .map(|i| InvariantRecord {
-                        name: i.name.clone(),
-                        initial: i.initial,
-                        drift_max: i.drift_max,
-                    })
-                    .collect(),
-                states_checked: d.states_checked,
-            },
+            diagnostics: DiagnosticsRecord::from(d),
             stats: StatsRecord {
                 counters: Counters::from(st),
                 wall_time_s: st.wall_time_s,
@@ -381,6 +391,7 @@ impl RunRecord {
                 message: e.to_string(),
             }),
             matching: None,
+            bvp: None,
         })
     }
 

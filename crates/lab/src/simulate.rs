@@ -288,20 +288,23 @@ impl nonholo_scenes::SceneVisitor for ResolveInit {
 }
 
 /// Where `--out` writes: the file, and for a CSV its `.meta.json`.
-struct OutFiles {
+pub(crate) struct OutFiles {
     main: PathBuf,
     meta: Option<PathBuf>,
 }
 
 /// The files `--out` names, checked before anything runs: a known format,
 /// an existing directory that takes files, no directory in the way.
-fn out_files(args: &SimulateArgs) -> Result<Option<OutFiles>, CliError> {
-    let Some(path) = &args.out else {
+pub(crate) fn out_files(
+    out: Option<&PathBuf>,
+    keep_partial: bool,
+) -> Result<Option<OutFiles>, CliError> {
+    let Some(path) = out else {
         return Ok(None);
     };
     let csv = match path.extension().and_then(|e| e.to_str()) {
         Some("json") => false,
-        Some("csv") if args.keep_partial => {
+        Some("csv") if keep_partial => {
             return Err(CliError::Input(
                 "--keep-partial needs a .json output: a CSV cannot say that the run failed".into(),
             ));
@@ -348,11 +351,34 @@ fn pretty(value: &impl serde::Serialize) -> Result<Vec<u8>, CliError> {
     Ok(b)
 }
 
+/// Writes `record` to the files `--out` named (JSON, or CSV with its
+/// `.meta.json`), all or nothing.
+pub(crate) fn write_record(
+    out: &OutFiles,
+    record: &RunRecord,
+    multiplier_names: &[String],
+) -> Result<(), CliError> {
+    let mut files = Vec::new();
+    match &out.meta {
+        Some(meta) => {
+            let csv = record.to_csv(multiplier_names).map_err(CliError::Run)?;
+            files.push((out.main.clone(), csv));
+            files.push((meta.clone(), pretty(&record.metadata())?));
+        }
+        None => files.push((out.main.clone(), pretty(record)?)),
+    }
+    let refs: Vec<(&Path, &[u8])> = files
+        .iter()
+        .map(|(p, b)| (p.as_path(), b.as_slice()))
+        .collect();
+    io::write_group(&refs).map_err(CliError::Output)
+}
+
 /// Runs `nonholo simulate`; writes the file or prints the summary. Every
 /// value and the output files are checked before the run.
 pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
     let spec = spec(args)?;
-    let out = out_files(args)?;
+    let out = out_files(args.out.as_ref(), args.keep_partial)?;
     let (run, matching) = execute(&spec)?;
     if let Some(p) = &run.projection {
         crate::note!(
@@ -383,22 +409,7 @@ pub fn command(args: &SimulateArgs) -> Result<(), CliError> {
                 Some(f) => CliError::Run(format!("{f} (no file written: {e})")),
                 None => CliError::Run(e),
             })?;
-            let mut files = Vec::new();
-            match &out.meta {
-                Some(meta) => {
-                    let csv = record
-                        .to_csv(&run.model.multiplier_names())
-                        .map_err(CliError::Run)?;
-                    files.push((out.main.clone(), csv));
-                    files.push((meta.clone(), pretty(&record.metadata())?));
-                }
-                None => files.push((out.main.clone(), pretty(&record)?)),
-            }
-            let refs: Vec<(&Path, &[u8])> = files
-                .iter()
-                .map(|(p, b)| (p.as_path(), b.as_slice()))
-                .collect();
-            io::write_group(&refs).map_err(CliError::Output)?;
+            write_record(&out, &record, &run.model.multiplier_names())?;
         }
         Some(_) => {}
         None => match record {

@@ -30,7 +30,7 @@ mod refine;
 pub use newton::{Options, Report, Solution, Solver, Stationarity};
 pub use problem::{DependentEnd, END_TOL, Ends, Formulation, MapEnds, MapForm, Problem};
 pub use reduced::reduced_gradient;
-pub use refine::{Refinement, refine, sample};
+pub use refine::{DESIGN_ORDER, Refinement, refine, sample};
 
 use thiserror::Error;
 

@@ -113,11 +113,13 @@ pub struct Solver<'p, 'a, S: Scene> {
     lu_symbolic: Option<SymbolicLu<usize>>,
     values: Vec<f64>,
     residual: Vec<f64>,
+    /// The largest single term of a stationarity row at the last assembly.
+    terms: f64,
 }
 
-/// A full Newton step below this, relative to the largest coordinate,
-/// ends the iteration.
-const STEP_TOL: f64 = 1e-11;
+/// Round-off of the stationarity rows counted as converged: this many
+/// times its estimate ([`Solver::solve`]).
+const FLOOR_MARGIN: f64 = 10.0;
 
 /// Bytes per pattern entry (indices, values, sort) and per factor entry,
 /// with the factor's fill for banded matrices taken as three times the
@@ -177,6 +179,7 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             lu_symbolic: None,
             values: Vec::with_capacity(entries),
             residual,
+            terms: 0.0,
         })
     }
 
@@ -191,7 +194,7 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
     fn assemble_at(&mut self, path: &[f64], mu: &[f64], hessian: bool) {
         self.values.clear();
         let values = &mut self.values;
-        assemble(
+        self.terms = assemble(
             self.problem,
             path,
             mu,
@@ -239,6 +242,15 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             .unwrap_or(0);
         let (node, t, what) = self.problem.describe_unknown(index);
         Error::Singular { node, t, what }
+    }
+
+    /// The round-off floor of the scaled residual (with a margin of
+    /// [`FLOOR_MARGIN`]): the stationarity rows are differences of momenta,
+    /// each with the round-off of its velocity `(q_{k+1} − q_k)/h`, about
+    /// `ε M |q|/h`, and over `h` — `ε M |q|/h²`, above `tol` on fine grids
+    /// (2e-10 N at h = 1.25 ms for unit mass and positions).
+    fn floor(&self) -> f64 {
+        FLOOR_MARGIN * f64::EPSILON * self.terms / self.problem.h()
     }
 
     /// Scaled residual of the last assembly: stationarity rows over `h`
@@ -295,15 +307,14 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
                 let (node, t, what) = p.describe_unknown(bad);
                 return Err(Error::NotFinite { node, t, what });
             }
+            // Converged: at the tolerance; or, where the round-off floor is
+            // above it (fine grids), near the floor once an iteration no
+            // longer halves the residual.
             if norm <= options.tol {
                 break;
             }
-            // Stagnation at the round-off floor (about ε p/h for momenta p,
-            // above `tol` on fine grids): a residual already below √tol
-            // (where Newton converges quadratically) that a step did not
-            // halve.
             if let [.., before, _] = report.residual_history[..]
-                && norm <= options.tol.sqrt()
+                && norm <= self.floor()
                 && norm > 0.5 * before
             {
                 break;
@@ -356,16 +367,6 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             report.step_history.push(step);
             std::mem::swap(&mut path, &mut trial);
             std::mem::swap(&mut mu, &mut trial_mu);
-            let scale = path.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            if halvings == 0 && step <= STEP_TOL * scale {
-                // A full Newton step this small leaves an error of its
-                // square: the residual is then at its round-off floor
-                // (about ε p/h for momenta p), which on fine grids is above
-                // `tol`. The final residual is recorded.
-                self.assemble_at(&path, &mu, false);
-                report.residual_history.push(self.scaled_norm());
-                break;
-            }
         }
         report.wall_seconds = wall.elapsed().as_secs_f64();
         Ok(Solution {
@@ -399,6 +400,28 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             history: report.residual_history.clone(),
             worst,
         }
+    }
+
+    /// The scaled residual of the stationarity conditions and constraints
+    /// (what Newton's method drives to zero) at a path and multipliers
+    /// (`μ`, in the order of the constraint blocks).
+    pub fn residual_at(&mut self, path: &[f64], mu: &[f64]) -> Result<f64, Error> {
+        let p = self.problem;
+        let need = (p.nodes() * p.n, p.multipliers());
+        if (path.len(), mu.len()) != need {
+            return Err(Error::Input {
+                field: "path".into(),
+                reason: format!(
+                    "{} path values and {} multipliers; the problem has {} and {}",
+                    path.len(),
+                    mu.len(),
+                    need.0,
+                    need.1
+                ),
+            });
+        }
+        self.assemble_at(path, mu, false);
+        Ok(self.scaled_norm())
     }
 
     /// The stationarity residual of a given path: the component of `∇S`
@@ -457,6 +480,10 @@ pub struct Stationarity {
 
 /// Walks the blocks: adds their contributions to `residual` (zeroed here)
 /// and hands each matrix entry to `sink` in a fixed order (diagonal first).
+/// Returns the size of the round-off of a stationarity row over `ε`: its
+/// largest single term (about the largest momentum) or, with the Hessian,
+/// the largest `|∂²S/∂x²| |x|` of the action if larger (the velocities'
+/// round-off `ε|q|/h` carried into the momenta).
 fn assemble<S: Scene>(
     p: &Problem<'_, S>,
     path: &[f64],
@@ -464,8 +491,9 @@ fn assemble<S: Scene>(
     hessian: bool,
     residual: &mut [f64],
     sink: &mut dyn FnMut(usize, usize, f64),
-) {
+) -> f64 {
     let nv = p.free_coordinates();
+    let mut terms = 0.0f64;
     residual.iter_mut().for_each(|r| *r = 0.0);
     for u in 0..p.unknowns() {
         sink(u, u, if !hessian && u < nv { 1.0 } else { 0.0 });
@@ -505,14 +533,22 @@ fn assemble<S: Scene>(
                     let hv: f64 = (0..b.rows).map(|r| weights[r] * out[r].eps1eps2).sum();
                     hess[ia * np + ib] = hv;
                     hess[ib * np + ia] = hv;
+                    if ia == ib && is_action {
+                        // The round-off of a velocity (q_{k+1} − q_k)/h is
+                        // ε|q|/h: in the gradient, ε|q| times the action's
+                        // curvature (about 2M/h).
+                        terms = terms.max((hv * xf[b.free[ia].0]).abs());
+                    }
                 }
             }
         }
         // Residual.
         for (a, &(_, ga)) in b.free.iter().enumerate() {
-            residual[ga] += (0..b.rows)
+            let term = (0..b.rows)
                 .map(|r| weights[r] * jac[r * np + a])
                 .sum::<f64>();
+            residual[ga] += term;
+            terms = terms.max(term.abs());
         }
         if !is_action {
             for r in 0..b.rows {
@@ -535,4 +571,5 @@ fn assemble<S: Scene>(
             }
         }
     }
+    terms
 }

@@ -79,10 +79,12 @@ impl MapEnds {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MapForm {
     /// `q_D,k − φ(t_k, q_I,k, D_k q_I) = 0`: the map as the paper writes it
-    /// (eq. 14). Its derivatives grow like `1/|v|` towards the map's
-    /// singular set (the sleigh's zero speed), and the discretised map's
-    /// error there like `h²/|v|`: a node near a reversal of the motion
-    /// breaks the scheme (docs/variational.md).
+    /// (eq. 14). Its rows have the roots of the implicit form's (on the
+    /// branch the path follows), but their derivatives grow like `1/|v|`
+    /// and their second derivatives like `1/|v|²` towards the map's
+    /// singular set (the sleigh's zero speed): Newton's method fails on
+    /// grids with a node close to a reversal of the motion
+    /// (docs/variational.md).
     Explicit,
     /// `r(t_k, q_I,k, D_k q_I, q_D,k) = 0` with the scene's implicit form of
     /// the map ([`Scene::embedding_implicit`]): the same solutions, on the

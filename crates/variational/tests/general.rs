@@ -266,3 +266,37 @@ fn disk_map_reproduces_the_vakonomic_motion_with_zero_rolling_momentum() {
         assert!(d < 1e-8, "{form:?} {t1}: {d:e}");
     }
 }
+
+/// Appell–Hamel with the dependent end fixed (and C's fixed-end problem):
+/// every vakonomic motion from a state is B's (docs/formulations.md), so
+/// B's motion is stationary with the multipliers `λ(t) = λ0 − m g t/(1 + c²)`
+/// for every `λ0` — the Newton matrix is singular there, and Newton's
+/// method from the straight line fails on most grids (the experiment
+/// bvp-general). With the end free, the natural condition at `t1` fixes
+/// `λ0`: only one of them is stationary.
+#[test]
+fn appell_hamel_fixed_end_leaves_the_multiplier_undetermined() {
+    let s: AppellHamel = scene(&[]);
+    let (m, g, c) = (1.0, 9.81, 0.5);
+    let qd0 = [1.0, 0.5, -0.5 * 1.25f64.sqrt()];
+    let (t1, nint) = (1.0, 40);
+    let (q, qd) = reference(chetaev(s.clone()), &[0.0; 3], &qd0, &[], &grid(t1, nint));
+    let h = t1 / nint as f64;
+    let o = Options::default();
+    for (end, stationary) in [
+        (DependentEnd::Fixed, [true, true, true]),
+        (DependentEnd::Free, [false, true, false]),
+    ] {
+        let p = Problem::new(&s, general(&[2], end), 0.0, t1, nint, ends_of(&q, &qd, 3)).unwrap();
+        let mut solver = Solver::new(&p, &o).unwrap();
+        // The free end's λ0: m ż(t1) + λ(t1) = 0.
+        let lambda_free = -m * qd[nint * 3 + 2] + m * g * t1 / (1.0 + c * c);
+        for (l0, expect) in [-2.0, lambda_free, 3.0].into_iter().zip(stationary) {
+            let mu: Vec<f64> = (0..nint)
+                .map(|k| h * (l0 - m * g * (k as f64 + 0.5) * h / (1.0 + c * c)))
+                .collect();
+            let r = solver.residual_at(&q, &mu).unwrap();
+            assert_eq!(r < 1e-9, expect, "{end:?}, λ0 = {l0}: residual {r:e}");
+        }
+    }
+}

@@ -237,6 +237,13 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
             exp.name
         )));
     }
+    if shard.is_some() && exp.kind == Kind::Bvp {
+        return Err(CliError::Input(format!(
+            "--shard: {} is a bvp experiment, which takes seconds to a minute on one machine; \
+             --shard splits compare experiments only",
+            exp.name
+        )));
+    }
     if shard.is_some() && exp.kind == Kind::Stability {
         return Err(CliError::Input(format!(
             "--shard: {} is a stability experiment, which takes seconds on one machine; \
@@ -295,6 +302,7 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
                 .join(match exp.kind {
                     Kind::WorkPrecision => "work_precision.csv",
                     Kind::Stability => "samples.csv",
+                    Kind::Bvp => "solves.csv",
                     Kind::Compare => "runs.csv",
                 })
                 .display()
@@ -397,6 +405,8 @@ pub fn plot(args: &PlotArgs) -> Result<(), CliError> {
         super::wp::redraw(&exp, out)?
     } else if exp.kind == Kind::Stability {
         super::stability::redraw(&exp, out)?
+    } else if exp.kind == Kind::Bvp {
+        super::bvp::redraw(&exp, out)?
     } else {
         let results: Vec<super::PointResult> =
             super::files::load_points(&exp, &dir, super::point::POINT_SCHEMA)
@@ -549,6 +559,9 @@ pub(crate) fn main_plot(exp: &Experiment, dir: &Path) -> Option<PathBuf> {
     }
     if exp.kind == Kind::Stability {
         candidates.push("eigenvalues-re".into());
+    }
+    if exp.kind == Kind::Bvp {
+        candidates.push(format!("convergence-p{}", exp.plot_point));
     }
     if exp.axes.len() == 2 {
         candidates.extend(

@@ -59,6 +59,8 @@ enum Measures {
     },
     /// A stability sweep stores no points; its key is never asked for.
     Stability,
+    /// Nor does a bvp experiment.
+    Bvp,
     WorkPrecision {
         repeats: usize,
     },
@@ -223,6 +225,7 @@ pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String
             repeats: exp.repeats,
         },
         Kind::Stability => Measures::Stability,
+        Kind::Bvp => Measures::Bvp,
     };
     serde_json::to_string(&PointKey {
         schema,

@@ -28,6 +28,7 @@
 //! comparison: [`point`] (running one point), [`output`] (its tables,
 //! trajectories and summary), [`plots`].
 
+pub mod bvp;
 pub mod cli;
 pub mod dir;
 pub mod files;
@@ -247,6 +248,16 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
             )));
         }
         return wp::run(exp, opts, out);
+    }
+    if exp.kind == spec::Kind::Bvp {
+        if opts.shard.is_some() {
+            return Err(CliError::Input(format!(
+                "{}: a bvp experiment takes seconds to a minute on one machine; --shard splits \
+                 compare experiments only",
+                exp.name
+            )));
+        }
+        return bvp::run(exp, opts, out);
     }
     if exp.kind == spec::Kind::Stability {
         if opts.shard.is_some() {

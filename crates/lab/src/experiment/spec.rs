@@ -107,7 +107,84 @@ struct File {
     work_precision: Option<WorkPrecisionFile>,
     minimise: Option<MinimiseFile>,
     stability: Option<StabilityFile>,
+    bvp: Option<BvpFile>,
 }
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BvpFile {
+    ends_from: Spanned<String>,
+    h: Spanned<Vec<f64>>,
+    horizons: Spanned<Vec<f64>>,
+    #[serde(default)]
+    stationarity: Vec<Spanned<String>>,
+    #[serde(default)]
+    stationarity_under: Vec<Spanned<String>>,
+    start: Option<Spanned<String>>,
+    tol: Option<Spanned<f64>>,
+    max_iter: Option<Spanned<u64>>,
+    #[serde(default, rename = "line")]
+    lines: Vec<BvpLineFile>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BvpLineFile {
+    label: Spanned<String>,
+    formulation: Spanned<String>,
+    #[serde(default)]
+    dependent: Vec<String>,
+    ends: Option<Spanned<String>>,
+    map_form: Option<Spanned<String>>,
+}
+
+/// `[bvp]` (experiments of kind `bvp`, docs/variational.md): at every point
+/// of the sweep the `[[formulation]]` lines are integrated from `[init]` as
+/// initial-value problems to the longest horizon; then, for every horizon
+/// `t1` and grid spacing `h`, each `[[bvp.line]]` is solved as a
+/// boundary-value problem on `[0, t1]` with the end data of line
+/// `ends_from`, and compared with every initial-value line at the nodes; the
+/// stationarity residual of the motions of the lines in `stationarity` is
+/// measured under each boundary-value problem.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BvpSpec {
+    /// The `[[formulation]]` label whose motion gives the end data (and the
+    /// starting path with `start = "reference"`).
+    pub ends_from: String,
+    /// Grid spacings, coarse to fine; every horizon is a whole number of
+    /// each, and each a whole number of the finest.
+    pub h: Vec<f64>,
+    /// Horizons `t1`, increasing (the start is 0).
+    pub horizons: Vec<f64>,
+    /// `[[formulation]]` labels whose motions' stationarity is measured.
+    pub stationarity: Vec<String>,
+    /// The `[[bvp.line]]` labels under whose problems it is measured
+    /// (default: every line).
+    pub stationarity_under: Vec<String>,
+    /// Start Newton from `ends_from`'s motion (`true`, `start =
+    /// "reference"`, the default) or from the straight line between the
+    /// ends (`start = "line"`).
+    pub start_from_reference: bool,
+    pub tol: f64,
+    pub max_iter: usize,
+    pub lines: Vec<BvpLine>,
+}
+
+/// One boundary-value formulation of a `bvp` experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BvpLine {
+    pub label: String,
+    /// `vakonomic` or `embedding`.
+    pub formulation: String,
+    pub dependent: Vec<String>,
+    pub ends: Option<String>,
+    pub map_form: Option<String>,
+    /// What these select on the experiment's scene.
+    pub resolved: nonholo_variational::Formulation,
+}
+
+/// Most grid nodes of one boundary-value solve in an experiment.
+pub const MAX_BVP_NODES: usize = 10_000_000;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -364,6 +441,9 @@ pub enum Kind {
     /// Linearise each formulation about a steady motion over a range of
     /// one value (`[stability]`).
     Stability,
+    /// Solve boundary-value problems with the ends of an initial-value run
+    /// and compare (`[bvp]`).
+    Bvp,
 }
 
 /// The work-precision ladder of one line.
@@ -523,6 +603,8 @@ pub struct Experiment {
     pub minimise: Option<MinimiseSpec>,
     /// What a stability experiment sweeps (kind `stability` only).
     pub stability: Option<StabilitySpec>,
+    /// The boundary-value problems of a `bvp` experiment.
+    pub bvp: Option<BvpSpec>,
     /// Timed repeats of every run, the median wall time reported
     /// (work-precision: `[work_precision] repeats`, default 5; compare:
     /// `[measures] repeats`, default 1).
@@ -773,7 +855,20 @@ impl Experiment {
             .kind
             .as_ref()
             .is_some_and(|k| k.get_ref() == "stability");
+        let bvp_kind = file
+            .experiment
+            .kind
+            .as_ref()
+            .is_some_and(|k| k.get_ref() == "bvp");
         let (t_end, every) = match &file.time {
+            Some(time) if bvp_kind => {
+                return Err(ctx.err(
+                    time.t_end.span(),
+                    "time",
+                    "a bvp experiment's spans are its [bvp] horizons and its grids [bvp] h",
+                ));
+            }
+            None if bvp_kind => bvp_span(&ctx, &file)?,
             Some(time) => {
                 let t_end = fields::t_end(*time.t_end.get_ref())
                     .map_err(|m| ctx.err(time.t_end.span(), "time.t_end", m))?;
@@ -902,12 +997,14 @@ impl Experiment {
                 "compare" => Kind::Compare,
                 "work-precision" => Kind::WorkPrecision,
                 "stability" => Kind::Stability,
+                "bvp" => Kind::Bvp,
                 other => {
                     return Err(ctx.err(
                         k.span(),
                         "experiment.kind",
                         format!(
-                            "unknown kind `{other}`; valid: compare, work-precision, stability"
+                            "unknown kind `{other}`; valid: compare, work-precision, stability, \
+                             bvp"
                         ),
                     ));
                 }
@@ -915,6 +1012,7 @@ impl Experiment {
         };
         let repeats = work_precision_lines(&ctx, kind, &file, &mut forms, t_end)?;
         let stability = stability(&ctx, kind, &file)?;
+        let bvp = bvp(&ctx, kind, &file, &forms)?;
         let labels: Vec<String> = forms.iter().map(|f| f.label.clone()).collect();
 
         let (mode, axes) = match &file.sweep {
@@ -1209,6 +1307,7 @@ impl Experiment {
             kind,
             minimise: None,
             stability,
+            bvp,
             repeats,
         };
         let mut exp = exp;
@@ -1250,6 +1349,7 @@ impl Experiment {
             })?;
         }
         super::stability::check(&exp).map_err(|m| SpecError(format!("{}: {m}", path.display())))?;
+        super::bvp::check(&exp).map_err(|m| SpecError(format!("{}: {m}", path.display())))?;
         Ok(exp)
     }
 
@@ -1401,6 +1501,225 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
         steady_tol,
         re_range: plot_range(&st.re_range, "stability.re_range")?,
         im_range: plot_range(&st.im_range, "stability.im_range")?,
+    }))
+}
+
+/// `(t_end, output_every)` of a bvp experiment: its longest horizon, and
+/// its finest grid (the initial-value lines are sampled there).
+fn bvp_span(ctx: &Ctx, file: &File) -> Result<(f64, f64), SpecError> {
+    let whole = |msg: &str| SpecError(format!("{}: {msg}", ctx.path.display()));
+    let b = file
+        .bvp
+        .as_ref()
+        .ok_or_else(|| whole("an experiment of kind \"bvp\" needs a [bvp] table"))?;
+    let positive = |v: &Spanned<Vec<f64>>, key: &str| -> Result<Vec<f64>, SpecError> {
+        let list = v.get_ref();
+        if list.is_empty() || list.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(ctx.err(
+                v.span(),
+                key,
+                "must be a non-empty list of positive numbers",
+            ));
+        }
+        Ok(list.clone())
+    };
+    let horizons = positive(&b.horizons, "bvp.horizons")?;
+    let h = positive(&b.h, "bvp.h")?;
+    let t_end = horizons.iter().copied().fold(0.0, f64::max);
+    let t_end = fields::t_end(t_end).map_err(|m| ctx.err(b.horizons.span(), "bvp.horizons", m))?;
+    Ok((t_end, h.iter().copied().fold(f64::INFINITY, f64::min)))
+}
+
+/// Whether `x` is a whole multiple of `unit` (to 1e-9 relative).
+fn whole_multiple(x: f64, unit: f64) -> Option<usize> {
+    let k = (x / unit).round();
+    ((x / unit - k).abs() <= 1e-9 * k.max(1.0) && k >= 1.0).then_some(k as usize)
+}
+
+/// The `[bvp]` table of a bvp experiment (refused elsewhere).
+fn bvp(
+    ctx: &Ctx,
+    kind: Kind,
+    file: &File,
+    forms: &[FormulationSpec],
+) -> Result<Option<BvpSpec>, SpecError> {
+    let whole = |msg: &str| SpecError(format!("{}: {msg}", ctx.path.display()));
+    let Some(b) = &file.bvp else {
+        return Ok(None);
+    };
+    if kind != Kind::Bvp {
+        return Err(whole(
+            "[bvp] belongs to experiments of kind \"bvp\" (set experiment.kind)",
+        ));
+    }
+    for (present, table) in [
+        (file.minimise.is_some(), "[minimise]"),
+        (file.stability.is_some(), "[stability]"),
+        (file.work_precision.is_some(), "[work_precision]"),
+    ] {
+        if present {
+            return Err(whole(&format!(
+                "{table} has no meaning in a bvp experiment"
+            )));
+        }
+    }
+    let labels: Vec<&str> = forms.iter().map(|f| f.label.as_str()).collect();
+    for f in forms {
+        if f.formulation == CLOSED_FORM {
+            return Err(whole(&format!(
+                "{}: a closed form gives no initial-value run to take end data from; use an \
+                 integrated formulation",
+                f.label
+            )));
+        }
+    }
+    let ivp = |v: &Spanned<String>, key: &str| -> Result<String, SpecError> {
+        if labels.contains(&v.get_ref().as_str()) {
+            Ok(v.get_ref().clone())
+        } else {
+            Err(ctx.err(
+                v.span(),
+                key,
+                format!(
+                    "`{}` is not a [[formulation]] label ({})",
+                    v.get_ref(),
+                    labels.join(", ")
+                ),
+            ))
+        }
+    };
+    let ends_from = ivp(&b.ends_from, "bvp.ends_from")?;
+    let stationarity = b
+        .stationarity
+        .iter()
+        .map(|v| ivp(v, "bvp.stationarity"))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut h = b.h.get_ref().clone();
+    h.sort_by(|a, b| b.total_cmp(a));
+    h.dedup();
+    let mut horizons = b.horizons.get_ref().clone();
+    horizons.sort_by(f64::total_cmp);
+    horizons.dedup();
+    let finest = h[h.len() - 1];
+    for &x in &h {
+        if whole_multiple(x, finest).is_none() {
+            return Err(ctx.err(
+                b.h.span(),
+                "bvp.h",
+                format!(
+                    "{} is not a whole multiple of the finest spacing {}: the coarser grids' \
+                     nodes must be nodes of the finest",
+                    fields::num(x),
+                    fields::num(finest)
+                ),
+            ));
+        }
+    }
+    for &t1 in &horizons {
+        for &x in &h {
+            let nodes = whole_multiple(t1, x).ok_or_else(|| {
+                ctx.err(
+                    b.horizons.span(),
+                    "bvp.horizons",
+                    format!(
+                        "{} is not a whole number of steps h = {}",
+                        fields::num(t1),
+                        fields::num(x)
+                    ),
+                )
+            })?;
+            if !(2..MAX_BVP_NODES).contains(&nodes) {
+                return Err(ctx.err(
+                    b.h.span(),
+                    "bvp.h",
+                    format!(
+                        "{nodes} intervals on a horizon of {}: between 2 and {MAX_BVP_NODES}",
+                        fields::num(t1)
+                    ),
+                ));
+            }
+        }
+    }
+    let start_from_reference = match &b.start {
+        None => true,
+        Some(v) => match v.get_ref().as_str() {
+            "reference" => true,
+            "line" => false,
+            other => {
+                return Err(ctx.err(
+                    v.span(),
+                    "bvp.start",
+                    format!("`{other}`: valid: reference (ends_from's motion), line"),
+                ));
+            }
+        },
+    };
+    let tol = match &b.tol {
+        None => nonholo_variational::Options::default().tol,
+        Some(t) => fields::rtol(*t.get_ref()).map_err(|m| ctx.err(t.span(), "bvp.tol", m))?,
+    };
+    let max_iter = match &b.max_iter {
+        None => nonholo_variational::Options::default().max_iter,
+        Some(m) if (1..=10_000).contains(m.get_ref()) => *m.get_ref() as usize,
+        Some(m) => return Err(ctx.err(m.span(), "bvp.max_iter", "must be 1 to 10000")),
+    };
+    if b.lines.is_empty() {
+        return Err(whole("[bvp] needs at least one [[bvp.line]]"));
+    }
+    let info = nonholo_scenes::info(file.experiment.scene.get_ref())
+        .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
+    let mut lines: Vec<BvpLine> = Vec::new();
+    for l in &b.lines {
+        let label = l.label.get_ref().clone();
+        check_label(&label).map_err(|m| ctx.err(l.label.span(), "bvp.line.label", m))?;
+        if labels.contains(&label.as_str()) || lines.iter().any(|x| x.label == label) {
+            return Err(ctx.err(
+                l.label.span(),
+                "bvp.line.label",
+                format!("`{label}` is used twice (labels name lines of every table)"),
+            ));
+        }
+        let resolved = crate::bvp::formulation(
+            info,
+            l.formulation.get_ref(),
+            &l.dependent,
+            l.ends.as_ref().map(|e| e.get_ref().as_str()),
+            l.map_form.as_ref().map(|e| e.get_ref().as_str()),
+        )
+        .map_err(|m| ctx.err(l.formulation.span(), "bvp.line", m))?;
+        lines.push(BvpLine {
+            label,
+            formulation: l.formulation.get_ref().clone(),
+            dependent: l.dependent.clone(),
+            ends: l.ends.as_ref().map(|e| e.get_ref().clone()),
+            map_form: l.map_form.as_ref().map(|e| e.get_ref().clone()),
+            resolved,
+        });
+    }
+    let mut stationarity_under = Vec::new();
+    for v in &b.stationarity_under {
+        if !lines.iter().any(|l| l.label == *v.get_ref()) {
+            return Err(ctx.err(
+                v.span(),
+                "bvp.stationarity_under",
+                format!("`{}` is not a [[bvp.line]] label", v.get_ref()),
+            ));
+        }
+        stationarity_under.push(v.get_ref().clone());
+    }
+    if stationarity_under.is_empty() {
+        stationarity_under = lines.iter().map(|l| l.label.clone()).collect();
+    }
+    Ok(Some(BvpSpec {
+        ends_from,
+        h,
+        horizons,
+        stationarity,
+        stationarity_under,
+        start_from_reference,
+        tol,
+        max_iter,
+        lines,
     }))
 }
 

@@ -43,7 +43,7 @@ pub struct BvpArgs {
     pub params: Vec<String>,
     /// A dependent coordinate of the paper's general case (repeatable, one
     /// per nonholonomic constraint): it follows the discretised eq. (28).
-    #[arg(long = "dependent", value_name = "NAME")]
+    #[arg(long = "dependent", value_name = "NAME", allow_hyphen_values = true)]
     pub dependent: Vec<String>,
     /// End conditions: `configuration` (default), `natural` or `full` for the
     /// map; `free` (default) or `fixed` for the dependent end values of the
@@ -100,6 +100,10 @@ pub struct BvpArgs {
     /// are refused before anything is allocated.
     #[arg(long, default_value_t = 8.0, allow_hyphen_values = true)]
     pub max_memory: f64,
+    /// Budget on wall-clock time in seconds for Newton's method (default:
+    /// none).
+    #[arg(long, allow_hyphen_values = true)]
+    pub max_wall_time: Option<f64>,
     /// Do not solve: measure how far the motion in FILE (JSON, e.g. B's) is
     /// from a stationary path of this problem on the grid, and print it.
     #[arg(long, allow_hyphen_values = true)]
@@ -307,13 +311,14 @@ impl nonholo_scenes::SceneVisitor for Visit<'_> {
     fn visit<S: Scene>(self, scene: S) -> JobOutcome {
         let job = self.0;
         let wall = std::time::Instant::now();
-        let problem = var::Problem::new(
+        let problem = var::Problem::with_limit(
             &scene,
             job.formulation.clone(),
             job.t0,
             job.t1,
             job.intervals,
             job.ends.clone(),
+            job.options.max_bytes,
         );
         let problem = match problem {
             Ok(p) => p,
@@ -367,13 +372,14 @@ fn solve_on<S: Scene>(
             extrapolated_error: r.extrapolated_error,
         };
         let levels = r.solutions.iter().map(|s| s.report.clone()).collect();
-        let finest = var::Problem::new(
+        let finest = var::Problem::with_limit(
             scene,
             job.formulation.clone(),
             job.t0,
             job.t1,
             4 * job.intervals,
             job.ends.clone(),
+            job.options.max_bytes,
         )?;
         let solution = r.solutions.into_iter().last().expect("three levels");
         (solution, levels, Some(record), Some(finest))
@@ -859,16 +865,15 @@ fn vector(
 
 /// The job `args` describe, every value checked, and the files it read.
 fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
-    let data = args
-        .stationarity_of
-        .as_ref()
-        .or(args.ends_from.as_ref())
-        .map(|p| RunFile::read(p).map_err(CliError::Input))
-        .transpose()?;
-    let ends_file = match (&args.ends_from, &args.stationarity_of) {
-        (Some(e), _) => Some(RunFile::read(e).map_err(CliError::Input)?),
-        (None, Some(_)) => data.clone(),
+    let read = |name: &str, p: &PathBuf| flag(name, RunFile::read(p));
+    let data = match (&args.stationarity_of, &args.ends_from) {
+        (Some(p), _) => Some(read("--stationarity-of", p)?),
+        (None, Some(p)) => Some(read("--ends-from", p)?),
         (None, None) => None,
+    };
+    let ends_file = match (&args.ends_from, &args.stationarity_of) {
+        (Some(e), Some(_)) => Some(read("--ends-from", e)?),
+        _ => data.clone(),
     };
     let scene_name = match (&args.scene, &data) {
         (Some(s), Some(d)) if *s != d.scene => {
@@ -989,21 +994,26 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
     };
     flag("--t-end", fields::t_end(t1 - t0).map(|_| ()))?;
     let intervals = args.nodes - 1;
-    let times: Vec<f64> = (0..=intervals)
-        .map(|k| {
-            if k == intervals {
-                t1
-            } else {
-                t0 + (t1 - t0) * (k as f64 / intervals as f64)
-            }
-        })
-        .collect();
+    // Node times, for paths read from files (made only then: a grid too
+    // large for memory is refused by the solver before anything is laid
+    // out).
+    let times = || -> Vec<f64> {
+        (0..=intervals)
+            .map(|k| {
+                if k == intervals {
+                    t1
+                } else {
+                    t0 + (t1 - t0) * (k as f64 / intervals as f64)
+                }
+            })
+            .collect()
+    };
     let (start, start_name) = match args.start.as_str() {
         "line" => (None, "line".to_string()),
         file => {
-            let f = RunFile::read(std::path::Path::new(file)).map_err(CliError::Input)?;
+            let f = flag("--start", RunFile::read(std::path::Path::new(file)))?;
             (
-                Some(flag("--start", f.sample(&times))?),
+                Some(flag("--start", f.sample(&times()))?),
                 f.path.display().to_string(),
             )
         }
@@ -1011,7 +1021,7 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
     let check = match &args.stationarity_of {
         Some(_) => {
             let d = data.as_ref().expect("read above");
-            vec![flag("--stationarity-of", d.sample(&times))?]
+            vec![flag("--stationarity-of", d.sample(&times()))?]
         }
         None => Vec::new(),
     };
@@ -1045,6 +1055,10 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
                 max_iter: args.max_iter,
                 tol,
                 max_bytes: args.max_memory * 1e9,
+                max_wall_time: args
+                    .max_wall_time
+                    .map(|s| flag("--max-wall-time", fields::max_wall_time(s)))
+                    .transpose()?,
             },
             check,
         },
@@ -1082,7 +1096,7 @@ pub fn command(args: &BvpArgs) -> Result<(), CliError> {
     if let Some(path) = &args.stationarity_of {
         let st = match &outcome.stationarity[0] {
             Ok(s) => s,
-            Err(e) => return Err(CliError::Run(e.to_string())),
+            Err(e) => return Err(cli_error(e)),
         };
         if args.json {
             let doc = StationarityJson {
@@ -1123,13 +1137,44 @@ pub fn command(args: &BvpArgs) -> Result<(), CliError> {
     }
     let solved = match outcome.solved.as_ref().expect("solve requested") {
         Ok(s) => s,
-        Err(e) => return Err(CliError::Run(e.to_string())),
+        Err(e) => return Err(cli_error(e)),
     };
     let record =
         record(&job, solved, &outcome, &start_name, ends_from.as_deref()).map_err(CliError::Run)?;
     match out {
         Some(out) => crate::simulate::write_record(&out, &record, &multiplier_names(&record)),
         None => crate::print_stdout(&summary(&record)),
+    }
+}
+
+/// Refused input (exit 2: nothing was solved) or a solve that failed (1).
+fn cli_error(e: &var::Error) -> CliError {
+    match e {
+        var::Error::TooLarge { .. } => CliError::Input(format!("--nodes, --max-memory: {e}")),
+        // The solver's fields are the flags' names.
+        var::Error::Input { field, reason }
+            if [
+                "t-end",
+                "q0",
+                "q1",
+                "qd0",
+                "qd1",
+                "dependent",
+                "nodes",
+                "ends",
+                "start",
+            ]
+            .contains(&field.as_str()) =>
+        {
+            CliError::Input(format!("--{field}: {reason}"))
+        }
+        var::Error::Input { .. }
+        | var::Error::NotApplicable { .. }
+        | var::Error::InconsistentEnds { .. } => CliError::Input(e.to_string()),
+        var::Error::Singular { .. }
+        | var::Error::NotFinite { .. }
+        | var::Error::NotConverged { .. }
+        | var::Error::TimeBudget { .. } => CliError::Run(e.to_string()),
     }
 }
 

@@ -956,3 +956,172 @@ fn coin_incline_as_figures_md_states() {
         "exceeds 1e-6 m from C at 0.33 s and is 2.3 m from it at most",
     ]);
 }
+
+/// The rows of a bvp experiment's `solves.csv` for `label`.
+fn solves<'a>(
+    rows: &'a [HashMap<String, String>],
+    label: &str,
+) -> Vec<&'a HashMap<String, String>> {
+    rows.iter().filter(|r| r["label"] == label).collect()
+}
+
+/// `(min, max)` of the numbers in `key` of `rows` (empty fields skipped).
+fn range(rows: &[&HashMap<String, String>], key: &str) -> (f64, f64) {
+    rows.iter()
+        .filter(|r| !r[key].is_empty())
+        .map(|r| num(r, key))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        })
+}
+
+#[test]
+fn bvp_sleigh_as_figures_md_states() {
+    let ivp = table("bvp-sleigh", "ivp.csv");
+    for (point, t) in [("0", 1.19), ("1", 1.30)] {
+        let c = find(&ivp, point, "C");
+        assert_eq!(num(c, "reversals"), 1.0);
+        assert!((num(c, "first_reversal") - t).abs() < 0.005, "{c:?}");
+        assert_eq!(num(find(&ivp, point, "A"), "reversals"), 1.0);
+    }
+    let rows = table("bvp-sleigh", "solves.csv");
+    for label in ["C-bvp", "A-bvp"] {
+        let r = solves(&rows, label);
+        assert_eq!(r.len(), 10);
+        assert!(r.iter().all(|r| r["status"] == "solved"));
+        let (lo, hi) = range(&r, "order");
+        assert!(lo >= 1.975 && hi <= 2.005, "{label}: orders {lo} to {hi}");
+        let (lo, hi) = range(&r, "iterations");
+        assert!(lo >= 3.0 && hi <= 4.0, "{label}: {lo} to {hi} iterations");
+    }
+    let finest: Vec<&HashMap<String, String>> = rows
+        .iter()
+        .filter(|r| r["h"] == "0.0009375" && r["label"] != "A-bvp-explicit")
+        .collect();
+    let (lo, hi) = range(&finest, "err_A");
+    assert!((2.55e-6..2.65e-6).contains(&lo) && (1.25e-5..1.35e-5).contains(&hi));
+    let explicit = solves(&rows, "A-bvp-explicit");
+    let coarse: Vec<&&HashMap<String, String>> = explicit
+        .iter()
+        .filter(|r| r["h"] == "0.015" || r["h"] == "0.0075")
+        .collect();
+    for e in &coarse {
+        assert_eq!(e["status"], "solved");
+        let it = num(e, "iterations");
+        assert!((8.0..=9.0).contains(&it), "{e:?}");
+        let a = rows
+            .iter()
+            .find(|r| r["point"] == e["point"] && r["h"] == e["h"] && r["label"] == "A-bvp")
+            .unwrap();
+        assert!((num(a, "err_A") - num(e, "err_A")).abs() < 1e-12);
+    }
+    assert_eq!(
+        explicit.iter().filter(|r| r["status"] == "failed").count(),
+        6
+    );
+    let st = table("bvp-sleigh", "stationarity.csv");
+    let of = |point: &str, of: &str| -> Vec<f64> {
+        st.iter()
+            .filter(|r| r["point"] == point && r["of"] == of)
+            .map(|r| num(r, "max"))
+            .collect()
+    };
+    let b0 = of("0", "B");
+    assert!(b0.iter().all(|v| (2.55..2.75).contains(v)), "{b0:?}");
+    assert!(of("1", "B").iter().all(|v| (v - 1.53).abs() < 0.005));
+    for (point, last) in [("0", 4.1e-5), ("1", 4.6e-5)] {
+        let c = of(point, "C");
+        assert!((c[4] / last - 1.0).abs() < 0.02, "{c:?}");
+        let order = (c[0] / c[4]).log2() / 4.0;
+        assert!((order - 2.0).abs() < 0.05, "{c:?}");
+    }
+    figures_md_says(&[
+        "(at t = 1.19 s with the paper's potential, 1.30 s with the centre of mass)",
+        "(observed 1.98 to 2.00 over five grids halving h from 15 ms to 0.94 ms, where they are 2.6e-6 to 1.3e-5 from it) in 3 to 4 Newton iterations",
+        "on the two coarsest grids (errors equal to 1e-12) in 8 to 9 damped iterations and fails on the three finer ones",
+        "stays at 2.6 to 2.7 N m (paper) and 1.53 N m (centre of mass) on every grid while C's falls like h² to 4.1e-5 and 4.6e-5 N m",
+    ]);
+}
+
+#[test]
+fn bvp_general_as_figures_md_states() {
+    let rows = table("bvp-general", "solves.csv");
+    let free = solves(&rows, "A-free");
+    assert_eq!(free.len(), 12);
+    assert!(
+        free.iter()
+            .all(|r| r["status"] == "solved" && r["iterations"] == "1")
+    );
+    assert!(range(&free, "err_B").1 < 7e-13 && range(&free, "err_C").1 < 7e-13);
+    let hz = table("bvp-general", "horizons.csv");
+    for r in hz.iter().filter(|r| r["label"] == "A-free") {
+        assert!(num(r, "spread") < 1e-12, "{r:?}");
+    }
+    for label in ["A-fixed", "C-bvp"] {
+        let r = solves(&rows, label);
+        assert_eq!(r.iter().filter(|r| r["status"] == "failed").count(), 10);
+    }
+    // The two problems are the same: the same numbers.
+    for (a, c) in solves(&rows, "A-fixed").iter().zip(solves(&rows, "C-bvp")) {
+        assert_eq!((&a["status"], &a["err_B"]), (&c["status"], &c["err_B"]));
+    }
+    let st = table("bvp-general", "stationarity.csv");
+    assert!(st.iter().all(|r| num(r, "max") < 1e-10));
+    figures_md_says(&[
+        "within 7e-13 m of it on 4 grids (h = 50 to 6.25 ms) and 3 horizons (t1 = 0.5, 1 and 2 s), in one Newton iteration",
+        "Newton's method from the straight line fails on 10 of the 12 grid–horizon pairs",
+        "(residual below 1e-10 N)",
+    ]);
+}
+
+#[test]
+fn bvp_general_disk_as_figures_md_states() {
+    let rows = table("bvp-general-disk", "solves.csv");
+    let free = solves(&rows, "A-free");
+    for (t1, d) in [("0.5", 0.022), ("1", 0.062), ("2", 0.316)] {
+        let at: Vec<&&HashMap<String, String>> =
+            free.iter().filter(|r| r["horizon"] == t1).collect();
+        assert_eq!(at.len(), 4);
+        for r in at {
+            assert!((num(r, "err_C") - d).abs() < 0.0005, "{r:?}");
+        }
+    }
+    let (lo, hi) = range(&free, "err_B");
+    assert!(
+        (0.1..0.105).contains(&lo) && (1.135..1.145).contains(&hi),
+        "{lo} {hi}"
+    );
+    let hz = table("bvp-general-disk", "horizons.csv");
+    for r in hz.iter().filter(|r| r["label"] == "A-free") {
+        let want = if r["horizon"] == "1" { 0.061 } else { 0.18 };
+        assert!((num(r, "spread") - want).abs() < 0.002, "{r:?}");
+    }
+    for label in ["A-fixed", "C-bvp"] {
+        let r = solves(&rows, label);
+        let (lo, hi) = range(&r, "order");
+        assert!(lo >= 1.995 && hi <= 2.006, "{label}: {lo} {hi}");
+        assert!((range(&r, "err_C").0 - 7.9e-7).abs() < 0.05e-7);
+        let spreads: Vec<f64> = hz
+            .iter()
+            .filter(|x| x["label"] == label)
+            .map(|x| num(x, "spread"))
+            .collect();
+        // Four grids halving h, two horizons: falling like h².
+        let ratio = spreads[0] / spreads[6];
+        assert!((ratio.log2() / 3.0 - 2.0).abs() < 0.05, "{spreads:?}");
+        assert!(spreads[6].max(spreads[7]) < 1.4e-6);
+    }
+    let st = table("bvp-general-disk", "stationarity.csv");
+    assert!(
+        st.iter()
+            .filter(|r| r["of"] == "B")
+            .all(|r| num(r, "max") < 1e-10)
+    );
+    figures_md_says(&[
+        "0.022, 0.062 and 0.316 m from it at t1 = 0.5, 1 and 2 s on every grid, and 0.10 to 1.14 m from B's",
+        "its motion on [0, 0.5] s moves by 0.061 m and 0.18 m when the horizon grows to 1 and 2 s, on every grid",
+        "at order 2.00 (7.9e-7 m at h = 3.1 ms)",
+        "(falling like h², to 1.4e-6 m)",
+        "is stationary under C's problem to 1e-10 N",
+    ]);
+}

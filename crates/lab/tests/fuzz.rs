@@ -596,3 +596,138 @@ fn fuzz_experiment_files() {
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// A valid `bvp` command line as (flag, value) pairs, with its budget.
+fn base_bvp(rng: &mut Rng) -> Vec<(String, Option<String>)> {
+    let p = |f: &str, v: &str| (f.to_string(), Some(v.to_string()));
+    let ends: &[(&str, &[&str], &[&str], &[&str])] = &[
+        (
+            "sleigh-incline",
+            &["x=0", "y=0", "phi=0.3"],
+            &["x=1.2", "y=0.6", "phi=0.8"],
+            &["vakonomic", "embedding"],
+        ),
+        (
+            "rolling-disk",
+            &["x=0", "y=0", "theta=0.4", "psi=0"],
+            &["x=0.8", "y=0.5", "theta=0.9", "psi=1"],
+            &["vakonomic", "embedding"],
+        ),
+        (
+            "appell-hamel",
+            &["x=0", "y=0", "z=0"],
+            &["x=1", "y=0.4", "z=-0.6"],
+            &["vakonomic", "embedding"],
+        ),
+    ];
+    let (scene, q0, q1, forms) = rng.pick(ends);
+    let formulation = rng.pick(forms);
+    let mut cmd = vec![
+        ("bvp".to_string(), None),
+        p("--scene", scene),
+        p("--formulation", formulation),
+        p("--t-end", "1"),
+        p("--nodes", "41"),
+        p("--max-wall-time", "2"),
+        p(
+            "--out",
+            if rng.below(2) == 0 {
+                "bvp.json"
+            } else {
+                "bvp.csv"
+            },
+        ),
+    ];
+    for v in *q0 {
+        cmd.push(p("--q0", v));
+    }
+    for v in *q1 {
+        cmd.push(p("--q1", v));
+    }
+    if *formulation == "embedding" {
+        match *scene {
+            "appell-hamel" => cmd.push(p("--dependent", "z")),
+            "rolling-disk" if rng.below(2) == 0 => {
+                cmd.push(p("--dependent", "x"));
+                cmd.push(p("--dependent", "y"));
+            }
+            _ => cmd.push(p("--map-form", *rng.pick(&["implicit", "explicit"]))),
+        }
+    }
+    cmd
+}
+
+/// One mutation of a `bvp` command: a value made hostile (a coordinate
+/// keeps its name), a flag dropped, or a flag of a wrong kind added.
+fn mutate_bvp(
+    rng: &mut Rng,
+    mut cmd: Vec<(String, Option<String>)>,
+) -> (Vec<(String, Option<String>)>, Vec<String>) {
+    let sites: Vec<usize> = (1..cmd.len()).filter(|&i| cmd[i].1.is_some()).collect();
+    let i = *rng.pick(&sites);
+    let flag = cmd[i].0.clone();
+    let mut needles = vec![flag.clone()];
+    match rng.below(6) {
+        0 => {
+            cmd.remove(i);
+        }
+        1 => {
+            let extra = rng.pick(&[
+                ("--ends", "free"),
+                ("--ends", "natural"),
+                ("--map-form", "implicit"),
+                ("--dependent", "phi"),
+                ("--start", "missing.json"),
+                ("--refine", ""),
+                ("--tol", "1e-300"),
+                ("--max-iter", "0"),
+                ("--max-memory", "1e-9"),
+                ("--nodes", "3"),
+                ("--nodes", "100000"),
+            ]);
+            needles.push(extra.0.to_string());
+            let value = (!extra.1.is_empty()).then(|| extra.1.to_string());
+            cmd.push((extra.0.to_string(), value));
+        }
+        _ => {
+            let old = cmd[i].1.clone().unwrap_or_default();
+            let value = match old.split_once('=') {
+                Some((name, _)) => {
+                    needles.push(name.to_string());
+                    format!("{name}={}", hostile(rng))
+                }
+                None => hostile(rng),
+            };
+            cmd[i].1 = Some(value);
+        }
+    }
+    (cmd, needles)
+}
+
+#[test]
+fn fuzz_the_bvp_command_line() {
+    let mut rng = Rng(seed() ^ 0xB0B);
+    let started = Instant::now();
+    let mut failures = Vec::new();
+    let mut codes = std::collections::BTreeMap::new();
+    for i in 0..cases() {
+        let base = base_bvp(&mut rng);
+        let (cmd, needles) = mutate_bvp(&mut rng, base);
+        let args: Vec<String> = cmd
+            .into_iter()
+            .flat_map(|(f, v)| std::iter::once(f).chain(v))
+            .collect();
+        let dir = case_dir("bvp", i);
+        match check(&dir, run(&dir, &args), &needles) {
+            Ok(code) => *codes.entry(code).or_insert(0) += 1,
+            Err(why) => failures.push(format!("case {i}: nonholo {args:?}\n  {why}")),
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    eprintln!(
+        "{} bvp cases in {:.1?}, exit statuses {codes:?}",
+        cases(),
+        started.elapsed()
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

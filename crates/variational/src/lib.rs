@@ -28,7 +28,10 @@ mod reduced;
 mod refine;
 
 pub use newton::{Options, Report, Solution, Solver, Stationarity};
-pub use problem::{DependentEnd, END_TOL, Ends, Formulation, MapEnds, MapForm, Problem};
+pub use problem::{
+    DEFAULT_MAX_BYTES, DependentEnd, END_TOL, Ends, Formulation, MapEnds, MapForm, PROBE_INTERVALS,
+    Problem,
+};
 pub use reduced::reduced_gradient;
 pub use refine::{DESIGN_ORDER, Refinement, refine, sample};
 
@@ -48,8 +51,8 @@ pub enum Error {
     #[error("inconsistent end conditions at t = {t}: {what} has residual {residual:e}")]
     InconsistentEnds { t: f64, what: String, residual: f64 },
     #[error(
-        "{nodes} nodes need {unknowns} unknowns and about {:.1} GB for the Newton matrix and \
-         its factors, more than the limit of {:.1} GB",
+        "{nodes} nodes need {unknowns} unknowns and about {:.3e} GB for the Newton matrix and \
+         its factors, more than the limit of {:.3e} GB",
         bytes / 1e9,
         limit / 1e9
     )]
@@ -58,6 +61,15 @@ pub enum Error {
         unknowns: usize,
         bytes: f64,
         limit: f64,
+    },
+    #[error(
+        "wall-time budget of {seconds} s used up after {iterations} Newton iterations (scaled \
+         residual {residual:.2e})"
+    )]
+    TimeBudget {
+        seconds: f64,
+        iterations: usize,
+        residual: f64,
     },
     #[error("singular Newton matrix at node {node} (t = {t}): {what}")]
     Singular { node: usize, t: f64, what: String },

@@ -33,6 +33,9 @@ pub struct Options {
     /// Refuse a grid whose matrices would need more memory than this
     /// (bytes, estimated before anything is allocated).
     pub max_bytes: f64,
+    /// Stop Newton's method once this much wall time (seconds) has gone
+    /// (checked before every factorisation); `None`: no limit.
+    pub max_wall_time: Option<f64>,
 }
 
 impl Default for Options {
@@ -40,7 +43,8 @@ impl Default for Options {
         Options {
             max_iter: 40,
             tol: 1e-10,
-            max_bytes: 8.0 * 1024.0 * 1024.0 * 1024.0,
+            max_bytes: crate::problem::DEFAULT_MAX_BYTES,
+            max_wall_time: None,
         }
     }
 }
@@ -121,30 +125,13 @@ pub struct Solver<'p, 'a, S: Scene> {
 /// times its estimate ([`Solver::solve`]).
 const FLOOR_MARGIN: f64 = 10.0;
 
-/// Bytes per pattern entry (indices, values, sort) and per factor entry,
-/// with the factor's fill for banded matrices taken as three times the
-/// pattern.
-const BYTES_PER_ENTRY: f64 = 16.0 + 8.0 + 8.0 + 3.0 * 16.0;
-
 impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
     /// Builds the sparsity pattern; refuses grids that would not fit in
     /// `options.max_bytes`.
     pub fn new(problem: &'p Problem<'a, S>, options: &Options) -> Result<Self, Error> {
         let u = problem.unknowns();
-        let entries: usize = u + problem
-            .blocks
-            .iter()
-            .map(|b| {
-                let p = b.free.len();
-                p * p
-                    + if b.kind == Kind::Interval {
-                        0
-                    } else {
-                        2 * b.rows * p
-                    }
-            })
-            .sum::<usize>();
-        let bytes = entries as f64 * BYTES_PER_ENTRY + u as f64 * 64.0;
+        let entries = problem.newton_entries();
+        let bytes = problem.newton_bytes();
         if bytes > options.max_bytes {
             return Err(Error::TooLarge {
                 nodes: problem.nodes(),
@@ -321,6 +308,15 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             }
             if report.iterations >= options.max_iter {
                 return Err(self.not_converged(&report));
+            }
+            if let Some(limit) = options.max_wall_time
+                && wall.elapsed().as_secs_f64() > limit
+            {
+                return Err(Error::TimeBudget {
+                    seconds: limit,
+                    iterations: report.iterations,
+                    residual: norm,
+                });
             }
             report.iterations += 1;
             for (d, r) in dz.iter_mut().zip(&self.residual) {

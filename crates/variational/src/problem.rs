@@ -214,11 +214,83 @@ const MAX_N: usize = 16;
 /// Tolerance on end data that should satisfy a constraint exactly.
 pub const END_TOL: f64 = 1e-9;
 
+/// Memory limit of [`Problem::new`] (8 GiB).
+pub const DEFAULT_MAX_BYTES: f64 = 8.0 * 1024.0 * 1024.0 * 1024.0;
+
+/// Grid of the probe that estimates a large problem's memory.
+pub const PROBE_INTERVALS: usize = 64;
+
+/// Bytes per pattern entry (indices, values, sort) and per factor entry,
+/// with the factor's fill for banded matrices taken as three times the
+/// pattern.
+const BYTES_PER_ENTRY: f64 = 16.0 + 8.0 + 8.0 + 3.0 * 16.0;
+
 impl<'a, S: Scene> Problem<'a, S> {
     /// Sets up the blocks for `formulation` on `[t0, t1]` with `intervals`
     /// intervals, checking the end data against the constraints that bind
-    /// them alone.
+    /// them alone; refuses a grid whose set-up and Newton matrix would need
+    /// more than [`DEFAULT_MAX_BYTES`] ([`Problem::with_limit`]).
     pub fn new(
+        scene: &'a S,
+        formulation: Formulation,
+        t0: f64,
+        t1: f64,
+        intervals: usize,
+        ends: Ends,
+    ) -> Result<Self, Error> {
+        Self::with_limit(
+            scene,
+            formulation,
+            t0,
+            t1,
+            intervals,
+            ends,
+            DEFAULT_MAX_BYTES,
+        )
+    }
+
+    /// [`Problem::new`] with a memory limit in bytes: the memory of the
+    /// layout and of the Newton matrix and its factors is estimated from
+    /// the same problem on a grid of [`PROBE_INTERVALS`] (they grow
+    /// linearly with the grid) and a larger grid is refused before it is
+    /// laid out.
+    pub fn with_limit(
+        scene: &'a S,
+        formulation: Formulation,
+        t0: f64,
+        t1: f64,
+        intervals: usize,
+        ends: Ends,
+        max_bytes: f64,
+    ) -> Result<Self, Error> {
+        if intervals > PROBE_INTERVALS {
+            let probe = Self::build(
+                scene,
+                formulation.clone(),
+                t0,
+                t1,
+                PROBE_INTERVALS,
+                ends.clone(),
+            );
+            // A probe that cannot be set up says nothing about the size;
+            // the full set-up reports the error itself.
+            if let Ok(p) = probe {
+                let scale = intervals as f64 / PROBE_INTERVALS as f64;
+                let bytes = (p.layout_bytes() + p.newton_bytes()) * scale;
+                if bytes > max_bytes {
+                    return Err(Error::TooLarge {
+                        nodes: intervals + 1,
+                        unknowns: (p.unknowns() as f64 * scale) as usize,
+                        bytes,
+                        limit: max_bytes,
+                    });
+                }
+            }
+        }
+        Self::build(scene, formulation, t0, t1, intervals, ends)
+    }
+
+    fn build(
         scene: &'a S,
         formulation: Formulation,
         t0: f64,
@@ -367,6 +439,40 @@ impl<'a, S: Scene> Problem<'a, S> {
 
     pub fn nodes(&self) -> usize {
         self.intervals + 1
+    }
+
+    /// Stored entries of the Newton matrix before duplicates are summed:
+    /// the diagonal, each block's Hessian and its constraint rows twice.
+    pub fn newton_entries(&self) -> usize {
+        self.n_unknowns
+            + self
+                .blocks
+                .iter()
+                .map(|b| {
+                    let p = b.free.len();
+                    p * p
+                        + if b.kind == Kind::Interval {
+                            0
+                        } else {
+                            2 * b.rows * p
+                        }
+                })
+                .sum::<usize>()
+    }
+
+    /// Estimated bytes of the Newton matrix and its sparse LU factors.
+    pub fn newton_bytes(&self) -> f64 {
+        self.newton_entries() as f64 * BYTES_PER_ENTRY + self.n_unknowns as f64 * 64.0
+    }
+
+    /// Bytes of the layout itself (blocks, their variables, the index).
+    fn layout_bytes(&self) -> f64 {
+        let per_block = std::mem::size_of::<Block>() as f64;
+        self.blocks
+            .iter()
+            .map(|b| per_block + 16.0 * (b.vars.len() + b.free.len()) as f64)
+            .sum::<f64>()
+            + 8.0 * self.var_of.len() as f64
     }
 
     pub fn h(&self) -> f64 {

@@ -53,7 +53,15 @@ pub fn refine<S: Scene>(
     let mut solutions: Vec<Solution> = Vec::with_capacity(3);
     for level in 0..3 {
         let nl = intervals << level;
-        let problem = Problem::new(scene, formulation.clone(), t0, t1, nl, ends.clone())?;
+        let problem = Problem::with_limit(
+            scene,
+            formulation.clone(),
+            t0,
+            t1,
+            nl,
+            ends.clone(),
+            options.max_bytes,
+        )?;
         let path = match (solutions.last(), start) {
             (Some(prev), _) => sample(prev, &problem.times()),
             (None, Some(s)) => s.to_vec(),

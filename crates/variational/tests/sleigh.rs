@@ -441,3 +441,40 @@ fn vakonomic_bvp_multipliers_are_cs_lambda() {
     let order = (errs[0] / errs[2]).log2() / 2.0;
     assert!((order - 2.0).abs() < 0.2 && errs[2] < 1e-3, "{errs:?}");
 }
+
+/// A grid too large for the memory limit is refused before it is laid out
+/// (a billion intervals: set up, it would need hundreds of gigabytes), and
+/// the estimate of the probe is within 10 % of the solver's own count.
+#[test]
+fn large_grids_are_refused_before_layout() {
+    let s: Sleigh = scene(&[]);
+    let (q, qd) = c_motion(&s, 1.0, 100);
+    let ends = ends_of(&q, &qd, 3);
+    let started = std::time::Instant::now();
+    match Problem::new(
+        &s,
+        Formulation::Vakonomic,
+        0.0,
+        1.0,
+        1_000_000_000,
+        ends.clone(),
+    ) {
+        Err(Error::TooLarge { bytes, limit, .. }) => {
+            assert!(bytes > 1e11 && limit == DEFAULT_MAX_BYTES, "{bytes:e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    let n = 10 * PROBE_INTERVALS;
+    let p = Problem::new(&s, Formulation::Vakonomic, 0.0, 1.0, n, ends.clone()).unwrap();
+    let exact = p.newton_bytes();
+    match Problem::with_limit(&s, Formulation::Vakonomic, 0.0, 1.0, n, ends, exact / 2.0) {
+        Err(Error::TooLarge { bytes, .. }) => {
+            assert!(
+                (bytes / exact - 1.0).abs() < 0.1,
+                "{bytes:e} against {exact:e}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+}

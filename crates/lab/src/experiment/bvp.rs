@@ -12,6 +12,7 @@
 //! | file | content |
 //! |---|---|
 //! | `bvp.json` | everything computed (what `nonholo plot` redraws from) |
+//! | `ivp.csv` | one row per (point, initial-value line): status, reach, the sign changes of `[measures] reversals` |
 //! | `solves.csv` | one row per (point, line, horizon, h): Newton's work, errors against each initial-value line, orders, the grid's own error estimate |
 //! | `stationarity.csv` | one row per (point, horizon, h, problem, motion): the stationarity residual |
 //! | `horizons.csv` | one row per (point, line, h, horizon): how far the solution on `[0, t1]` is, on the shortest horizon's span, from the solution on the shortest horizon |
@@ -84,6 +85,10 @@ pub struct IvpOut {
     /// Last time sampled.
     pub t_last: Option<f64>,
     pub wall_s: f64,
+    /// Where `[measures] reversals` changes sign on the finest grid (the
+    /// midpoint of the two samples), if asked for.
+    #[serde(default)]
+    pub reversals: Vec<f64>,
 }
 
 /// One boundary-value solve.
@@ -189,6 +194,50 @@ fn nodes(path: &[f64], n: usize, step: usize, count: usize) -> Option<Vec<f64>> 
     })
 }
 
+/// The values of `name` (a velocity-chart value, a coordinate or
+/// `<coord>_dot`) along samples, node after node.
+struct Quantity<'a> {
+    name: &'a str,
+    q: &'a [f64],
+    qd: &'a [f64],
+}
+
+impl nonholo_scenes::SceneVisitor for Quantity<'_> {
+    type Output = Option<Vec<f64>>;
+    fn visit<S: nonholo_core::Scene>(self, scene: S) -> Option<Vec<f64>> {
+        let info = scene.info();
+        let n = info.n();
+        let states = self.q.chunks(n).zip(self.qd.chunks(n));
+        if let Some(k) = info.velocity_chart.iter().position(|c| c.name == self.name) {
+            let mut c = vec![0.0; info.velocity_chart.len()];
+            return states
+                .map(|(q, qd)| scene.chart_from(q, qd, &mut c).then_some(c[k]))
+                .collect();
+        }
+        if let Some(k) = info.coordinate_index(self.name) {
+            return Some(states.map(|(q, _)| q[k]).collect());
+        }
+        let k = info.coordinate_index(self.name.strip_suffix("_dot")?)?;
+        Some(states.map(|(_, qd)| qd[k]).collect())
+    }
+}
+
+/// Times where `values` (at `t`) change sign: the midpoint of the two
+/// samples; a sample exactly zero counts with the next non-zero one.
+fn sign_changes(t: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut last: Option<(f64, f64)> = None;
+    for (&ti, &v) in t.iter().zip(values).filter(|(_, v)| **v != 0.0) {
+        if let Some((tl, vl)) = last
+            && (v > 0.0) != (vl > 0.0)
+        {
+            out.push(0.5 * (tl + ti));
+        }
+        last = Some((ti, v));
+    }
+    out
+}
+
 /// An initial-value line's samples on the finest grid.
 struct Ivp {
     out: IvpOut,
@@ -198,6 +247,7 @@ struct Ivp {
 
 fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result<Vec<Ivp>, String> {
     let runs = sweep::resolve(exp, point)?;
+    let params = sweep::apply_point(exp, point)?.params;
     Ok(runs
         .into_iter()
         .map(|mut r| {
@@ -209,7 +259,21 @@ fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result
                 Ok((run, _)) => {
                     let q: Vec<f64> = run.samples.iter().flat_map(|o| o.q.clone()).collect();
                     let qd: Vec<f64> = run.samples.iter().flat_map(|o| o.qd.clone()).collect();
-                    let t_last = run.solution.t[..run.samples.len()].last().copied();
+                    let t = &run.solution.t[..run.samples.len()];
+                    let t_last = t.last().copied();
+                    let reversals = exp
+                        .reversals
+                        .as_deref()
+                        .and_then(|name| {
+                            let scene = nonholo_scenes::build(&exp.scene, &params).ok()?;
+                            let values = scene.visit(Quantity {
+                                name,
+                                q: &q,
+                                qd: &qd,
+                            })?;
+                            Some(sign_changes(t, &values))
+                        })
+                        .unwrap_or_default();
                     Ivp {
                         out: IvpOut {
                             label: r.label,
@@ -223,6 +287,7 @@ fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result
                             error: run.failure.as_ref().map(|e| e.to_string()),
                             t_last,
                             wall_s: started.elapsed().as_secs_f64(),
+                            reversals,
                         },
                         q,
                         qd,
@@ -236,6 +301,7 @@ fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result
                         error: Some(e.to_string()),
                         t_last: None,
                         wall_s: started.elapsed().as_secs_f64(),
+                        reversals: Vec::new(),
                     },
                     q: Vec::new(),
                     qd: Vec::new(),
@@ -735,8 +801,41 @@ fn write_tables(exp: &Experiment, dir: &Path, r: &BvpResult) -> Result<(), Strin
             .map(String::from)
             .collect::<Vec<_>>(),
     )?;
+    let mut ivp = Table::new(
+        ["point"]
+            .into_iter()
+            .chain(axes())
+            .chain([
+                "label",
+                "formulation",
+                "status",
+                "t_last",
+                "reversals",
+                "first_reversal",
+                "wall_s",
+                "error",
+            ])
+            .map(String::from)
+            .collect::<Vec<_>>(),
+    )?;
     let opt = |v: Option<f64>| v.map(Plain);
     for p in &r.points {
+        for i in &p.ivp {
+            ivp.push(&(
+                p.index,
+                &p.values,
+                (
+                    &i.label,
+                    &i.formulation,
+                    &i.status,
+                    opt(i.t_last),
+                    exp.reversals.as_ref().map(|_| i.reversals.len()),
+                    opt(i.reversals.first().copied()),
+                    Plain(i.wall_s),
+                    i.error.as_deref().unwrap_or(""),
+                ),
+            ))?;
+        }
         for s in &p.solves {
             let line = spec
                 .lines
@@ -805,6 +904,7 @@ fn write_tables(exp: &Experiment, dir: &Path, r: &BvpResult) -> Result<(), Strin
             ))?;
         }
     }
+    ivp.write(&dir.join("ivp.csv"))?;
     solves.write(&dir.join("solves.csv"))?;
     st.write(&dir.join("stationarity.csv"))?;
     hz.write(&dir.join("horizons.csv"))
@@ -922,10 +1022,16 @@ fn draw(
             });
         }
         // An order-2 guide, a third below the smallest coarsest error (so
-        // that it hides no line).
+        // that it hides no line), where some line converges at about that
+        // order (not where every error is round-off).
+        let second_order = p
+            .solves
+            .iter()
+            .filter(at_t1)
+            .any(|s| s.order.is_some_and(|o| (o - 2.0).abs() < 0.5));
         let lowest = conv
             .iter()
-            .filter(|s| !s.x.is_empty())
+            .filter(|s| !s.x.is_empty() && second_order)
             .min_by(|a, b| a.y[0].total_cmp(&b.y[0]));
         if let Some(first) = lowest {
             let (h0, e0) = (first.x[0], first.y[0] / 3.0);
@@ -1284,7 +1390,9 @@ fn write_html(
                 .into(),
             "newton" => format!(
                 "Newton iterations to the tolerance {} from the starting path; a solve that did \
-                 not converge is drawn at the limit of {} iterations.",
+                 not converge is drawn at the limit of {} iterations (its residuals and worst \
+                 nodes are in solves.csv). Lines that solve the same discrete equations lie on \
+                 each other.",
                 crate::fields::num(spec.tol),
                 spec.max_iter
             ),
@@ -1296,7 +1404,8 @@ fn write_html(
             "horizons" => format!(
                 "How far each line's solution on [0, t1] is, on [0, {} s], from its solution \
                  with t1 = {} s, at the same nodes: falling like h² where the motion does not \
-                 depend on the horizon.",
+                 depend on the horizon. Lines that solve the same discrete equations lie on \
+                 each other.",
                 crate::fields::num(spec.horizons[0]),
                 crate::fields::num(spec.horizons[0])
             ),
@@ -1310,6 +1419,7 @@ fn write_html(
         overview: String::new(),
         files: &[
             "solves.csv",
+            "ivp.csv",
             "stationarity.csv",
             "horizons.csv",
             "bvp.json",

@@ -600,7 +600,9 @@ fn fuzz_experiment_files() {
 /// A valid `bvp` command line as (flag, value) pairs, with its budget.
 fn base_bvp(rng: &mut Rng) -> Vec<(String, Option<String>)> {
     let p = |f: &str, v: &str| (f.to_string(), Some(v.to_string()));
-    let ends: &[(&str, &[&str], &[&str], &[&str])] = &[
+    // (scene, q0, q1, formulations)
+    type Case<'a> = (&'a str, &'a [&'a str], &'a [&'a str], &'a [&'a str]);
+    let ends: &[Case] = &[
         (
             "sleigh-incline",
             &["x=0", "y=0", "phi=0.3"],
@@ -651,7 +653,10 @@ fn base_bvp(rng: &mut Rng) -> Vec<(String, Option<String>)> {
                 cmd.push(p("--dependent", "x"));
                 cmd.push(p("--dependent", "y"));
             }
-            _ => cmd.push(p("--map-form", *rng.pick(&["implicit", "explicit"]))),
+            _ => {
+                let form: &str = rng.pick(&["implicit", "explicit"]);
+                cmd.push(p("--map-form", form));
+            }
         }
     }
     cmd

@@ -654,7 +654,7 @@ fn base_bvp(rng: &mut Rng) -> Vec<(String, Option<String>)> {
                 cmd.push(p("--dependent", "y"));
             }
             _ => {
-                let form: &str = rng.pick(&["implicit", "explicit"]);
+                let form: &&str = rng.pick(&["implicit", "explicit"]);
                 cmd.push(p("--map-form", form));
             }
         }

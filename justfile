@@ -31,6 +31,14 @@ ci:
 scenes:
     cargo run --release --bin nonholo -- scenes
 
+# Solve a boundary-value problem: just bvp --ends-from c.json ...
+bvp *ARGS:
+    cargo run --release --bin nonholo -- bvp {{ARGS}}
+
+# The cost of a Newton step of the boundary-value solver against the grid (results/bvp-scaling).
+bvp-scaling *ARGS:
+    cargo run --release -p nonholo-bench --bin bvp-scaling -- {{ARGS}}
+
 # Run one motion: just simulate --scene sleigh-incline ...
 simulate *ARGS:
     cargo run --release --bin nonholo -- simulate {{ARGS}}

@@ -1125,3 +1125,59 @@ fn bvp_general_disk_as_figures_md_states() {
         "is stationary under C's problem to 1e-10 N",
     ]);
 }
+
+/// docs/variational.md: the grids' own error estimates against the errors,
+/// and the reference's own error, on bvp-sleigh.
+#[test]
+fn bvp_estimates_as_variational_md_states() {
+    let rows = table("bvp-sleigh", "solves.csv");
+    let ratios: Vec<f64> = rows
+        .iter()
+        .filter(|r| !r["error_estimate"].is_empty() && !r["err_A"].is_empty())
+        .map(|r| num(r, "error_estimate") / num(r, "err_A"))
+        .collect();
+    assert!(ratios.len() >= 12);
+    assert!(ratios.iter().all(|q| (q - 1.0).abs() < 0.015), "{ratios:?}");
+    assert!(rows.iter().all(|r| num(r, "reference_error") <= 2.75e-10));
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/variational.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    let flat = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    for p in [
+        "are within 1.5 % of the errors against the reference",
+        "is 2.7e-10 m at most",
+        "0.022, 0.062 and 0.316 m from it",
+    ] {
+        assert!(flat.contains(p), "docs/variational.md does not say `{p}`");
+    }
+}
+
+/// docs/performance.md §8: the fitted exponents of a Newton step against
+/// the grid, from `results/bvp-scaling/fits.csv` (bvp-scaling).
+#[test]
+fn bvp_scaling_as_performance_md_states() {
+    let fits = table("bvp-scaling", "fits.csv");
+    let exp = |problem: &str, key: &str| {
+        let r = fits.iter().find(|r| r["problem"] == problem).unwrap();
+        num(r, key)
+    };
+    let (c, a) = (exp("C (vakonomic)", "exponent_step"), exp("A (implicit map)", "exponent_step"));
+    assert!(c <= 1.2 && a <= 1.2, "{c} {a}");
+    let path =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/performance.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    let flat = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    let said = format!(
+        "are {c:.2} for C and {a:.2} for A (assembly {:.2} / {:.2}, LU and solve {:.2} / {:.2})",
+        exp("C (vakonomic)", "exponent_assembly"),
+        exp("A (implicit map)", "exponent_assembly"),
+        exp("C (vakonomic)", "exponent_factor"),
+        exp("A (implicit map)", "exponent_factor"),
+    );
+    assert!(flat.contains(&said), "docs/performance.md does not say `{said}`");
+    let rows = table("bvp-scaling", "scaling.csv");
+    let last = rows
+        .iter()
+        .find(|r| r["problem"] == "C (vakonomic)" && r["intervals"] == "100000")
+        .unwrap();
+    assert!(num(last, "error") < 5e-11);
+}

@@ -1139,7 +1139,8 @@ fn bvp_estimates_as_variational_md_states() {
     assert!(ratios.len() >= 12);
     assert!(ratios.iter().all(|q| (q - 1.0).abs() < 0.015), "{ratios:?}");
     assert!(rows.iter().all(|r| num(r, "reference_error") <= 2.75e-10));
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/variational.md");
+    let path =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/variational.md");
     let text = std::fs::read_to_string(path).unwrap();
     let flat = text.split_whitespace().collect::<Vec<_>>().join(" ");
     for p in [
@@ -1160,7 +1161,10 @@ fn bvp_scaling_as_performance_md_states() {
         let r = fits.iter().find(|r| r["problem"] == problem).unwrap();
         num(r, key)
     };
-    let (c, a) = (exp("C (vakonomic)", "exponent_step"), exp("A (implicit map)", "exponent_step"));
+    let (c, a) = (
+        exp("C (vakonomic)", "exponent_step"),
+        exp("A (implicit map)", "exponent_step"),
+    );
     assert!(c <= 1.2 && a <= 1.2, "{c} {a}");
     let path =
         std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/performance.md");
@@ -1173,7 +1177,10 @@ fn bvp_scaling_as_performance_md_states() {
         exp("C (vakonomic)", "exponent_factor"),
         exp("A (implicit map)", "exponent_factor"),
     );
-    assert!(flat.contains(&said), "docs/performance.md does not say `{said}`");
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
     let rows = table("bvp-scaling", "scaling.csv");
     let last = rows
         .iter()

@@ -279,8 +279,9 @@ pub struct RefinementRecord {
     pub intervals: [usize; 3],
     /// Largest difference at the coarse nodes between levels 0–1 and 1–2.
     pub differences: [f64; 2],
-    /// `log2` of their ratio.
-    pub order: f64,
+    /// `log2` of their ratio (`None` where a difference is zero: no
+    /// discretisation error to measure).
+    pub order: Option<f64>,
     pub design_order: f64,
     /// Error estimate of the finest path, `d₂/(2^p − 1)`.
     pub error_estimate: f64,
@@ -366,7 +367,7 @@ fn solve_on<S: Scene>(
         let record = RefinementRecord {
             intervals: [job.intervals, 2 * job.intervals, 4 * job.intervals],
             differences: r.differences,
-            order: r.order,
+            order: r.order.is_finite().then_some(r.order),
             design_order: var::DESIGN_ORDER,
             error_estimate: r.error_estimate,
             extrapolated_error: r.extrapolated_error,
@@ -514,15 +515,40 @@ pub fn record(
         }
     }
     let d = DiagnosticsRecord::from(&solved.diagnostics);
-    if [
-        d.constraint_residual_max,
-        d.energy_initial,
-        d.energy_drift_max,
-    ]
-    .iter()
-    .any(|v| !v.is_finite())
-    {
-        return Err("refusing to write a non-finite diagnostic (energy or residual)".into());
+    let mut scalars: Vec<(String, f64)> = vec![
+        (
+            "diagnostics.constraint_residual_max".into(),
+            d.constraint_residual_max,
+        ),
+        ("diagnostics.energy_initial".into(), d.energy_initial),
+        ("diagnostics.energy_final".into(), d.energy_final),
+        ("diagnostics.energy_drift_max".into(), d.energy_drift_max),
+    ];
+    for inv in &d.invariants {
+        scalars.push((format!("diagnostics.invariants.{}", inv.name), inv.initial));
+        scalars.push((
+            format!("diagnostics.invariants.{}", inv.name),
+            inv.drift_max,
+        ));
+    }
+    for (i, l) in solved.levels.iter().enumerate() {
+        for v in l.residual_history.iter().chain(&l.step_history) {
+            scalars.push((format!("bvp.levels[{i}]"), *v));
+        }
+    }
+    if let Some(f) = &solved.refinement {
+        for v in f
+            .differences
+            .iter()
+            .chain([&f.error_estimate, &f.extrapolated_error])
+        {
+            scalars.push(("bvp.refinement".into(), *v));
+        }
+    }
+    if let Some((name, v)) = scalars.iter().find(|(_, v)| !v.is_finite()) {
+        return Err(format!(
+            "refusing to write a non-finite value: {name} = {v}"
+        ));
     }
     let dependent = match &job.formulation {
         var::Formulation::General { dependent, .. } => dependent.clone(),
@@ -863,6 +889,30 @@ fn vector(
     Ok(out)
 }
 
+/// [`var::Problem::check_size`] on a built scene.
+struct SizeCheck<'a> {
+    formulation: &'a var::Formulation,
+    span: (f64, f64),
+    intervals: usize,
+    ends: &'a var::Ends,
+    max_bytes: f64,
+}
+
+impl nonholo_scenes::SceneVisitor for SizeCheck<'_> {
+    type Output = Result<(), var::Error>;
+    fn visit<S: Scene>(self, scene: S) -> Self::Output {
+        var::Problem::check_size(
+            &scene,
+            self.formulation.clone(),
+            self.span.0,
+            self.span.1,
+            self.intervals,
+            self.ends.clone(),
+            self.max_bytes,
+        )
+    }
+}
+
 /// The job `args` describe, every value checked, and the files it read.
 fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
     let read = |name: &str, p: &PathBuf| flag(name, RunFile::read(p));
@@ -928,21 +978,25 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
             args.max_memory
         )));
     }
+    for f in [&data, &ends_file].into_iter().flatten() {
+        if f.scene != scene_name || f.n != info.n() {
+            return Err(CliError::Input(format!(
+                "{}: a run of scene {} with {} coordinates; the problem is on {} ({} \
+                 coordinates)",
+                f.path.display(),
+                f.scene,
+                f.n,
+                info.name,
+                info.n()
+            )));
+        }
+    }
     let (t0, t1, ends) = match &ends_file {
         Some(f) => {
             let t0 = f.t[0];
             let t1 = args.t_end.unwrap_or(f.t[f.t.len() - 1]);
             let (q0, qd0) = f.state_at(t0).map_err(CliError::Input)?;
             let (q1, qd1) = flag("--t-end", f.state_at(t1))?;
-            if f.n != info.n() {
-                return Err(CliError::Input(format!(
-                    "{}: {} coordinates, {} has {}",
-                    f.path.display(),
-                    f.n,
-                    info.name,
-                    info.n()
-                )));
-            }
             for (name, given) in [
                 ("--q0", &args.q0),
                 ("--q1", &args.q1),
@@ -994,18 +1048,22 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
     };
     flag("--t-end", fields::t_end(t1 - t0).map(|_| ()))?;
     let intervals = args.nodes - 1;
-    // Node times, for paths read from files (made only then: a grid too
-    // large for memory is refused by the solver before anything is laid
-    // out).
+    let max_bytes = args.max_memory * 1e9;
+    // A grid too large for memory is refused before any path of its size
+    // is made.
+    nonholo_scenes::build(&scene_name, &params)?
+        .visit(SizeCheck {
+            formulation: &formulation,
+            span: (t0, t1),
+            intervals,
+            ends: &ends,
+            max_bytes,
+        })
+        .map_err(|e| cli_error(&e))?;
+    // Node times, for paths read from files.
     let times = || -> Vec<f64> {
         (0..=intervals)
-            .map(|k| {
-                if k == intervals {
-                    t1
-                } else {
-                    t0 + (t1 - t0) * (k as f64 / intervals as f64)
-                }
-            })
+            .map(|k| var::node_time(t0, t1, intervals, k))
             .collect()
     };
     let (start, start_name) = match args.start.as_str() {
@@ -1054,7 +1112,7 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
             options: var::Options {
                 max_iter: args.max_iter,
                 tol,
-                max_bytes: args.max_memory * 1e9,
+                max_bytes,
                 max_wall_time: args
                     .max_wall_time
                     .map(|s| flag("--max-wall-time", fields::max_wall_time(s)))
@@ -1226,11 +1284,14 @@ pub fn summary(r: &RunRecord) -> String {
     if let Some(f) = &b.refinement {
         let _ = writeln!(
             s,
-            "refinement: differences {:.3e}, {:.3e}; order {:.3} (design {}); error of the \
+            "refinement: differences {:.3e}, {:.3e}; order {} (design {}); error of the \
              finest path ≈ {:.2e}, of the extrapolation ≈ {:.2e}",
             f.differences[0],
             f.differences[1],
-            f.order,
+            f.order
+                .map_or("not measurable (a difference is zero)".into(), |o| format!(
+                    "{o:.3}"
+                )),
             f.design_order,
             f.error_estimate,
             f.extrapolated_error

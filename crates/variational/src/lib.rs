@@ -30,7 +30,7 @@ mod refine;
 pub use newton::{Options, Report, Solution, Solver, Stationarity};
 pub use problem::{
     DEFAULT_MAX_BYTES, DependentEnd, END_TOL, Ends, Formulation, MapEnds, MapForm, PROBE_INTERVALS,
-    Problem,
+    Problem, node_time, node_velocities,
 };
 pub use reduced::reduced_gradient;
 pub use refine::{DESIGN_ORDER, Refinement, refine, sample};

@@ -90,22 +90,9 @@ impl Solution {
     /// Velocities at the nodes: central differences, one-sided of second
     /// order at the ends.
     pub fn velocities(&self) -> Vec<f64> {
-        let (n, nodes) = (self.n, self.t.len());
-        let mut v = vec![0.0; self.q.len()];
+        let nodes = self.t.len();
         let h = (self.t[nodes - 1] - self.t[0]) / (nodes - 1) as f64;
-        for k in 0..nodes {
-            for i in 0..n {
-                let q = |j: usize| self.q[j * n + i];
-                v[k * n + i] = if k == 0 {
-                    (-3.0 * q(0) + 4.0 * q(1) - q(2)) / (2.0 * h)
-                } else if k == nodes - 1 {
-                    (q(k - 2) - 4.0 * q(k - 1) + 3.0 * q(k)) / (2.0 * h)
-                } else {
-                    (q(k + 1) - q(k - 1)) / (2.0 * h)
-                };
-            }
-        }
-        v
+        crate::problem::node_velocities(&self.q, self.n, h)
     }
 }
 
@@ -119,6 +106,8 @@ pub struct Solver<'p, 'a, S: Scene> {
     residual: Vec<f64>,
     /// The largest single term of a stationarity row at the last assembly.
     terms: f64,
+    /// The largest `|∂c/∂x| |x|` of a constraint row at the last assembly.
+    constraint_terms: f64,
 }
 
 /// Round-off of the stationarity rows counted as converged: this many
@@ -167,6 +156,7 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
             values: Vec::with_capacity(entries),
             residual,
             terms: 0.0,
+            constraint_terms: 0.0,
         })
     }
 
@@ -181,7 +171,7 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
     fn assemble_at(&mut self, path: &[f64], mu: &[f64], hessian: bool) {
         self.values.clear();
         let values = &mut self.values;
-        self.terms = assemble(
+        (self.terms, self.constraint_terms) = assemble(
             self.problem,
             path,
             mu,
@@ -231,30 +221,73 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
         Error::Singular { node, t, what }
     }
 
-    /// The round-off floor of the scaled residual (with a margin of
-    /// [`FLOOR_MARGIN`]): the stationarity rows are differences of momenta,
-    /// each with the round-off of its velocity `(q_{k+1} − q_k)/h`, about
-    /// `ε M |q|/h`, and over `h` — `ε M |q|/h²`, above `tol` on fine grids
-    /// (2e-10 N at h = 1.25 ms for unit mass and positions).
-    fn floor(&self) -> f64 {
-        FLOOR_MARGIN * f64::EPSILON * self.terms / self.problem.h()
+    /// The round-off floors of the scaled residual's two parts (with a
+    /// margin of [`FLOOR_MARGIN`]). The stationarity rows are differences of
+    /// momenta, each with the round-off of its velocity
+    /// `(q_{k+1} − q_k)/h`, about `ε M |q|/h`, and over `h` — `ε M |q|/h²`,
+    /// above `tol` on fine grids (2e-10 N at h = 1.25 ms for unit mass and
+    /// positions). A constraint row carries its velocities' round-off,
+    /// `ε |∂g/∂q̇| |q|/h`.
+    fn floors(&self) -> (f64, f64) {
+        (
+            FLOOR_MARGIN * f64::EPSILON * self.terms / self.problem.h(),
+            FLOOR_MARGIN * f64::EPSILON * self.constraint_terms,
+        )
     }
 
     /// Scaled residual of the last assembly: stationarity rows over `h`
     /// (force units), constraint rows as they are.
     fn scaled_norm(&self) -> f64 {
-        let (h, nv) = (self.problem.h(), self.problem.free_coordinates());
-        let mut worst = 0.0f64;
-        for (u, v) in self.residual.iter().enumerate() {
-            let x = if u < nv { v.abs() / h } else { v.abs() };
-            worst = if x.is_nan() { f64::NAN } else { worst.max(x) };
+        let (s, c) = self.norms();
+        if s.is_nan() || c.is_nan() {
+            f64::NAN
+        } else {
+            s.max(c)
         }
-        worst
+    }
+
+    /// The scaled residual's two parts: the stationarity rows over `h`,
+    /// and the constraint rows.
+    fn norms(&self) -> (f64, f64) {
+        let (h, nv) = (self.problem.h(), self.problem.free_coordinates());
+        let max = |v: &[f64]| {
+            v.iter().fold(0.0f64, |m, x| {
+                if x.is_nan() || m.is_nan() {
+                    f64::NAN
+                } else {
+                    m.max(x.abs())
+                }
+            })
+        };
+        (max(&self.residual[..nv]) / h, max(&self.residual[nv..]))
     }
 
     /// Newton's method from the path `start` (nodes × n; end data are
     /// imposed on it).
     pub fn solve(&mut self, start: &[f64], options: &Options) -> Result<Solution, Error> {
+        self.newton(start, options, None)
+    }
+
+    /// Exactly `steps` Newton iterations from `start`, whatever the
+    /// residual (for timing a step: each is one assembly with the Hessian,
+    /// one numeric factorisation and solve, and the line search's
+    /// residuals). Only a non-finite residual or a singular matrix stops
+    /// them early.
+    pub fn timed_steps(
+        &mut self,
+        start: &[f64],
+        steps: usize,
+        options: &Options,
+    ) -> Result<Report, Error> {
+        Ok(self.newton(start, options, Some(steps))?.report)
+    }
+
+    fn newton(
+        &mut self,
+        start: &[f64],
+        options: &Options,
+        fixed_steps: Option<usize>,
+    ) -> Result<Solution, Error> {
         let wall = Instant::now();
         let p = self.problem;
         let (n, nv, u) = (p.n, p.free_coordinates(), p.unknowns());
@@ -294,20 +327,30 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
                 let (node, t, what) = p.describe_unknown(bad);
                 return Err(Error::NotFinite { node, t, what });
             }
-            // Converged: at the tolerance; or, where the round-off floor is
-            // above it (fine grids), near the floor once an iteration no
-            // longer halves the residual.
-            if norm <= options.tol {
-                break;
-            }
-            if let [.., before, _] = report.residual_history[..]
-                && norm <= self.floor()
-                && norm > 0.5 * before
-            {
-                break;
-            }
-            if report.iterations >= options.max_iter {
-                return Err(self.not_converged(&report));
+            if let Some(k) = fixed_steps {
+                if report.iterations >= k {
+                    break;
+                }
+            } else {
+                // Converged: at the tolerance; or, where the round-off floor
+                // is above it (fine grids), near the floor (the
+                // stationarity rows at theirs, the constraint rows at
+                // theirs) once an iteration no longer halves the residual.
+                if norm <= options.tol {
+                    break;
+                }
+                let (stationarity, constraints) = self.norms();
+                let (floor_s, floor_c) = self.floors();
+                if let [.., before, _] = report.residual_history[..]
+                    && stationarity <= floor_s
+                    && constraints <= options.tol.max(floor_c)
+                    && norm > 0.5 * before
+                {
+                    break;
+                }
+                if report.iterations >= options.max_iter {
+                    return Err(self.not_converged(&report));
+                }
             }
             if let Some(limit) = options.max_wall_time
                 && wall.elapsed().as_secs_f64() > limit
@@ -426,6 +469,17 @@ impl<'p, 'a, S: Scene> Solver<'p, 'a, S> {
     /// Zero up to the discretisation error on a stationary path.
     pub fn stationarity(&mut self, path: &[f64]) -> Result<Stationarity, Error> {
         let p = self.problem;
+        if path.len() != p.nodes() * p.n || path.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Input {
+                field: "path".into(),
+                reason: format!(
+                    "a path needs {} finite values ({} nodes × {})",
+                    p.nodes() * p.n,
+                    p.nodes(),
+                    p.n
+                ),
+            });
+        }
         let (nv, u) = (p.free_coordinates(), p.unknowns());
         let mu = vec![0.0; u - nv];
         self.assemble_at(path, &mu, false);
@@ -476,10 +530,12 @@ pub struct Stationarity {
 
 /// Walks the blocks: adds their contributions to `residual` (zeroed here)
 /// and hands each matrix entry to `sink` in a fixed order (diagonal first).
-/// Returns the size of the round-off of a stationarity row over `ε`: its
-/// largest single term (about the largest momentum) or, with the Hessian,
-/// the largest `|∂²S/∂x²| |x|` of the action if larger (the velocities'
-/// round-off `ε|q|/h` carried into the momenta).
+/// Returns the sizes of the round-off of a stationarity row and of a
+/// constraint row over `ε`: the largest single term of a stationarity row
+/// (about the largest momentum) or, with the Hessian, the largest
+/// `|∂²S/∂x²| |x|` of the action if larger (the velocities' round-off
+/// `ε|q|/h` carried into the momenta); and the largest `|∂c/∂x| |x|` of a
+/// constraint row.
 fn assemble<S: Scene>(
     p: &Problem<'_, S>,
     path: &[f64],
@@ -487,9 +543,9 @@ fn assemble<S: Scene>(
     hessian: bool,
     residual: &mut [f64],
     sink: &mut dyn FnMut(usize, usize, f64),
-) -> f64 {
+) -> (f64, f64) {
     let nv = p.free_coordinates();
-    let mut terms = 0.0f64;
+    let (mut terms, mut cterms) = (0.0f64, 0.0f64);
     residual.iter_mut().for_each(|r| *r = 0.0);
     for u in 0..p.unknowns() {
         sink(u, u, if !hessian && u < nv { 1.0 } else { 0.0 });
@@ -549,6 +605,9 @@ fn assemble<S: Scene>(
         if !is_action {
             for r in 0..b.rows {
                 residual[b.offset + r] = value[r];
+                for (a, &(l, _)) in b.free.iter().enumerate() {
+                    cterms = cterms.max((jac[r * np + a] * xf[l]).abs());
+                }
             }
         }
         // Matrix entries.
@@ -567,5 +626,5 @@ fn assemble<S: Scene>(
             }
         }
     }
-    terms
+    (terms, cterms)
 }

@@ -263,6 +263,30 @@ impl<'a, S: Scene> Problem<'a, S> {
         ends: Ends,
         max_bytes: f64,
     ) -> Result<Self, Error> {
+        Self::check_size(
+            scene,
+            formulation.clone(),
+            t0,
+            t1,
+            intervals,
+            ends.clone(),
+            max_bytes,
+        )?;
+        Self::build(scene, formulation, t0, t1, intervals, ends)
+    }
+
+    /// Refuses a grid whose set-up and Newton matrix would need more than
+    /// `max_bytes`, from a probe of [`PROBE_INTERVALS`] (nothing of the
+    /// size of the grid is allocated).
+    pub fn check_size(
+        scene: &'a S,
+        formulation: Formulation,
+        t0: f64,
+        t1: f64,
+        intervals: usize,
+        ends: Ends,
+        max_bytes: f64,
+    ) -> Result<(), Error> {
         if intervals > PROBE_INTERVALS {
             let probe = Self::build(
                 scene,
@@ -276,7 +300,7 @@ impl<'a, S: Scene> Problem<'a, S> {
             // the full set-up reports the error itself.
             if let Ok(p) = probe {
                 let scale = intervals as f64 / PROBE_INTERVALS as f64;
-                let bytes = (p.layout_bytes() + p.newton_bytes()) * scale;
+                let bytes = p.memory_estimate() * scale;
                 if bytes > max_bytes {
                     return Err(Error::TooLarge {
                         nodes: intervals + 1,
@@ -287,7 +311,7 @@ impl<'a, S: Scene> Problem<'a, S> {
                 }
             }
         }
-        Self::build(scene, formulation, t0, t1, intervals, ends)
+        Ok(())
     }
 
     fn build(
@@ -465,6 +489,12 @@ impl<'a, S: Scene> Problem<'a, S> {
         self.newton_entries() as f64 * BYTES_PER_ENTRY + self.n_unknowns as f64 * 64.0
     }
 
+    /// Estimated bytes of the whole solve: the layout and the Newton
+    /// matrix with its factors (what [`Problem::with_limit`] bounds).
+    pub fn memory_estimate(&self) -> f64 {
+        self.layout_bytes() + self.newton_bytes()
+    }
+
     /// Bytes of the layout itself (blocks, their variables, the index).
     fn layout_bytes(&self) -> f64 {
         let per_block = std::mem::size_of::<Block>() as f64;
@@ -481,11 +511,7 @@ impl<'a, S: Scene> Problem<'a, S> {
 
     /// Time of node `k`.
     pub fn t(&self, k: usize) -> f64 {
-        if k == self.intervals {
-            self.t1
-        } else {
-            self.t0 + (self.t1 - self.t0) * (k as f64 / self.intervals as f64)
-        }
+        node_time(self.t0, self.t1, self.intervals, k)
     }
 
     /// Node times.
@@ -909,9 +935,9 @@ impl<'a, S: Scene> Problem<'a, S> {
                     self.scene
                         .embedding_implicit(t, &a[..m], &bb[..m], &q_dep[..s], &mut c[..s]);
                     let mut r = 0;
-                    for dep in &self.dependent {
+                    for (jd, dep) in self.dependent.iter().enumerate() {
                         if !self.cyclic.contains(dep) {
-                            out[r] = c[r];
+                            out[r] = c[jd];
                             r += 1;
                         }
                     }
@@ -1045,6 +1071,32 @@ fn has_implicit_map<S: Scene>(scene: &S, e: &nonholo_core::scene::EmbeddingInfo)
     let (m, s) = (e.independent.len(), e.dependent.len());
     let (z, mut out) = ([0.0f64; MAX_N], [0.0f64; MAX_N]);
     scene.embedding_implicit(0.0, &z[..m], &z[..m], &z[..s], &mut out[..s])
+}
+
+/// Time of node `k` of a uniform grid of `intervals` on `[t0, t1]` (`t1`
+/// exactly at the last node).
+pub fn node_time(t0: f64, t1: f64, intervals: usize, k: usize) -> f64 {
+    if k == intervals {
+        t1
+    } else {
+        t0 + (t1 - t0) * (k as f64 / intervals as f64)
+    }
+}
+
+/// Velocities of a node-major path (`n` per node) on a uniform grid of
+/// spacing `h`: the differences `D_k` of the map's rows (central, one-sided
+/// of second order at the ends).
+pub fn node_velocities(q: &[f64], n: usize, h: f64) -> Vec<f64> {
+    let last = q.len() / n - 1;
+    let mut v = vec![0.0; q.len()];
+    for k in 0..=last {
+        let st = stencil(k, last);
+        let (w, _) = weights(k, last, h);
+        for i in 0..n {
+            v[k * n + i] = (0..3).map(|r| w[r] * q[st[r] * n + i]).sum();
+        }
+    }
+    v
 }
 
 /// Nodes of the difference stencil at node `k` of `0..=last`.

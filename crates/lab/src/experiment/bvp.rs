@@ -114,7 +114,8 @@ pub struct SolveOut {
     /// that line failed before `t1`).
     pub errors: Vec<Option<f64>>,
     /// Observed order of the error against `ends_from` between this `h`
-    /// and the previous (coarser) one.
+    /// and the previous (coarser) one (`None` where either error is
+    /// round-off, below `1e4 ε max|q|`).
     pub order: Option<f64>,
     /// Largest difference at this grid's nodes from the solution on the
     /// next finer grid.
@@ -222,22 +223,6 @@ impl nonholo_scenes::SceneVisitor for Quantity<'_> {
     }
 }
 
-/// Times where `values` (at `t`) change sign: the midpoint of the two
-/// samples; a sample exactly zero counts with the next non-zero one.
-fn sign_changes(t: &[f64], values: &[f64]) -> Vec<f64> {
-    let mut out = Vec::new();
-    let mut last: Option<(f64, f64)> = None;
-    for (&ti, &v) in t.iter().zip(values).filter(|(_, v)| **v != 0.0) {
-        if let Some((tl, vl)) = last
-            && (v > 0.0) != (vl > 0.0)
-        {
-            out.push(0.5 * (tl + ti));
-        }
-        last = Some((ti, v));
-    }
-    out
-}
-
 /// An initial-value line's samples on the finest grid.
 struct Ivp {
     out: IvpOut,
@@ -257,9 +242,17 @@ fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result
             let form = r.spec.formulation.clone();
             match execute(&r.spec) {
                 Ok((run, _)) => {
-                    let q: Vec<f64> = run.samples.iter().flat_map(|o| o.q.clone()).collect();
-                    let qd: Vec<f64> = run.samples.iter().flat_map(|o| o.qd.clone()).collect();
-                    let t = &run.solution.t[..run.samples.len()];
+                    // Samples up to the first that is not finite (a run that
+                    // overflowed is cut there and counted as failed).
+                    let finite = run
+                        .samples
+                        .iter()
+                        .position(|o| o.q.iter().chain(&o.qd).any(|v| !v.is_finite()))
+                        .unwrap_or(run.samples.len());
+                    let samples = &run.samples[..finite];
+                    let q: Vec<f64> = samples.iter().flat_map(|o| o.q.clone()).collect();
+                    let qd: Vec<f64> = samples.iter().flat_map(|o| o.qd.clone()).collect();
+                    let t = &run.solution.t[..finite];
                     let t_last = t.last().copied();
                     let reversals = exp
                         .reversals
@@ -271,20 +264,28 @@ fn run_ivps(exp: &Experiment, point: &Point, grid: &[f64], t_max: f64) -> Result
                                 q: &q,
                                 qd: &qd,
                             })?;
-                            Some(sign_changes(t, &values))
+                            Some(super::point::sign_change_times(t, &values))
                         })
                         .unwrap_or_default();
                     Ivp {
                         out: IvpOut {
                             label: r.label,
                             formulation: form,
-                            status: if run.completed() {
+                            status: if run.completed() && finite == run.samples.len() {
                                 "completed"
                             } else {
                                 "failed"
                             }
                             .into(),
-                            error: run.failure.as_ref().map(|e| e.to_string()),
+                            error: run.failure.as_ref().map(|e| e.to_string()).or_else(|| {
+                                (finite < run.samples.len()).then(|| {
+                                    format!(
+                                        "a value that is not finite at t = {} (the samples \
+                                         end there)",
+                                        run.solution.t[finite]
+                                    )
+                                })
+                            }),
                             t_last,
                             wall_s: started.elapsed().as_secs_f64(),
                             reversals,
@@ -358,6 +359,10 @@ fn compute_point(exp: &Experiment, spec: &BvpSpec, point: &Point) -> Result<Poin
         .iter()
         .map(|h| (h / h_min).round() as usize)
         .collect();
+    // Differences below this are round-off, whose ratios are no orders.
+    let q_scale = ivps[reference].q.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+    let round_off = 1e4 * f64::EPSILON * q_scale;
+    let measurable = |a: f64, b: f64| a > round_off && b > round_off;
     let mut solves = Vec::new();
     let mut stationarity = Vec::new();
     // Solutions kept for the horizon and self-convergence measures:
@@ -521,8 +526,7 @@ fn compute_point(exp: &Experiment, spec: &BvpSpec, point: &Point) -> Result<Poin
                         solves[r].errors[reference],
                     );
                     if let (Some(a), Some(b)) = (e0, e1)
-                        && a > 0.0
-                        && b > 0.0
+                        && measurable(a, b)
                     {
                         solves[r].order = Some((a / b).ln() / (spec.h[jh - 1] / spec.h[jh]).ln());
                     }
@@ -546,8 +550,7 @@ fn compute_point(exp: &Experiment, spec: &BvpSpec, point: &Point) -> Result<Poin
                 let r = row_of(il, ih, jh);
                 let next = solves[row_of(il, ih, jh + 1)].self_difference;
                 if let (Some(a), Some(b)) = (solves[r].self_difference, next)
-                    && a > 0.0
-                    && b > 0.0
+                    && measurable(a, b)
                 {
                     solves[r].self_order = Some((a / b).ln() / (spec.h[jh] / spec.h[jh + 1]).ln());
                 }
@@ -660,10 +663,12 @@ pub fn run(
             .collect::<Result<_, _>>()
             .map_err(CliError::Run)?,
     };
+    // The figures first: a failure there leaves the tables of the last run
+    // beside its figures.
     let written = (|| {
+        let plots = draw(exp, spec, &dir, &result)?;
         write_json(&dir.join("bvp.json"), &result)?;
         write_tables(exp, &dir, &result)?;
-        let plots = draw(exp, spec, &dir, &result)?;
         write_summary(exp, spec, &dir, &result, &plots)?;
         write_html(exp, spec, &dir, &result, &plots)?;
         write_manifest(exp, &dir, started, threads)?;

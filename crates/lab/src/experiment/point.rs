@@ -394,15 +394,23 @@ fn sign_changes(s: &Samples, name: &str) -> Option<usize> {
             .position(|(c, _)| name.strip_suffix("_dot") == Some(c.as_str()))?;
         s.obs.iter().map(|o| o.qd[k]).collect()
     };
-    let mut last = 0.0f64;
-    let mut count = 0;
-    for v in values.into_iter().filter(|v| *v != 0.0) {
-        if last != 0.0 && (v > 0.0) != (last > 0.0) {
-            count += 1;
+    Some(sign_change_times(&s.t, &values).len())
+}
+
+/// Times where `values` (sampled at `t`) change sign: the midpoint of the
+/// two samples; a sample exactly zero counts with the next non-zero one.
+pub(crate) fn sign_change_times(t: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut last: Option<(f64, f64)> = None;
+    for (&ti, &v) in t.iter().zip(values).filter(|(_, v)| **v != 0.0) {
+        if let Some((tl, vl)) = last
+            && (v > 0.0) != (vl > 0.0)
+        {
+            out.push(0.5 * (tl + ti));
         }
-        last = v;
+        last = Some((ti, v));
     }
-    Some(count)
+    out
 }
 
 /// Runs every formulation of `point`; a failure of one is recorded and the

@@ -1600,17 +1600,16 @@ fn bvp(
     let mut horizons = b.horizons.get_ref().clone();
     horizons.sort_by(f64::total_cmp);
     horizons.dedup();
-    let finest = h[h.len() - 1];
-    for &x in &h {
-        if whole_multiple(x, finest).is_none() {
+    for pair in h.windows(2) {
+        if whole_multiple(pair[0], pair[1]).is_none_or(|k| k < 2) {
             return Err(ctx.err(
                 b.h.span(),
                 "bvp.h",
                 format!(
-                    "{} is not a whole multiple of the finest spacing {}: the coarser grids' \
-                     nodes must be nodes of the finest",
-                    fields::num(x),
-                    fields::num(finest)
+                    "{} is not a whole multiple (2 or more) of the next finer spacing {}: each \
+                     grid's nodes must be nodes of the next finer one",
+                    fields::num(pair[0]),
+                    fields::num(pair[1])
                 ),
             ));
         }

@@ -622,15 +622,7 @@ pub fn run(
     let started = std::time::SystemTime::now();
     let dir = out.path().to_path_buf();
     out.prepare(&["plots"])?;
-    let threads = opts.threads.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| CliError::Run(format!("cannot start {threads} worker threads: {e}")))?;
+    let (pool, threads) = super::worker_pool(opts.threads)?;
     let points = exp.points();
     if !opts.quiet {
         crate::note!(
@@ -701,14 +693,7 @@ pub fn redraw(exp: &Experiment, out: super::ResultsDir) -> Result<Vec<PathBuf>, 
     let spec = spec_of(exp)?;
     let dir = out.path().to_path_buf();
     let path = dir.join("bvp.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        CliError::Input(format!(
-            "{}: {e} (run the experiment first)",
-            path.display()
-        ))
-    })?;
-    let result: BvpResult = serde_json::from_str(&text)
-        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let result: BvpResult = super::read_stored(&dir, "bvp.json")?;
     let per_point = spec.lines.len() * spec.horizons.len() * spec.h.len();
     let current = result.schema == SCHEMA
         && result.points.len() == exp.points().len()

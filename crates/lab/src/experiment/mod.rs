@@ -86,6 +86,37 @@ impl Experiment {
     }
 }
 
+/// The worker threads of a run (`threads`, else one per core) and their
+/// pool.
+pub(crate) fn worker_pool(threads: Option<usize>) -> Result<(rayon::ThreadPool, usize), CliError> {
+    let threads = threads.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CliError::Run(format!("cannot start {threads} worker threads: {e}")))?;
+    Ok((pool, threads))
+}
+
+/// The stored result file `name` of an experiment of kind stability or
+/// bvp, read for `nonholo plot`: refused if missing or unreadable.
+pub(crate) fn read_stored<T: serde::de::DeserializeOwned>(
+    dir: &Path,
+    name: &str,
+) -> Result<T, CliError> {
+    let path = dir.join(name);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        CliError::Input(format!(
+            "{}: {e} (run the experiment first)",
+            path.display()
+        ))
+    })?;
+    serde_json::from_str(&text).map_err(|e| CliError::Input(format!("{}: {e}", path.display())))
+}
+
 /// How to run an experiment (where: the [`ResultsDir`] given to [`run`]).
 #[derive(Debug, Clone)]
 pub struct RunOptions {
@@ -277,15 +308,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         out.prepare(&["points", "trajectories", "plots", minimise::CURVES])?;
     }
     let points = shard::slice(exp.points(), opts.shard);
-    let threads = opts.threads.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| CliError::Run(format!("cannot start {threads} worker threads: {e}")))?;
+    let (pool, threads) = worker_pool(opts.threads)?;
     let progress = Progress::new(points.len(), opts.quiet, &exp.name);
     let reused = AtomicUsize::new(0);
 

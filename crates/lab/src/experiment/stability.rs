@@ -291,17 +291,13 @@ fn locate(
     })
 }
 
-/// Computes every line of `exp` on `threads` threads.
+/// Computes every line of `exp` on the threads of `pool`.
 fn compute(
     exp: &Experiment,
     spec: &StabilitySpec,
-    threads: usize,
+    pool: &rayon::ThreadPool,
 ) -> Result<StabilityResult, String> {
     let values: Vec<f64> = (0..spec.samples).map(|k| sample(spec, k)).collect();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| format!("cannot start {threads} worker threads: {e}"))?;
     let mut lines = Vec::new();
     for f in &exp.formulations {
         let results: Vec<_> = pool.install(|| {
@@ -387,11 +383,7 @@ pub fn run(
     let started = std::time::SystemTime::now();
     let dir = out.path().to_path_buf();
     out.prepare(&["plots"])?;
-    let threads = opts.threads.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
+    let (pool, threads) = super::worker_pool(opts.threads)?;
     if !opts.quiet {
         crate::note!(
             "{}: {} formulation(s) linearised at {} values of {}",
@@ -401,7 +393,7 @@ pub fn run(
             spec.over
         );
     }
-    let result = compute(exp, spec, threads).map_err(CliError::Run)?;
+    let result = compute(exp, spec, &pool).map_err(CliError::Run)?;
     let written = (|| {
         write_json(&dir.join("stability.json"), &result)?;
         write_tables(&dir, &result)?;
@@ -436,14 +428,7 @@ pub fn redraw(exp: &Experiment, out: super::ResultsDir) -> Result<Vec<PathBuf>, 
     let spec = spec_of(exp)?;
     let dir = out.path().to_path_buf();
     let path = dir.join("stability.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        CliError::Input(format!(
-            "{}: {e} (run the experiment first)",
-            path.display()
-        ))
-    })?;
-    let result: StabilityResult = serde_json::from_str(&text)
-        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let result: StabilityResult = super::read_stored(&dir, "stability.json")?;
     let current: Vec<f64> = (0..spec.samples).map(|k| sample(spec, k)).collect();
     let same_lines = result
         .lines

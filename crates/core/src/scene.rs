@@ -62,6 +62,18 @@ macro_rules! scalar_over_inner {
 
 scalar_over_inner!(Real, Dual, Dual2, Dual3, HyperDual, HyperHyperDual);
 
+/// Static-size vector duals (feature `vector-duals`): every first and
+/// mixed second derivative along `M × N` directions in one evaluation.
+#[cfg(feature = "vector-duals")]
+impl<const M: usize, const N: usize> Scalar
+    for num_dual::HyperDualVec<f64, nalgebra::Const<M>, nalgebra::Const<N>>
+{
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.re.abs()
+    }
+}
+
 /// `atan2(y, x)` whose derivatives stay accurate in every quadrant.
 ///
 /// num-dual 0.15 differentiates `atan2` through `y/x`; its high-order

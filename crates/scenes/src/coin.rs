@@ -29,6 +29,8 @@ pub struct Coin {
     pub i_a: f64,
     pub g: f64,
     pub alpha: f64,
+    /// Gravity in slope axes, `g (sin α, 0, cos α)`, computed once.
+    gravity: [f64; 3],
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -158,6 +160,10 @@ impl Scene for Coin {
             i_a: params.real("Ia")?,
             g: params.real("g")?,
             alpha: params.real("alpha")?,
+            gravity: {
+                let (g, alpha) = (params.real("g")?, params.real("alpha")?);
+                [g * alpha.sin(), 0.0, g * alpha.cos()]
+            },
         })
     }
 
@@ -169,7 +175,7 @@ impl Scene for Coin {
     /// θ̇ e_heading + φ̇ a`.
     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], qd: &[D]) -> D {
         let m = self.motion(q, qd);
-        let gravity = vc([self.g * self.alpha.sin(), 0.0, self.g * self.alpha.cos()]);
+        let gravity = vc(self.gravity);
         dot(m.v_c, m.v_c) * (0.5 * self.m)
             + wheel_spin(self.i_d, self.i_a, m.w, m.axle)
             + dot(gravity, m.centre) * self.m

@@ -31,6 +31,9 @@ pub struct Sleigh {
     pub g: f64,
     pub alpha: f64,
     pub potential: Potential,
+    /// `m g sin α`, computed once (the Lagrangian is evaluated in every
+    /// derivative pass).
+    mg_sin_alpha: f64,
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -212,6 +215,7 @@ impl Scene for Sleigh {
             a,
             g: params.real("g")?,
             alpha: params.real("alpha")?,
+            mg_sin_alpha: params.real("m")? * params.real("g")? * params.real("alpha")?.sin(),
             potential: match params.choice("potential")? {
                 "com" => Potential::Com,
                 _ => Potential::Paper,
@@ -237,7 +241,7 @@ impl Scene for Sleigh {
         let kinetic =
             (xd * xd + yd * yd + phid * phid * self.j + phid * (yd * c - xd * s) * (2.0 * self.a))
                 * (0.5 * self.m);
-        let mg_sin = self.m * self.g * self.alpha.sin();
+        let mg_sin = self.mg_sin_alpha;
         let potential = match self.potential {
             Potential::Paper => x * mg_sin,
             Potential::Com => x * mg_sin + c * (mg_sin * self.a),

@@ -71,8 +71,10 @@ impl Equations for ChetaevEquations {
         Ok(ChetaevEquations)
     }
 
+    /// The KKT workspace with `L` and the constraints compiled into one
+    /// program ([`nonholo_core::compiled`]) where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info())
+        Kkt::for_scene(scene.info()).compiled_for(&Lagrangian(scene), 0, scene)
     }
 
     fn keeps_constraints(&self) -> bool {

@@ -504,7 +504,7 @@ impl Equations for FrictionEquations {
     }
 
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info())
+        Kkt::for_scene(scene.info()).compiled_for(&Lagrangian(scene), 0, scene)
     }
 
     fn dim(&self, info: &SceneInfo) -> usize {

@@ -140,7 +140,7 @@ impl Equations for GaussEquations {
         let info = scene.info();
         let (n, m) = (info.n(), info.s() + info.k());
         GaussWork {
-            kkt: Kkt::for_scene(info),
+            kkt: Kkt::for_scene(info).compiled_for(&Lagrangian(scene), 0, scene),
             program: T::REAL
                 .then(|| Box::new(ConicProgram::new(n, m, vec![SupportedConeT::ZeroConeT(m)]))),
             neg_force: vec![0.0; n],

@@ -22,6 +22,12 @@
 //! (`../shared/deps.md`).
 //! [`Jet`] owns the seed buffers, so no evaluation allocates.
 //!
+//! The passes repeat the whole field per direction; [`crate::compiled`]
+//! computes the same pieces by one program with every subexpression
+//! shared, and is what [`crate::kkt::Kkt`] uses once compiled. The passes
+//! remain the definition (the compiled pieces are tested against them) and
+//! the fallback for fields whose trace branches on values.
+//!
 //! The base scalar `T` is `f64` for values, or itself a dual number: with
 //! `T = Dual64` every piece carries one more directional derivative, which is
 //! how right-hand-side Jacobians (for implicit integrators) and Taylor

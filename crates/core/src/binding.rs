@@ -62,8 +62,9 @@ impl EvalError {
     pub fn into_system(self, info: &FormulationInfo) -> SystemError {
         match self {
             EvalError::Kkt(e) if e.pivot.is_nan() => SystemError::new(format!(
-                "the KKT system of formulation {} is not finite here (a NaN entry): a derivative \
-                 of the Lagrangian or of the constraints is not defined at this state",
+                "the KKT system of formulation {} is not finite here (a NaN entry, or a solution \
+                 that is not finite): a derivative of the Lagrangian or of the constraints is not \
+                 defined at this state, or a value overflowed",
                 info.letter
             )),
             EvalError::Kkt(e) => SystemError::new(format!(

@@ -18,9 +18,12 @@
 //! `T = Dual64` the same solve yields directional derivatives (Jacobian
 //! columns, time derivatives).
 
+use std::sync::Arc;
+
 use nalgebra::DMatrix;
 
 use crate::ad::Jet;
+use crate::compiled::{Compiled, Refused, Workspace};
 use crate::constraints::ConstraintState;
 use crate::linalg::{Lu, Singular, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
@@ -94,6 +97,10 @@ pub struct Kkt<T: Scalar = f64> {
     scale: Vec<f64>,
     /// Right-hand side, then solution `(q̈, μ_g, μ_f)`.
     pub sol: Vec<T>,
+    /// The field and constraints compiled into one program
+    /// ([`Kkt::compile`]), with its buffers; `None`: the scalar passes of
+    /// [`Jet`].
+    compiled: Option<(Arc<Compiled>, Workspace<T>)>,
 }
 
 impl<T: Scalar> Kkt<T> {
@@ -106,7 +113,38 @@ impl<T: Scalar> Kkt<T> {
             lu: Lu::new(n + s + k),
             scale: vec![1.0; n + s + k],
             sol: vec![T::from(0.0); n + s + k],
+            compiled: None,
         }
+    }
+
+    /// Compiles the field `ell` (with `np` parameters) and `scene`'s
+    /// constraints into one program ([`crate::compiled`]) that every later
+    /// [`Kkt::assemble`] evaluates instead of the scalar passes; keeps the
+    /// passes, and says why, where the trace does not hold at every state.
+    /// `assemble` must then be called with the same field.
+    pub fn compile<F: ScalarField, S: Scene>(
+        &mut self,
+        ell: &F,
+        np: usize,
+        scene: &S,
+    ) -> Result<(), Refused> {
+        let c = Compiled::new(ell, np, scene)?;
+        debug_assert_eq!(c.dims(), (self.n, self.cs.s, self.cs.k));
+        let w = c.workspace();
+        self.compiled = Some((Arc::new(c), w));
+        Ok(())
+    }
+
+    /// [`Kkt::compile`], keeping the scalar passes where it refuses (the
+    /// refusal is then in [`Kkt::compiled`]'s `None`).
+    pub fn compiled_for<F: ScalarField, S: Scene>(mut self, ell: &F, np: usize, scene: &S) -> Self {
+        let _ = self.compile(ell, np, scene);
+        self
+    }
+
+    /// The compiled program in use, if any.
+    pub fn compiled(&self) -> Option<&Compiled> {
+        self.compiled.as_ref().map(|(c, _)| &**c)
     }
 
     /// A workspace for the constraints of a scene.
@@ -154,6 +192,47 @@ impl<T: Scalar> Kkt<T> {
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
+        if let Some((c, w)) = &mut self.compiled {
+            debug_assert_eq!(
+                c.field,
+                std::any::type_name::<F>(),
+                "compiled for another field"
+            );
+            c.eval(w, t, q, qd, p);
+            let pc = w.pieces(c);
+            let mut o = 0;
+            for i in 0..n {
+                for j in i..n {
+                    self.matrix[(i, j)] = pc.mass_upper[o];
+                    self.matrix[(j, i)] = pc.mass_upper[o];
+                    o += 1;
+                }
+            }
+            self.sol[..n].copy_from_slice(pc.force);
+            let cs = &mut self.cs;
+            cs.g.copy_from_slice(pc.g);
+            cs.g_rate0.copy_from_slice(pc.g_rate0);
+            cs.f.copy_from_slice(pc.f);
+            cs.f_rate.copy_from_slice(pc.f_rate);
+            cs.f_accel0.copy_from_slice(pc.f_accel0);
+            for (r, row) in pc
+                .g_jac
+                .chunks(n.max(1))
+                .chain(pc.f_jac.chunks(n.max(1)))
+                .enumerate()
+            {
+                for (j, &v) in row.iter().enumerate() {
+                    cs.jac[(r, j)] = v;
+                }
+            }
+            if s > 0 {
+                rows.write(n, &self.cs, &mut self.matrix, &mut self.sol);
+            }
+            if k > 0 {
+                self.holonomic_rows(rows);
+            }
+            return;
+        }
         self.jet.mass_and_force(
             ell,
             t,
@@ -171,14 +250,20 @@ impl<T: Scalar> Kkt<T> {
             rows.write(n, &self.cs, &mut self.matrix, &mut self.sol);
         }
         if k > 0 {
-            let (alpha, beta) = rows.holonomic_gains();
             self.cs.evaluate_holonomic(&mut self.jet, scene, t, q, qd);
-            self.cs.write_rows(s..s + k, &mut self.matrix, n + s);
-            for i in 0..k {
-                self.sol[n + s + i] = -self.cs.f_accel0[i]
-                    - self.cs.f_rate[i] * (2.0 * alpha)
-                    - self.cs.f[i] * (beta * beta);
-            }
+            self.holonomic_rows(rows);
+        }
+    }
+
+    /// The rows of `f` from the evaluated constraint state.
+    fn holonomic_rows<R: GRows>(&mut self, rows: &R) {
+        let (n, s, k) = (self.n, self.cs.s, self.cs.k);
+        let (alpha, beta) = rows.holonomic_gains();
+        self.cs.write_rows(s..s + k, &mut self.matrix, n + s);
+        for i in 0..k {
+            self.sol[n + s + i] = -self.cs.f_accel0[i]
+                - self.cs.f_rate[i] * (2.0 * alpha)
+                - self.cs.f[i] * (beta * beta);
         }
     }
 
@@ -200,6 +285,10 @@ impl<T: Scalar> Kkt<T> {
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.
+    ///
+    /// A solution with a non-finite entry (a right-hand side that
+    /// overflowed, or a NaN from a derivative not defined at the state) is
+    /// reported as a [`Singular`] with a NaN pivot, as a non-finite matrix is.
     pub fn solve_assembled(&mut self) -> Result<(), Singular> {
         let n = self.n;
         solve_saddle(
@@ -208,6 +297,14 @@ impl<T: Scalar> Kkt<T> {
             &mut self.lu,
             &mut self.scale,
             &mut self.sol,
-        )
+        )?;
+        if let Some(column) = self.sol.iter().position(|x| !x.re().is_finite()) {
+            return Err(Singular {
+                column,
+                pivot: f64::NAN,
+                scale: f64::NAN,
+            });
+        }
+        Ok(())
     }
 }

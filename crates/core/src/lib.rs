@@ -5,7 +5,11 @@
 //!   generic over a dual-number type, optional constraints, embedding map,
 //!   closed form and invariants.
 //! * [`ad`]: mass matrix, forces, constraint Jacobians and their time
-//!   derivatives by automatic differentiation.
+//!   derivatives by automatic differentiation (scalar dual passes).
+//! * [`graph`], [`compiled`]: the same pieces from the scene's functions
+//!   traced once into an expression graph, differentiated on the graph and
+//!   evaluated as one straight-line program (B and C use it where the
+//!   trace holds at every state).
 //! * [`constraints`], [`project`]: constraint pieces at a state; projection
 //!   onto the constraint manifold.
 //! * [`kkt`]: the constrained-acceleration system of the formulations with
@@ -16,10 +20,12 @@
 
 pub mod ad;
 pub mod binding;
+pub mod compiled;
 pub mod complex;
 pub mod consistency;
 pub mod constraints;
 mod error;
+pub mod graph;
 pub mod guard;
 pub mod init;
 pub mod kkt;

@@ -54,62 +54,107 @@ impl Lu {
         let n = a.nrows();
         debug_assert_eq!(a.ncols(), n);
         debug_assert_eq!(self.piv.len(), n);
-        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.re().abs()));
-        let tiny = (n.max(1) as f64) * f64::EPSILON * scale;
-        for k in 0..n {
-            let mut p = k;
-            let mut best = a[(k, k)].re().abs();
-            for i in k + 1..n {
-                let v = a[(i, k)].re().abs();
-                if v > best {
-                    best = v;
-                    p = i;
-                }
-            }
-            // Also catches NaN entries (every comparison with NaN is false).
-            if best.is_nan() || best <= tiny {
-                return Err(Singular {
-                    column: k,
-                    pivot: best,
-                    scale,
-                });
-            }
-            self.piv[k] = p;
-            if p != k {
-                a.swap_rows(k, p);
-            }
-            let pivot = a[(k, k)];
-            for i in k + 1..n {
-                let l = a[(i, k)] / pivot;
-                a[(i, k)] = l;
-                for j in k + 1..n {
-                    let u = a[(k, j)];
-                    a[(i, j)] -= l * u;
-                }
-            }
-        }
-        Ok(())
+        let (a, piv) = (a.as_mut_slice(), &mut self.piv[..]);
+        // The sizes of the scenes' KKT systems get their own copy with the
+        // size a constant (loops unrolled): the general loops cost several
+        // times the arithmetic at n ≤ 8.
+        sized!(n, factor_core(a, piv))
     }
 
     /// Solves `A x = b` in place with the factors from [`Lu::factor`].
     pub fn solve<T: Scalar>(&self, lu: &DMatrix<T>, b: &mut [T]) {
         let n = lu.nrows();
-        for k in 0..n {
-            b.swap(k, self.piv[k]);
+        let (lu, piv) = (lu.as_slice(), &self.piv[..]);
+        sized!(n, solve_core(lu, piv, b))
+    }
+}
+
+/// Calls `$f(args.., n)` with `n` a literal for the sizes 1 to 8, so that
+/// the always-inlined core is compiled once per small size.
+macro_rules! sized {
+    ($n:expr, $f:ident($($arg:expr),*)) => {
+        match $n {
+            1 => $f($($arg,)* 1),
+            2 => $f($($arg,)* 2),
+            3 => $f($($arg,)* 3),
+            4 => $f($($arg,)* 4),
+            5 => $f($($arg,)* 5),
+            6 => $f($($arg,)* 6),
+            7 => $f($($arg,)* 7),
+            8 => $f($($arg,)* 8),
+            n => $f($($arg,)* n),
         }
-        for i in 0..n {
-            let mut s = b[i];
-            for j in 0..i {
-                s -= lu[(i, j)] * b[j];
+    };
+}
+use sized;
+
+/// [`Lu::factor`] on column-major storage: entry (i, j) at `i + j n`.
+#[inline(always)]
+fn factor_core<T: Scalar>(a: &mut [T], piv: &mut [usize], n: usize) -> Result<(), Singular> {
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.re().abs()));
+    let tiny = (n.max(1) as f64) * f64::EPSILON * scale;
+    for k in 0..n {
+        let col = &a[k * n..(k + 1) * n];
+        let mut p = k;
+        let mut best = col[k].re().abs();
+        for (i, v) in col.iter().enumerate().skip(k + 1) {
+            let v = v.re().abs();
+            if v > best {
+                best = v;
+                p = i;
             }
-            b[i] = s;
         }
-        for i in (0..n).rev() {
-            let mut s = b[i];
-            for j in i + 1..n {
-                s -= lu[(i, j)] * b[j];
+        // Also catches NaN entries (every comparison with NaN is false).
+        if best.is_nan() || best <= tiny {
+            return Err(Singular {
+                column: k,
+                pivot: best,
+                scale,
+            });
+        }
+        piv[k] = p;
+        if p != k {
+            for j in 0..n {
+                a.swap(k + j * n, p + j * n);
             }
-            b[i] = s / lu[(i, i)];
+        }
+        let pivot = a[k + k * n];
+        for i in k + 1..n {
+            a[i + k * n] /= pivot;
+        }
+        for j in k + 1..n {
+            let u = a[k + j * n];
+            let (left, right) = a.split_at_mut(j * n);
+            let lcol = &left[k * n..(k + 1) * n];
+            let col = &mut right[..n];
+            for i in k + 1..n {
+                col[i] -= lcol[i] * u;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// [`Lu::solve`] on column-major factors.
+#[inline(always)]
+fn solve_core<T: Scalar>(lu: &[T], piv: &[usize], b: &mut [T], n: usize) {
+    for k in 0..n {
+        b.swap(k, piv[k]);
+    }
+    // Column-oriented substitutions (contiguous columns).
+    for j in 0..n {
+        let x = b[j];
+        let col = &lu[j * n..(j + 1) * n];
+        for i in j + 1..n {
+            b[i] -= col[i] * x;
+        }
+    }
+    for j in (0..n).rev() {
+        let col = &lu[j * n..(j + 1) * n];
+        let x = b[j] / col[j];
+        b[j] = x;
+        for i in 0..j {
+            b[i] -= col[i] * x;
         }
     }
 }
@@ -124,18 +169,25 @@ impl Lu {
 /// by `d` after.
 pub fn equilibrate<T: Scalar>(a: &mut DMatrix<T>, n: usize, d: &mut [f64]) {
     let size = a.nrows();
-    let diag_max = (0..n).fold(0.0f64, |m, i| m.max(a[(i, i)].re().abs()));
+    let a = a.as_mut_slice();
+    sized!(size, equilibrate_core(a, n, d))
+}
+
+/// [`equilibrate`] on column-major storage of a `size × size` matrix.
+#[inline(always)]
+fn equilibrate_core<T: Scalar>(a: &mut [T], n: usize, d: &mut [f64], size: usize) {
+    let diag_max = (0..n).fold(0.0f64, |m, i| m.max(a[i + i * size].re().abs()));
     let floor = (f64::EPSILON * diag_max).max(f64::MIN_POSITIVE);
     for i in 0..n {
-        d[i] = 1.0 / a[(i, i)].re().abs().max(floor).sqrt();
+        d[i] = 1.0 / a[i + i * size].re().abs().max(floor).sqrt();
     }
     for r in n..size {
-        let row = (0..n).fold(0.0f64, |m, j| m.max((a[(r, j)].re() * d[j]).abs()));
+        let row = (0..n).fold(0.0f64, |m, j| m.max((a[r + j * size].re() * d[j]).abs()));
         d[r] = if row > 0.0 { 1.0 / row } else { 1.0 };
     }
-    for j in 0..size {
-        for i in 0..size {
-            a[(i, j)] *= d[i] * d[j];
+    for (j, col) in a.chunks_exact_mut(size.max(1)).enumerate() {
+        for (i, x) in col.iter_mut().enumerate() {
+            *x *= d[i] * d[j];
         }
     }
 }

@@ -174,8 +174,14 @@ impl Equations for MassEquations {
         })
     }
 
+    /// The KKT workspace with the form's field and the constraints
+    /// compiled into one program where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info())
+        let kkt = Kkt::for_scene(scene.info());
+        match self.form {
+            Form::Compliance => kkt.compiled_for(&Augmented(scene), scene.info().s(), scene),
+            Form::Direct => kkt.compiled_for(&Penalised(scene), 1, scene),
+        }
     }
 
     fn dim(&self, info: &SceneInfo) -> usize {

@@ -160,7 +160,9 @@ impl Equations for ViscEquations {
         let info = scene.info();
         let (n, s) = (info.n(), info.s());
         match self.form {
-            Form::Cartesian => ViscWork::Cartesian(Box::new(Kkt::new(n, s, info.k()))),
+            Form::Cartesian => ViscWork::Cartesian(Box::new(
+                Kkt::new(n, s, info.k()).compiled_for(&Lagrangian(scene), 0, scene),
+            )),
             Form::Adapted => ViscWork::Adapted(Box::new(Rates::new(n, s, self.k))),
         }
     }

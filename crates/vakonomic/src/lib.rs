@@ -93,8 +93,11 @@ impl Equations for VakonomicEquations {
         Ok(VakonomicEquations)
     }
 
+    /// The KKT workspace with `L + λᵀg` and the constraints compiled
+    /// into one program ([`nonholo_core::compiled`]) where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info())
+        let s = scene.info().s();
+        Kkt::for_scene(scene.info()).compiled_for(&Augmented(scene), s, scene)
     }
 
     fn keeps_constraints(&self) -> bool {

@@ -5,7 +5,9 @@
 //! `cargo run --release -p nonholo-bench --bin rhs-report [-- --batches N --batch-ms MS]`
 //!
 //! Criterion (`cargo bench -p nonholo-bench --bench rhs`) times the same
-//! evaluations with confidence intervals; this binary gives the table.
+//! evaluations with confidence intervals; this binary gives the table, and
+//! writes it to `results/rhs-report/report.md` (run from the repository
+//! root), whose ratios docs/performance.md quotes.
 
 use std::process::ExitCode;
 
@@ -18,11 +20,28 @@ fn check(case: &mut RhsCase, dy: &mut [f64]) -> Result<(), String> {
         .map_err(|e| format!("{}: {}", case.name, e.message))
 }
 
+use std::fmt::Write as _;
+
+/// Prints a line and keeps it for the report file.
+macro_rules! out {
+    ($buf:expr) => {{
+        println!();
+        $buf.push('\n');
+    }};
+    ($buf:expr, $($arg:tt)*) => {{
+        let line = format!($($arg)*);
+        println!("{line}");
+        let _ = writeln!($buf, "{line}");
+    }};
+}
+
 fn run() -> Result<(), String> {
+    let mut report = String::new();
     let (batches, batch_ms) = batch_args("rhs-report [--batches N] [--batch-ms MS]")?;
     let mut pairs = rhs_pairs().map_err(|e| e.to_string())?;
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    println!(
+    out!(
+        report,
         "One evaluation at the generic sleigh state (a = 0.4, α = 0.3, potential = com); \
          AD and baseline timed in {} alternating batches of ~{} ms each, medians, and the \
          median of the per-batch ratios; load average before: {}.\n",
@@ -33,10 +52,11 @@ fn run() -> Result<(), String> {
             .collect::<Vec<_>>()
             .join(" ")
     );
-    println!(
+    out!(
+        report,
         "| right-hand side by AD | dim | AD (ns) | hand-written baseline | dim | hand (ns) | ratio AD/hand |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    out!(report, "|---|---|---|---|---|---|---|");
     let ms = batch_ms;
     let mut jac_lines = Vec::new();
     for (ad, hand) in pairs.iter_mut() {
@@ -53,7 +73,8 @@ fn run() -> Result<(), String> {
             batches,
             ms,
         );
-        println!(
+        out!(
+            report,
             "| {} | {} | {t_ad:.0} | {} | {} | {t_hand:.1} | {ratio:.1} |",
             ad.what,
             ad.dim(),
@@ -128,7 +149,8 @@ fn run() -> Result<(), String> {
         batches,
         ms,
     );
-    println!(
+    out!(
+        report,
         "| A (embedding), residual F(t, y, y′) of (19) | {} | {t_a:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
         a.dim(),
         reduced_c.what,
@@ -147,21 +169,27 @@ fn run() -> Result<(), String> {
         batches,
         ms,
     );
-    println!(
+    out!(
+        report,
         "| {} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
         ae.what,
         ae.dim(),
         reduced_c.what,
         reduced_c.dim(),
     );
-    println!();
-    println!(
+    out!(report);
+    out!(
+        report,
         "| Jacobian ∂f/∂y by AD | dim | AD (ns) | AD Jacobian / AD rhs | hand-written baseline | hand (ns) | ratio AD/hand |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    out!(report, "|---|---|---|---|---|---|---|");
     for line in jac_lines {
-        println!("{line}");
+        out!(report, "{line}");
     }
+    let dir = std::path::Path::new("results/rhs-report");
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let path = dir.join("report.md");
+    std::fs::write(&path, report).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(())
 }
 

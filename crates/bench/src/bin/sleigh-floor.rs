@@ -1,0 +1,198 @@
+//! Formulation B on the sleigh in process against the hand-written reduced
+//! equations under the same integrator, at matched error: the workbench's
+//! price for deriving the equations from the Lagrangian.
+//!
+//! The generic sleigh (`a = 0.4`, `α = 0.3`, gravity at the centre of mass;
+//! `φ0 = 0.2`, `u0 = 2`, `ω0 = 0.7`) over `t ∈ [0, 20]` by DOP853 at
+//! `rtol = atol = 1e-6 … 1e-13`: B through `nonholo_chetaev::Chetaev`
+//! (state `(q, q̇)`, KKT solve from the compiled Lagrangian) and the spec's
+//! reduced B (`nonholo_bench::hand::ReducedB`, state `(x, y, φ, u, ω)`).
+//! The error is `max |(x, y, φ) − reference|` at `t = 20` (a step point:
+//! no dense output is read); the reference is the reduced B by DOP853 at
+//! 3e-14, and its own error is bounded by its distance to the same at
+//! 1e-13 (printed). Each pair of runs is timed in alternating repeats
+//! (medians). At matched error the time of each side is interpolated
+//! log-linearly in the error between the two rungs that bracket it.
+//!
+//! `cargo run --release -p nonholo-bench --bin sleigh-floor [-- --repeats N --error E]`,
+//! from the repository root: the ladder and the matched-error line are also
+//! written to `results/sleigh-floor/{ladder,matched}.csv`, whose numbers
+//! docs/performance.md quotes.
+
+use std::process::ExitCode;
+use std::time::Instant;
+
+use nonholo_bench::hand::{Constants, ReducedB};
+use nonholo_bench::setup::{OMEGA, Q, U, cartesian, generic_sleigh};
+use nonholo_bench::timing::median;
+use nonholo_chetaev::Chetaev;
+use nonholo_core::Params;
+use nonholo_core::integrate::{Method, OdeSystem, Options, solve};
+
+const T_END: f64 = 20.0;
+
+struct Rung {
+    tol: f64,
+    error: [f64; 2],
+    ms: [f64; 2],
+    evals: [usize; 2],
+}
+
+/// `(position at T_END, rhs evaluations, wall ms)` of one DOP853 run.
+fn run(sys: &mut dyn OdeSystem, y0: &[f64], tol: f64) -> Result<([f64; 3], usize, f64), String> {
+    let opts = Options {
+        rtol: tol,
+        atol: tol,
+        output: vec![0.0, T_END],
+        ..Options::default()
+    };
+    let start = Instant::now();
+    let sol = solve(Method::Dop853, sys, 0.0, y0, T_END, &opts).map_err(|f| f.error.to_string())?;
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let y = &sol.y_last;
+    Ok(([y[0], y[1], y[2]], sol.stats.rhs_evals, ms))
+}
+
+fn args() -> Result<(usize, f64), String> {
+    let (mut repeats, mut error) = (15usize, 1e-10f64);
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match a.as_str() {
+            "--repeats" => {
+                repeats = value("--repeats")?
+                    .parse()
+                    .map_err(|e| format!("--repeats: {e}"))?
+            }
+            "--error" => {
+                error = value("--error")?
+                    .parse()
+                    .map_err(|e| format!("--error: {e}"))?
+            }
+            "--help" | "-h" => {
+                println!("sleigh-floor [--repeats N] [--error E]");
+                std::process::exit(0);
+            }
+            other => return Err(format!("unknown argument `{other}`")),
+        }
+    }
+    if repeats == 0 || !(error > 0.0 && error.is_finite()) {
+        return Err("--repeats must be at least 1 and --error positive".into());
+    }
+    Ok((repeats, error))
+}
+
+/// Wall time at error `e`, interpolated log-linearly between the rungs
+/// whose errors bracket it; `None` if none do.
+fn at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
+    rungs.windows(2).find_map(|w| {
+        let (a, b) = (&w[0], &w[1]);
+        let (ea, eb) = (a.error[side], b.error[side]);
+        (ea >= e && e >= eb && ea > eb).then(|| {
+            let s = (ea.ln() - e.ln()) / (ea.ln() - eb.ln());
+            (a.ms[side].ln() + s * (b.ms[side].ln() - a.ms[side].ln())).exp()
+        })
+    })
+}
+
+fn main_() -> Result<(), String> {
+    let (repeats, target) = args()?;
+    let sleigh = generic_sleigh().map_err(|e| e.to_string())?;
+    let c = Constants::of(&sleigh);
+    let y_b = cartesian(Q, U, 0.0, OMEGA).to_vec();
+    let y_h = vec![Q[0], Q[1], Q[2], U, OMEGA];
+    let mut b = Chetaev::new(sleigh.clone(), Params::defaults(nonholo_chetaev::OPTIONS))
+        .map_err(|e| e.to_string())?;
+    let mut hand = ReducedB(c);
+    let (reference, _, _) = run(&mut hand, &y_h, 3e-14)?;
+    let (check, _, _) = run(&mut hand, &y_h, 1e-13)?;
+    let ref_error = (0..3).fold(0.0f64, |m, i| m.max((reference[i] - check[i]).abs()));
+    let dist = |p: [f64; 3]| (0..3).fold(0.0f64, |m, i| m.max((p[i] - reference[i]).abs()));
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "Sleigh, B by DOP853 over [0, {T_END}] s: the workbench (AD, compiled Lagrangian, KKT) \
+         against the hand-written reduced B; error at t = {T_END} s (a step point) against the \
+         reduced B at 3e-14 (its distance to 1e-13: {ref_error:.1e} m); {repeats} alternating \
+         repeats per rung, medians; load average before: {}.\n",
+        load.split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    println!(
+        "| tol | error B (m) | error hand (m) | evaluations B | evaluations hand | B (ms) | hand (ms) | time ratio |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let mut rungs = Vec::new();
+    let mut ladder =
+        String::from("tol,error_b,error_hand,evals_b,evals_hand,ms_b,ms_hand,time_ratio\n");
+    for k in 6..=13 {
+        let tol = 10f64.powi(-k);
+        let (mut tb, mut th) = (Vec::new(), Vec::new());
+        let (mut pb, mut ph, mut eb, mut eh) = ([0.0; 3], [0.0; 3], 0, 0);
+        for _ in 0..repeats {
+            let (p, e, ms) = run(&mut b, &y_b, tol)?;
+            (pb, eb) = (p, e);
+            tb.push(ms);
+            let (p, e, ms) = run(&mut hand, &y_h, tol)?;
+            (ph, eh) = (p, e);
+            th.push(ms);
+        }
+        let r = Rung {
+            tol,
+            error: [dist(pb), dist(ph)],
+            ms: [median(&mut tb), median(&mut th)],
+            evals: [eb, eh],
+        };
+        let cells = [
+            format!("{:e}", r.tol),
+            format!("{:.3e}", r.error[0]),
+            format!("{:.3e}", r.error[1]),
+            r.evals[0].to_string(),
+            r.evals[1].to_string(),
+            format!("{:.4}", r.ms[0]),
+            format!("{:.4}", r.ms[1]),
+            format!("{:.3}", r.ms[0] / r.ms[1]),
+        ];
+        println!("| {} |", cells.join(" | "));
+        ladder.push_str(&format!("{}\n", cells.join(",")));
+        rungs.push(r);
+    }
+    let matched = match (at_error(&rungs, 0, target), at_error(&rungs, 1, target)) {
+        (Some(a), Some(h)) => {
+            println!(
+                "\nAt matched error {target:.0e} m: B {a:.3} ms, hand-written {h:.4} ms: {:.1}×",
+                a / h
+            );
+            format!("{target:e},{a:.4},{h:.4},{:.3},{ref_error:.2e}\n", a / h)
+        }
+        _ => {
+            return Err(format!(
+                "error {target:.0e} m is not bracketed by both ladders"
+            ));
+        }
+    };
+    let dir = std::path::Path::new("results/sleigh-floor");
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for (name, text) in [
+        ("ladder.csv", ladder),
+        (
+            "matched.csv",
+            format!("error,ms_b,ms_hand,time_ratio,reference_error\n{matched}"),
+        ),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match main_() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -59,14 +59,14 @@ fn find<'a>(
 
 /// figures.md, sleigh-reversals: C reverses 165 (paper) and 166 (centre of
 /// mass) times on the 1 ms grid; A's analytic continuation crosses as often
-/// and stays within 1e-6 m of C (5.7e-7, 7.3e-7 m); the literal map agrees
+/// and stays within 1e-6 m of C (3.9e-7, 7.3e-7 m); the literal map agrees
 /// with the paper's potential and parts from C after the first reversal
 /// with the centre of mass (1e-6 m exceeded at 1.41 s); B is hundreds of
 /// metres away at t = 20 s.
 #[test]
 fn sleigh_reversals_as_figures_md_states() {
     let rows = runs("sleigh-reversals");
-    for (point, reversals, a_max) in [("0", 165.0, 5.7e-7), ("1", 166.0, 7.3e-7)] {
+    for (point, reversals, a_max) in [("0", 165.0, 3.9e-7), ("1", 166.0, 7.3e-7)] {
         let c = find(&rows, point, "C");
         assert_eq!(c["status"], "completed");
         assert_eq!(num(c, "reversals"), reversals, "point {point}");
@@ -154,7 +154,7 @@ fn realisation_rates_as_figures_md_states() {
 #[test]
 fn extreme_horizon_as_figures_md_states() {
     figures_md_says(&[
-        "reaches 1.7e-6 m with projection and 2.6e-9 m with Baumgarte at 1e4 s",
+        "reaches 1.7e-6 m with projection and 1.9e-9 m with Baumgarte at 1e4 s",
         "at t ≈ 393–394 s, 1.05–1.06 km from B's motion",
         "ends 5.4 m from B's closed form",
     ]);
@@ -164,7 +164,7 @@ fn extreme_horizon_as_figures_md_states() {
     let b = num(at("B-none"), "div_xy_end");
     assert!((1.25e-3..1.35e-3).contains(&b), "{b}");
     assert!((1.65e-6..1.8e-6).contains(&num(at("B-projection"), "div_xy_end")));
-    assert!((2.5e-9..2.7e-9).contains(&num(at("B-baumgarte"), "div_xy_end")));
+    assert!((1.85e-9..1.95e-9).contains(&num(at("B-baumgarte"), "div_xy_end")));
     for label in ["C-none", "C-projection", "mass"] {
         let r = at(label);
         assert_eq!(r["status"], "failed", "{label}");
@@ -193,7 +193,7 @@ fn wp_sleigh_orders_as_figures_md_states() {
         let (lo, hi, slope) = match integrator {
             "rk4" => (4.0, 4.3, None),
             "dopri5" => (5.3, 6.1, Some((0.835, 1.075))),
-            "dop853" => (8.9, 10.95, Some((0.835, 1.075))),
+            "dop853" => (8.85, 10.95, Some((0.835, 1.075))),
             "radau5" => (4.15, 5.5, Some((0.645, 0.695))),
             other => panic!("{other}"),
         };
@@ -215,8 +215,8 @@ fn extreme_appell_as_figures_md_states() {
         "2.5e-9 s before",
         "2e-5 to 8e-5 s after",
         "0.7 and 1.2 ms early",
-        "B reproduces the closed form to round-off (at least 14.8 correct digits, RK4 13.9)",
-        "agree with their own references at 1e-12 to 1e-13 to at least 14.6 digits",
+        "B reproduces the closed form to round-off (at least 14.5 correct digits, RK4 13.9)",
+        "agree with their own references at 1e-12 to 1e-13 to at least 14.5 digits",
     ]);
     let rows = table("extreme-appell", "work_precision.csv");
     assert_eq!(rows.len(), 14);
@@ -239,8 +239,7 @@ fn extreme_appell_as_figures_md_states() {
         }
         let digits = match label {
             "B-rk4" => 13.9,
-            l if l.starts_with('B') => 14.8,
-            _ => 14.6,
+            _ => 14.5,
         };
         assert!(num(r, "scd_max") >= digits, "{label}");
         // B against the closed form, the others against their own runs.
@@ -281,23 +280,23 @@ fn time_at_error(
 }
 
 /// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8, A
-/// costs 80–170× C and 260–520× B with DOPRI5 and DOP853, 250–450× C and
-/// 1100–2400× B with RK4, 18× C with Radau IIA (paper's potential; with
+/// costs 270–440× C and 890–1520× B with DOPRI5 and DOP853, 800–2200× C and
+/// 2500–8700× B with RK4, 36× C with Radau IIA (paper's potential; with
 /// gravity at the centre of mass A's implicit form does not reach 1e-8).
 #[test]
 fn wp_sleigh_cost_ratios_as_figures_md_states() {
     figures_md_says(&[
-        "80–170× C and 260–520× B with DOPRI5 and DOP853",
-        "250–450× C and 1100–2400× B with RK4",
-        "18× C with Radau IIA",
+        "270–440× C and 890–1520× B with DOPRI5 and DOP853",
+        "800–2200× C and 2500–8700× B with RK4",
+        "36× C with Radau IIA",
     ]);
     let rows = table("wp-sleigh", "work_precision.csv");
     for point in ["0", "1"] {
         let t = |l: &str| time_at_error(&rows, point, l, 1e-8);
         for (integrator, (c_lo, c_hi), (b_lo, b_hi)) in [
-            ("dopri5", (75.0, 175.0), (255.0, 525.0)),
-            ("dop853", (75.0, 175.0), (255.0, 525.0)),
-            ("rk4", (250.0, 450.0), (1050.0, 2400.0)),
+            ("dopri5", (265.0, 445.0), (885.0, 1525.0)),
+            ("dop853", (265.0, 445.0), (885.0, 1525.0)),
+            ("rk4", (795.0, 2205.0), (2495.0, 8750.0)),
         ] {
             let a = t(&format!("A-{integrator}")).unwrap();
             let c = a / t(&format!("C-{integrator}")).unwrap();
@@ -307,7 +306,7 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
         }
     }
     let radau = t_ratio(&rows, "0", "A-radau5", "C-radau5");
-    assert!((17.5..18.5).contains(&radau), "{radau}");
+    assert!((35.5..36.5).contains(&radau), "{radau}");
     assert!(time_at_error(&rows, "1", "A-radau5", 1e-8).is_none());
 }
 
@@ -321,8 +320,8 @@ fn wp_visc_as_figures_md_states() {
     figures_md_says(&[
         "1862–1892 steps at k = 1e4",
         "(7–53 against 8–84)",
-        "fails 19–43 times at k = 1e4 and 90–541 times at k = 1e6",
-        "cuts that to 0–5, at 2.7–3.6× the simplified iteration's wall time at k = 1e2, 0.83–2.2× at 1e4 and 0.27–0.44× at 1e6",
+        "fails 19–43 times at k = 1e4 and 92–541 times at k = 1e6",
+        "cuts that to 0–5, at 2.4–3.0× the simplified iteration's wall time at k = 1e2, 0.72–1.8× at 1e4 and 0.15–0.68× at 1e6",
     ]);
     let rows = table("wp-visc", "work_precision.csv");
     let of = |k: &str, label: &str| -> Vec<&HashMap<String, String>> {
@@ -353,12 +352,13 @@ fn wp_visc_as_figures_md_states() {
     );
     assert_eq!(
         failures("1000000.0", "cartesian-radau5-simplified"),
-        (90.0, 541.0)
+        (92.0, 541.0)
     );
     for (k, lo, hi) in [
-        ("100.0", 2.7, 3.6),
-        ("10000.0", 0.83, 2.2),
-        ("1000000.0", 0.27, 0.44),
+        // The bounds the claim rounds to one or two digits.
+        ("100.0", 2.36, 2.97),
+        ("10000.0", 0.715, 1.845),
+        ("1000000.0", 0.15, 0.685),
     ] {
         assert!(failures(k, "cartesian-radau5-full").1 <= 5.0);
         let full = of(k, "cartesian-radau5-full");
@@ -386,7 +386,7 @@ fn wp_mass_as_figures_md_states() {
     figures_md_says(&[
         "166 evaluations, error 2.6e-8 at N = 1e4 and 1e6, as C",
         "407, 2228 and 12 655 evaluations at N = 1e2, 1e4, 1e6",
-        "keeps 1.3e-8 to 1.6e-8 at tolerance 1e-10 for every N while its evaluations grow from 468 to 3532",
+        "keeps 1.3e-8 to 1.7e-8 at tolerance 1e-10 for every N while its evaluations grow from 468 to 3428",
     ]);
     let rows = table("wp-mass", "work_precision.csv");
     let at = |n: &str, label: &str, tol: f64| {
@@ -418,10 +418,10 @@ fn wp_mass_as_figures_md_states() {
         })
         .collect();
     assert!(
-        radau.iter().all(|(e, _)| (1.25e-8..1.65e-8).contains(e)),
+        radau.iter().all(|(e, _)| (1.25e-8..1.7e-8).contains(e)),
         "{radau:?}"
     );
-    assert_eq!((radau[0].1, radau[2].1), (468.0, 3532.0));
+    assert_eq!((radau[0].1, radau[2].1), (468.0, 3428.0));
     // Against the compliance form's reference: every line of mass(N) shares it.
     for r in table("wp-mass", "references.csv")
         .iter()
@@ -511,15 +511,15 @@ fn sleigh_slope_sweep_as_figures_md_states() {
 
 /// figures.md, stiff-visc and stiff-mass: DOP853's steps on visc grow like
 /// k until the 200 000-step budget; the direct form of mass loses 1/N at
-/// 1e6 (Radau IIA, 12 %) and 1e7 (DOP853, 10 %), blows up at 1e7 and 1e8.
+/// 1e6 (Radau IIA, 7 %) and 1e7 (DOP853, 18 %), blows up at 1e7 and 1e8.
 #[test]
 fn stiff_costs_as_figures_md_states() {
     figures_md_says(&[
         "(237, 1022, 9314, 93 101 steps at k = 1e2 … 1e5)",
         "budget of 200 000 steps",
         "77–101 steps",
-        "Radau IIA is 12 % off at N = 1e6 and 190× off at 1e7",
-        "DOP853 10 % off at 1e7 and 120× off at 1e8",
+        "Radau IIA is 7 % off at N = 1e6 and 195× off at 1e7",
+        "DOP853 18 % off at 1e7 and 25× off at 1e8",
     ]);
     let visc = runs("stiff-visc");
     let steps = |k: &str, l: &str| {
@@ -561,10 +561,10 @@ fn stiff_costs_as_figures_md_states() {
             .unwrap();
         num(r, "div_xy_end") / num(exact, "div_xy_end")
     };
-    assert!((off("1000000.0", "direct-radau5") - 0.88).abs() < 0.01);
-    assert!((off("10000000.0", "direct-radau5") / 194.0 - 1.0).abs() < 0.03);
-    assert!((off("10000000.0", "direct-dop853") - 0.90).abs() < 0.01);
-    assert!((off("100000000.0", "direct-dop853") / 124.0 - 1.0).abs() < 0.03);
+    assert!((off("1000000.0", "direct-radau5") - 1.07).abs() < 0.01);
+    assert!((off("10000000.0", "direct-radau5") / 195.0 - 1.0).abs() < 0.03);
+    assert!((off("10000000.0", "direct-dop853") - 0.82).abs() < 0.01);
+    assert!((off("100000000.0", "direct-dop853") / 25.0 - 1.0).abs() < 0.03);
 }
 
 /// figures.md, extreme-sleigh: correct digits of the completed runs at
@@ -1008,7 +1008,7 @@ fn bvp_sleigh_as_figures_md_states() {
     for e in &coarse {
         assert_eq!(e["status"], "solved");
         let it = num(e, "iterations");
-        assert!((8.0..=9.0).contains(&it), "{e:?}");
+        assert!((8.0..=10.0).contains(&it), "{e:?}");
         assert!((2.0..=4.0).contains(&num(e, "damped_steps")), "{e:?}");
         let a = rows
             .iter()
@@ -1030,7 +1030,7 @@ fn bvp_sleigh_as_figures_md_states() {
     let mut sorted = stalls.clone();
     sorted.sort_by(f64::total_cmp);
     assert!((0.95e-9..1.05e-9).contains(&sorted[0]), "{stalls:?}");
-    assert!((1.05e-7..1.15e-7).contains(&sorted[4]), "{stalls:?}");
+    assert!((4.65e-8..4.75e-8).contains(&sorted[4]), "{stalls:?}");
     assert!((sorted[5] - 7.3).abs() < 0.05, "{stalls:?}");
     for label in ["C-bvp", "A-bvp"] {
         let finest: Vec<&HashMap<String, String>> = solves(&rows, label)
@@ -1067,8 +1067,8 @@ fn bvp_sleigh_as_figures_md_states() {
     figures_md_says(&[
         "(at t = 1.19 s with the paper's potential, 1.30 s with the centre of mass)",
         "(observed 1.98 to 2.00 over five grids halving h from 15 ms to 0.94 ms, where they are 2.6e-6 to 1.3e-5 from it) in 3 to 4 Newton iterations",
-        "on the two coarsest grids (errors equal to 1e-12) in 8 to 9 iterations, 2 to 4 of them damped",
-        "it does not reach the tolerance in 40 iterations (its residual stalls at 1.0e-9 to 1.1e-7 N, on one grid at 7.3 N)",
+        "on the two coarsest grids (errors equal to 1e-12) in 8 to 10 iterations, 2 to 4 of them damped",
+        "it does not reach the tolerance in 40 iterations (its residual stalls at 1.0e-9 to 4.7e-8 N, on one grid at 7.3 N)",
         "stays at 2.6 to 2.7 N m (paper) and 1.53 N m (centre of mass) on every grid while C's falls like h² to 4.1e-5 and 4.6e-5 N m",
     ]);
 }
@@ -1082,25 +1082,32 @@ fn bvp_general_as_figures_md_states() {
         free.iter()
             .all(|r| r["status"] == "solved" && r["iterations"] == "1")
     );
-    assert!(range(&free, "err_B").1 < 7e-13 && range(&free, "err_C").1 < 7e-13);
+    assert!(range(&free, "err_B").1 < 9e-13 && range(&free, "err_C").1 < 9e-13);
     let hz = table("bvp-general", "horizons.csv");
     for r in hz.iter().filter(|r| r["label"] == "A-free") {
         assert!(num(r, "spread") < 1e-12, "{r:?}");
     }
     for label in ["A-fixed", "C-bvp"] {
         let r = solves(&rows, label);
-        assert_eq!(r.iter().filter(|r| r["status"] == "failed").count(), 10);
+        assert_eq!(r.iter().filter(|r| r["status"] == "failed").count(), 8);
+        let solved: Vec<_> = r
+            .iter()
+            .filter(|r| r["status"] == "solved")
+            .copied()
+            .collect();
+        let (lo, hi) = range(&solved, "iterations");
+        assert!(lo >= 20.0 && hi <= 34.0, "{label}: {lo} to {hi}");
     }
     // The two problems are the same: the same numbers.
     for (a, c) in solves(&rows, "A-fixed").iter().zip(solves(&rows, "C-bvp")) {
         assert_eq!((&a["status"], &a["err_B"]), (&c["status"], &c["err_B"]));
     }
     let st = table("bvp-general", "stationarity.csv");
-    assert!(st.iter().all(|r| num(r, "max") < 1e-10));
+    assert!(st.iter().all(|r| num(r, "max") < 2e-10));
     figures_md_says(&[
-        "within 7e-13 m of it on 4 grids (h = 50 to 6.25 ms) and 3 horizons (t1 = 0.5, 1 and 2 s), in one Newton iteration",
-        "Newton's method from the straight line fails on 10 of the 12 grid–horizon pairs",
-        "(below 1e-10 N on these grids)",
+        "within 9e-13 m of it on 4 grids (h = 50 to 6.25 ms) and 3 horizons (t1 = 0.5, 1 and 2 s), in one Newton iteration",
+        "Newton's method from the straight line fails on 8 of the 12 grid–horizon pairs (which ones changes with round-off; it converges linearly, in 20 to 34 iterations, on the others)",
+        "(below 2e-10 N on these grids)",
     ]);
 }
 
@@ -1178,7 +1185,7 @@ fn bvp_estimates_as_variational_md_states() {
         "is 2.7e-10 m at most",
         "0.022, 0.062 and 0.316 m from it",
         "2.6e-6 to 2.8e-6 m (C) and 1.0e-5 to 1.3e-5 m (A)",
-        "stalls at 1.0e-9 to 1.1e-7 N",
+        "stalls at 1.0e-9 to 4.7e-8 N",
     ] {
         assert!(flat.contains(p), "docs/variational.md does not say `{p}`");
     }
@@ -1232,4 +1239,170 @@ fn bvp_scaling_as_performance_md_states() {
         }
     }
     assert!(flat.contains("11–14 µs per interval for C and 14–16 µs for A, 63–78 % of it"));
+}
+
+/// The text of docs/performance.md with whitespace runs folded to one space.
+fn performance_md() -> String {
+    let path =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/performance.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Section 6's table of the compiled program against the passes is
+/// `results/compiled/kkt.csv`, row by row; the program is faster on every
+/// line.
+#[test]
+fn compiled_kkt_as_performance_md_states() {
+    let rows = table("compiled", "kkt.csv");
+    let flat = performance_md();
+    let get = |scene: &str, f: &str, scalar: &str, key: &str| {
+        let r = rows
+            .iter()
+            .find(|r| r["scene"] == scene && r["formulation"] == f && r["scalar"] == scalar)
+            .unwrap_or_else(|| panic!("no row {scene} {f} {scalar}"));
+        num(r, key)
+    };
+    assert!(rows.iter().all(|r| num(r, "speedup") > 1.0));
+    for (scene, label) in [
+        ("sleigh-incline", "sleigh"),
+        ("rolling-disk", "rolling disk"),
+        ("appell-hamel", "Appell–Hamel"),
+        ("pendulum", "pendulum"),
+        ("coin-incline", "coin on an incline"),
+        ("bicycle", "Whipple bicycle"),
+    ] {
+        let said = format!(
+            "| {label} | {} / {} | {:.1} / {:.1} | {:.1} / {:.1} |",
+            get(scene, "B", "f64", "instructions"),
+            get(scene, "C", "f64", "instructions"),
+            get(scene, "B", "f64", "speedup"),
+            get(scene, "C", "f64", "speedup"),
+            get(scene, "B", "Dual64", "speedup"),
+            get(scene, "C", "Dual64", "speedup"),
+        );
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
+}
+
+/// Section 6's ratios against the hand-written equations are those of
+/// `results/rhs-report/report.md`.
+#[test]
+fn rhs_report_as_performance_md_states() {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../results/rhs-report/report.md");
+    let report = std::fs::read_to_string(path).unwrap();
+    // The last cell of the row whose first cell is `what`.
+    let ratio = |what: &str, col: usize| -> String {
+        let line = report
+            .lines()
+            .find(|l| l.starts_with(&format!("| {what} |")))
+            .unwrap_or_else(|| panic!("no row `{what}`"));
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        cells[col].to_string()
+    };
+    let flat = performance_md();
+    for (what, doc) in [
+        ("B (Chetaev): KKT solve", "| B (KKT solve) | 54 |"),
+        ("C (vakonomic): KKT solve", "| C (KKT solve) | 66 |"),
+        ("visc (k = 1e4)", "| `visc`, Cartesian | 30 |"),
+        (
+            "visc (k = 1e4), adapted form (q, u, c_ω, w)",
+            "| `visc`, adapted (frame by passes, not compiled) | 120 |",
+        ),
+    ] {
+        let said = format!("{doc} {} |", ratio(what, 7));
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
+    let said = format!(
+        "| `mass`, compliance / direct | 42 / 45 | {} / {} |",
+        ratio("mass (N = 1e4), compliance", 7),
+        ratio("mass (N = 1e4), direct", 7)
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let said = format!(
+        "| A, implicit residual of (19) (passes) | 88 | {} |",
+        ratio("A (embedding), residual F(t, y, y′) of (19)", 7)
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    // The Jacobian table: its fifth cell is the Jacobian in right-hand sides.
+    let jac = report
+        .lines()
+        .filter(|l| l.starts_with("| B (Chetaev): KKT solve |"))
+        .nth(1)
+        .unwrap();
+    let per_rhs = jac.split('|').map(str::trim).nth(4).unwrap();
+    let said = format!("| Jacobian of B, in right-hand sides of B | ~9.5 | {per_rhs} |");
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+}
+
+/// Section 6's whole-run comparison at matched error is
+/// `results/sleigh-floor/`: the matched ratio, the range over the rungs,
+/// the extra evaluations and the reference's own error.
+#[test]
+fn sleigh_floor_as_performance_md_states() {
+    let matched = table("sleigh-floor", "matched.csv");
+    let ladder = table("sleigh-floor", "ladder.csv");
+    let m = &matched[0];
+    assert!(
+        num(m, "reference_error") < 1e-11,
+        "the reference must be 10× below 1e-10"
+    );
+    let flat = performance_md();
+    let said = format!(
+        "At matched error 1e-10 m B takes {:.1}× the time",
+        num(m, "time_ratio")
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let ratios: Vec<f64> = ladder.iter().map(|r| num(r, "time_ratio")).collect();
+    let extra: Vec<f64> = ladder
+        .iter()
+        .map(|r| (num(r, "evals_b") / num(r, "evals_hand") - 1.0) * 100.0)
+        .collect();
+    let (lo, hi) = (
+        ratios.iter().cloned().fold(f64::INFINITY, f64::min),
+        ratios.iter().cloned().fold(0.0, f64::max),
+    );
+    let (elo, ehi) = (
+        extra.iter().cloned().fold(f64::INFINITY, f64::min),
+        extra.iter().cloned().fold(0.0, f64::max),
+    );
+    let said =
+        format!("{lo:.1}–{hi:.1}× rung by rung, with {elo:.1}–{ehi:.0} % more evaluations for B");
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let said = format!(
+        "within {:.1e} m of the same at 1e-13",
+        num(m, "reference_error")
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    // Errors at matched tolerance are within a factor 3 of each other: the
+    // two runs compute the same motion.
+    for r in &ladder {
+        let q = num(r, "error_b") / num(r, "error_hand");
+        assert!((1.0 / 3.0..3.0).contains(&q), "{r:?}");
+    }
 }

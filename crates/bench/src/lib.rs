@@ -25,3 +25,25 @@ pub mod timing;
 
 #[cfg(feature = "peers")]
 pub mod peers;
+
+/// The `main` of every report binary: run `run`, print its error on stderr
+/// after the binary's name and turn the outcome into the exit code.
+pub fn report_main<E: std::fmt::Display>(
+    run: impl FnOnce() -> Result<(), E>,
+) -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            let name = std::env::args()
+                .next()
+                .and_then(|a| {
+                    std::path::Path::new(&a)
+                        .file_name()
+                        .map(|n| n.to_string_lossy().into_owned())
+                })
+                .unwrap_or_else(|| "error".to_string());
+            eprintln!("{name}: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -18,6 +18,7 @@
 
 use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::FormulationInfo;
 use nonholo_core::param::{ParamSpec, Params};
@@ -47,8 +48,11 @@ fn applicable(_scene: &SceneInfo) -> Result<(), String> {
 pub type Chetaev<S> = Binding<S, ChetaevEquations>;
 
 /// The equations of B: `q̈` and the multipliers from one KKT solve of `L`.
-#[derive(Debug, Clone, Copy)]
-pub struct ChetaevEquations;
+#[derive(Debug, Clone, Default)]
+pub struct ChetaevEquations {
+    /// `L` and the constraints, compiled once for every workspace.
+    programs: Programs,
+}
 
 /// B's KKT solve at `(t, q, q̇)`: `(q̈, −λ, −ν)` in `kkt.sol`.
 fn solve<S: Scene, T: Scalar>(
@@ -68,13 +72,13 @@ impl Equations for ChetaevEquations {
     const INFO: &'static FormulationInfo = &INFO;
 
     fn new<S: Scene>(_scene: &S, _options: &mut Params) -> Result<Self, Error> {
-        Ok(ChetaevEquations)
+        Ok(ChetaevEquations::default())
     }
 
     /// The KKT workspace with `L` and the constraints compiled into one
     /// program ([`nonholo_core::compiled`]) where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info()).compiled_for(&Lagrangian(scene), 0, scene)
+        Kkt::for_scene(scene.info()).compiled_for(&self.programs, &Lagrangian(scene), 0, scene)
     }
 
     fn keeps_constraints(&self) -> bool {

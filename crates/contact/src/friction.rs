@@ -38,6 +38,7 @@
 //! one second — stops the run with the count, not a loop.
 
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::constraints::ConstraintState;
 use nonholo_core::integrate::SystemError;
 use nonholo_core::kkt::{GRows, Kkt};
@@ -282,6 +283,8 @@ pub struct FrictionEquations {
     w: [f64; 4],
     /// The initial modes, for the record.
     sticking_at_start: usize,
+    /// `L` and the constraints, compiled once for every workspace.
+    programs: Programs,
 }
 
 impl FrictionEquations {
@@ -500,11 +503,12 @@ impl Equations for FrictionEquations {
             impulse: Vec::new(),
             w: [0.0; 4],
             sticking_at_start: 0,
+            programs: Programs::default(),
         })
     }
 
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
-        Kkt::for_scene(scene.info()).compiled_for(&Lagrangian(scene), 0, scene)
+        Kkt::for_scene(scene.info()).compiled_for(&self.programs, &Lagrangian(scene), 0, scene)
     }
 
     fn dim(&self, info: &SceneInfo) -> usize {

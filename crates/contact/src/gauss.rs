@@ -29,6 +29,7 @@
 use clarabel::solver::SupportedConeT;
 use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::integrate::SystemError;
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::FormulationInfo;
@@ -63,8 +64,11 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
 pub type Gauss<S> = Binding<S, GaussEquations>;
 
 /// The equations of `gauss`.
-#[derive(Debug, Clone, Copy)]
-pub struct GaussEquations;
+#[derive(Debug, Clone, Default)]
+pub struct GaussEquations {
+    /// `L` and the constraints, compiled once for every workspace.
+    programs: Programs,
+}
 
 /// The workspace: the KKT system's pieces and, over `f64`, the program.
 pub struct GaussWork<T: Scalar> {
@@ -133,14 +137,14 @@ impl Equations for GaussEquations {
     const INFO: &'static FormulationInfo = &INFO;
 
     fn new<S: Scene>(_scene: &S, _options: &mut Params) -> Result<Self, Error> {
-        Ok(GaussEquations)
+        Ok(GaussEquations::default())
     }
 
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> GaussWork<T> {
         let info = scene.info();
         let (n, m) = (info.n(), info.s() + info.k());
         GaussWork {
-            kkt: Kkt::for_scene(info).compiled_for(&Lagrangian(scene), 0, scene),
+            kkt: Kkt::for_scene(info).compiled_for(&self.programs, &Lagrangian(scene), 0, scene),
             program: T::REAL
                 .then(|| Box::new(ConicProgram::new(n, m, vec![SupportedConeT::ZeroConeT(m)]))),
             neg_force: vec![0.0; n],

@@ -20,6 +20,8 @@
 //! on values; [`Compiled::new`] refuses (and the passes stay in use) when
 //! tracing met a branch or a function the graph does not represent.
 
+use std::sync::{Arc, OnceLock};
+
 use crate::graph::{Graph, Node, Program, Tracer, trace};
 use crate::scene::{Holonomic, Nonholonomic, Scalar, ScalarField, Scene, VectorField};
 
@@ -165,9 +167,8 @@ impl Compiled {
 
     /// Buffers for [`Compiled::eval`] over `T`.
     pub fn workspace<T: Scalar>(&self) -> Workspace<T> {
-        let (inputs, outputs) = self.program.shape();
+        let (_, outputs) = self.program.shape();
         Workspace {
-            inputs: vec![T::from(0.0); inputs],
             regs: self.program.registers(),
             out: vec![T::from(0.0); outputs],
         }
@@ -178,16 +179,40 @@ impl Compiled {
     pub fn eval<T: Scalar>(&self, w: &mut Workspace<T>, t: T, q: &[T], qd: &[T], p: &[T]) {
         let n = self.n;
         debug_assert_eq!(p.len(), self.np, "compiled field's parameters");
-        w.inputs[0] = t;
-        w.inputs[1..1 + n].copy_from_slice(q);
-        w.inputs[1 + n..1 + 2 * n].copy_from_slice(qd);
-        w.inputs[1 + 2 * n..].copy_from_slice(p);
-        self.program.eval(&w.inputs, &mut w.regs, &mut w.out);
+        // The inputs are the first registers (see `Program::run`).
+        w.regs[0] = t;
+        w.regs[1..1 + n].copy_from_slice(q);
+        w.regs[1 + n..1 + 2 * n].copy_from_slice(qd);
+        w.regs[1 + 2 * n..1 + 2 * n + self.np].copy_from_slice(p);
+        self.program.run(&mut w.regs, &mut w.out);
     }
 
     /// `(n, s, k)`.
     pub fn dims(&self) -> (usize, usize, usize) {
         (self.n, self.s, self.k)
+    }
+}
+
+/// The program of one formulation's field and scene, compiled on first use
+/// and shared by every workspace built from it: the `f64` one of the
+/// right-hand side, the `Dual64` one of Jacobian columns, the second-order
+/// one of Taylor coefficients. One cache belongs to one scene (a
+/// formulation bound to it); a refusal is cached too.
+#[derive(Debug, Clone, Default)]
+pub struct Programs(OnceLock<Result<Arc<Compiled>, Refused>>);
+
+impl Programs {
+    /// The program of `ell` (with `np` parameters) and `scene`'s
+    /// constraints: [`Compiled::new`] the first time, the same one after.
+    pub fn get<F: ScalarField, S: Scene>(
+        &self,
+        ell: &F,
+        np: usize,
+        scene: &S,
+    ) -> Result<Arc<Compiled>, Refused> {
+        self.0
+            .get_or_init(|| Compiled::new(ell, np, scene).map(Arc::new))
+            .clone()
     }
 }
 
@@ -198,10 +223,9 @@ fn rate(g: &mut Graph, x: u32, q_vars: &[u32], qd: &[u32], t_var: u32) -> u32 {
     g.op(Node::Add(conv, explicit))
 }
 
-/// Inputs, registers and outputs of one [`Compiled`] over `T`.
+/// Registers (inputs first) and outputs of one [`Compiled`] over `T`.
 #[derive(Debug, Clone)]
 pub struct Workspace<T> {
-    inputs: Vec<T>,
     regs: Vec<T>,
     out: Vec<T>,
 }

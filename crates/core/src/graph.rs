@@ -1020,11 +1020,17 @@ impl Program {
     /// using `regs` (from [`Program::registers`] of this program, whose
     /// constants evaluation leaves in place) as its register file.
     pub fn eval<T: Scalar>(&self, inputs: &[T], regs: &mut [T], out: &mut [T]) {
-        let base = self.inputs + self.constants.len();
         assert_eq!(inputs.len(), self.inputs, "program inputs");
+        regs[..self.inputs].copy_from_slice(inputs);
+        self.run(regs, out);
+    }
+
+    /// [`Program::eval`] with the inputs already in `regs[..inputs]` (the
+    /// first registers), where a caller can write them without a copy.
+    pub fn run<T: Scalar>(&self, regs: &mut [T], out: &mut [T]) {
+        let base = self.inputs + self.constants.len();
         assert_eq!(regs.len(), base + self.ops.len(), "program registers");
         assert_eq!(out.len(), self.outputs.len(), "program outputs");
-        regs[..self.inputs].copy_from_slice(inputs);
         for (i, op) in self.ops.iter().enumerate() {
             // Every operand register is below `base + i` (by construction).
             regs[base + i] = apply(op, |a| regs[a as usize]);

@@ -23,7 +23,7 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 
 use crate::ad::Jet;
-use crate::compiled::{Compiled, Refused, Workspace};
+use crate::compiled::{Compiled, Programs, Refused, Workspace};
 use crate::constraints::ConstraintState;
 use crate::linalg::{Lu, Singular, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
@@ -128,17 +128,30 @@ impl<T: Scalar> Kkt<T> {
         np: usize,
         scene: &S,
     ) -> Result<(), Refused> {
-        let c = Compiled::new(ell, np, scene)?;
-        debug_assert_eq!(c.dims(), (self.n, self.cs.s, self.cs.k));
-        let w = c.workspace();
-        self.compiled = Some((Arc::new(c), w));
+        self.use_program(Arc::new(Compiled::new(ell, np, scene)?));
         Ok(())
     }
 
-    /// [`Kkt::compile`], keeping the scalar passes where it refuses (the
-    /// refusal is then in [`Kkt::compiled`]'s `None`).
-    pub fn compiled_for<F: ScalarField, S: Scene>(mut self, ell: &F, np: usize, scene: &S) -> Self {
-        let _ = self.compile(ell, np, scene);
+    /// Makes [`Kkt::assemble`] evaluate `c` (see [`Kkt::compile`]).
+    pub fn use_program(&mut self, c: Arc<Compiled>) {
+        debug_assert_eq!(c.dims(), (self.n, self.cs.s, self.cs.k));
+        let w = c.workspace();
+        self.compiled = Some((c, w));
+    }
+
+    /// [`Kkt::use_program`] with the program of `programs` (compiled by the
+    /// first workspace that asks), keeping the scalar passes where it was
+    /// refused (the refusal is then in [`Kkt::compiled`]'s `None`).
+    pub fn compiled_for<F: ScalarField, S: Scene>(
+        mut self,
+        programs: &Programs,
+        ell: &F,
+        np: usize,
+        scene: &S,
+    ) -> Self {
+        if let Ok(c) = programs.get(ell, np, scene) {
+            self.use_program(c);
+        }
         self
     }
 

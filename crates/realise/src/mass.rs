@@ -30,6 +30,7 @@
 //! `λ` (compliance: the state; direct: `N g`), comparable with C's.
 
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::consistency::PROJECT_TOL;
 use nonholo_core::init::{ExtraName, lambda_names, lambda0};
 use nonholo_core::integrate::RadauNewton;
@@ -86,12 +87,14 @@ pub enum Form {
 pub type Mass<S> = Binding<S, MassEquations>;
 
 /// The equations of `mass`: the form, the gain `N`, and the initial shift.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct MassEquations {
     gain: f64,
     form: Form,
     /// `‖Δq̇0‖` of the initial shift to `g = λ0/N`.
     shift: f64,
+    /// The form's field and the constraints, compiled once.
+    programs: Programs,
 }
 
 impl MassEquations {
@@ -171,6 +174,7 @@ impl Equations for MassEquations {
             gain: options.real(N.name)?,
             form,
             shift: 0.0,
+            programs: Programs::default(),
         })
     }
 
@@ -179,8 +183,10 @@ impl Equations for MassEquations {
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
         let kkt = Kkt::for_scene(scene.info());
         match self.form {
-            Form::Compliance => kkt.compiled_for(&Augmented(scene), scene.info().s(), scene),
-            Form::Direct => kkt.compiled_for(&Penalised(scene), 1, scene),
+            Form::Compliance => {
+                kkt.compiled_for(&self.programs, &Augmented(scene), scene.info().s(), scene)
+            }
+            Form::Direct => kkt.compiled_for(&self.programs, &Penalised(scene), 1, scene),
         }
     }
 

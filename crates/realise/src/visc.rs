@@ -27,6 +27,7 @@
 //!   and a chart linear in its values.
 
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::integrate::RadauNewton;
 use nonholo_core::kkt::Kkt;
 use nonholo_core::model::FormulationInfo;
@@ -86,10 +87,12 @@ pub enum Form {
 pub type Visc<S> = Binding<S, ViscEquations>;
 
 /// The equations of `visc`: the gain `k` and the state they are integrated in.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct ViscEquations {
     k: f64,
     form: Form,
+    /// `L` and the constraints, compiled once (Cartesian form).
+    programs: Programs,
 }
 
 impl ViscEquations {
@@ -153,6 +156,7 @@ impl Equations for ViscEquations {
         Ok(ViscEquations {
             k: options.real(K.name)?,
             form,
+            programs: Programs::default(),
         })
     }
 
@@ -161,7 +165,7 @@ impl Equations for ViscEquations {
         let (n, s) = (info.n(), info.s());
         match self.form {
             Form::Cartesian => ViscWork::Cartesian(Box::new(
-                Kkt::new(n, s, info.k()).compiled_for(&Lagrangian(scene), 0, scene),
+                Kkt::new(n, s, info.k()).compiled_for(&self.programs, &Lagrangian(scene), 0, scene),
             )),
             Form::Adapted => ViscWork::Adapted(Box::new(Rates::new(n, s, self.k))),
         }

@@ -3,6 +3,7 @@
 //! [`nonholo_core::ad`], entry by entry, over `f64` and over `Dual64` (a
 //! Jacobian column), at states spread over each scene's coordinates.
 
+use nonholo_core::compiled::Programs;
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::scene::{Augmented, Lagrangian, Scalar, ScalarField};
 use nonholo_core::stab::Stabilisation;
@@ -144,6 +145,27 @@ fn a_field_that_branches_on_values_is_refused_and_the_passes_stay() {
     let e = kkt.compile(&Branching(&scene), 0, &scene).unwrap_err();
     assert!(e.0.contains("re()"), "{e}");
     assert!(kkt.compiled().is_none());
-    let kkt = Kkt::<f64>::for_scene(scene.info()).compiled_for(&Branching(&scene), 0, &scene);
+    let kkt = Kkt::<f64>::for_scene(scene.info()).compiled_for(
+        &Programs::default(),
+        &Branching(&scene),
+        0,
+        &scene,
+    );
     assert!(kkt.compiled().is_none());
+}
+
+/// One program serves every workspace of a formulation: the `f64` and the
+/// dual workspaces read the same compiled program, not two traces of it.
+#[test]
+fn one_program_per_formulation() {
+    let scene = nonholo_scenes::Pendulum::from_params(&nonholo_core::Params::defaults(
+        nonholo_scenes::pendulum::INFO.params,
+    ))
+    .unwrap();
+    let programs = Programs::default();
+    let ell = Lagrangian(&scene);
+    let a = Kkt::<f64>::for_scene(scene.info()).compiled_for(&programs, &ell, 0, &scene);
+    let b = Kkt::<Dual64>::for_scene(scene.info()).compiled_for(&programs, &ell, 0, &scene);
+    let (a, b) = (a.compiled().unwrap(), b.compiled().unwrap());
+    assert!(std::ptr::eq(a, b), "two programs for one formulation");
 }

@@ -25,6 +25,7 @@
 use nonholo_core::Error;
 use nonholo_core::Initial;
 use nonholo_core::binding::{Binding, Equations, EvalError};
+use nonholo_core::compiled::Programs;
 use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::FormulationInfo;
@@ -67,8 +68,11 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
 pub type Vakonomic<S> = Binding<S, VakonomicEquations>;
 
 /// The equations of C: `(q̈, λ̇)` from one KKT solve of `L + λᵀg` at frozen `λ`.
-#[derive(Debug, Clone, Copy)]
-pub struct VakonomicEquations;
+#[derive(Debug, Clone, Default)]
+pub struct VakonomicEquations {
+    /// `L + λᵀg` and the constraints, compiled once for every workspace.
+    programs: Programs,
+}
 
 /// C's KKT solve at `y = (q, q̇, λ)` over any scalar: `(q̈, λ̇, −ν)` in `kkt.sol`.
 fn solve<S: Scene, T: Scalar>(
@@ -90,14 +94,14 @@ impl Equations for VakonomicEquations {
     const INFO: &'static FormulationInfo = &INFO;
 
     fn new<S: Scene>(_scene: &S, _options: &mut Params) -> Result<Self, Error> {
-        Ok(VakonomicEquations)
+        Ok(VakonomicEquations::default())
     }
 
     /// The KKT workspace with `L + λᵀg` and the constraints compiled
     /// into one program ([`nonholo_core::compiled`]) where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
         let s = scene.info().s();
-        Kkt::for_scene(scene.info()).compiled_for(&Augmented(scene), s, scene)
+        Kkt::for_scene(scene.info()).compiled_for(&self.programs, &Augmented(scene), s, scene)
     }
 
     fn keeps_constraints(&self) -> bool {

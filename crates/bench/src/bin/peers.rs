@@ -721,11 +721,5 @@ fn run() -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("peers: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    nonholo_bench::report_main(run)
 }

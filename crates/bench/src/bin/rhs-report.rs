@@ -194,11 +194,5 @@ fn run() -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("rhs-report: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    nonholo_bench::report_main(run)
 }

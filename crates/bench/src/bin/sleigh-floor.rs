@@ -95,7 +95,7 @@ fn at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
     })
 }
 
-fn main_() -> Result<(), String> {
+fn report() -> Result<(), String> {
     let (repeats, target) = args()?;
     let sleigh = generic_sleigh().map_err(|e| e.to_string())?;
     let c = Constants::of(&sleigh);
@@ -188,11 +188,5 @@ fn main_() -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    match main_() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    nonholo_bench::report_main(report)
 }

@@ -1351,6 +1351,41 @@ fn rhs_report_as_performance_md_states() {
     );
 }
 
+/// Section 6's comparison with SciPy is `results/sleigh-floor/scipy*.csv`:
+/// the matched speed-up, its range over the rungs, and SciPy's errors
+/// following the tolerance (the same motion).
+#[test]
+fn sleigh_floor_against_scipy_as_performance_md_states() {
+    let matched = table("sleigh-floor", "scipy-matched.csv");
+    let ladder = table("sleigh-floor", "scipy.csv");
+    let flat = performance_md();
+    let said = format!(
+        "At matched error 1e-10 m B is {:.0}× faster than SciPy",
+        num(&matched[0], "speedup")
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let speedups: Vec<f64> = ladder.iter().map(|r| num(r, "speedup_b")).collect();
+    let lo = speedups.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = speedups.iter().cloned().fold(0.0, f64::max);
+    let said = format!("({lo:.1}–{hi:.1}× rung by rung)");
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    // SciPy computes the same motion: its error follows the tolerance
+    // down to the reference's own floor (1e-12 m).
+    for r in &ladder {
+        let (tol, e) = (num(r, "tol"), num(r, "error"));
+        assert!(
+            e < 10.0 * tol.max(1e-12),
+            "SciPy's error {e:e} at tol {tol:e}"
+        );
+    }
+}
+
 /// Section 6's whole-run comparison at matched error is
 /// `results/sleigh-floor/`: the matched ratio, the range over the rungs,
 /// the extra evaluations and the reference's own error.

@@ -14,9 +14,18 @@
 //! (medians). At matched error the time of each side is interpolated
 //! log-linearly in the error between the two rungs that bracket it.
 //!
-//! `cargo run --release -p nonholo-bench --bin sleigh-floor [-- --repeats N --error E]`,
+//! With `--scipy PYTHON`, each rung also runs `crates/bench/scipy/sleigh_b.py`
+//! under that interpreter (it needs NumPy and SciPy): the same problem as a
+//! SciPy user writes it, a KKT right-hand side in NumPy integrated by
+//! `solve_ivp`'s DOP853, timed inside the script (its own medians over the
+//! same number of repeats, interpreter start excluded) right after the rung's
+//! alternating repeats of B and the hand-written equations.
+//!
+//! `cargo run --release -p nonholo-bench --bin sleigh-floor [-- --repeats N --error E --scipy PYTHON]`,
 //! from the repository root: the ladder and the matched-error line are also
-//! written to `results/sleigh-floor/{ladder,matched}.csv`, whose numbers
+//! written to `results/sleigh-floor/{ladder,matched}.csv`, and with `--scipy`
+//! SciPy's ladder and the matched-error comparison to
+//! `results/sleigh-floor/{scipy,scipy-matched}.csv`, whose numbers
 //! docs/performance.md quotes.
 
 use std::process::ExitCode;
@@ -31,11 +40,65 @@ use nonholo_core::integrate::{Method, OdeSystem, Options, solve};
 
 const T_END: f64 = 20.0;
 
+/// One tolerance: B (side 0), the hand-written equations (1) and, with
+/// `--scipy`, SciPy (2).
 struct Rung {
     tol: f64,
-    error: [f64; 2],
-    ms: [f64; 2],
-    evals: [usize; 2],
+    error: [f64; 3],
+    ms: [f64; 3],
+    evals: [usize; 3],
+}
+
+/// Path of the SciPy peer, in this crate.
+const SCIPY_SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scipy/sleigh_b.py");
+
+/// `(error, rhs evaluations, median ms)` of SciPy's DOP853 at `tol`, by
+/// the script under `python`.
+fn scipy_run(
+    python: &str,
+    c: &Constants,
+    y0: &[f64],
+    reference: [f64; 3],
+    tol: f64,
+    repeats: usize,
+) -> Result<(f64, usize, f64), String> {
+    let mut cmd = std::process::Command::new(python);
+    cmd.arg(SCIPY_SCRIPT);
+    for (name, v) in [
+        ("--m", c.m),
+        ("--j", c.j),
+        ("--a", c.a),
+        ("--gs", c.gs),
+        ("--com", c.com),
+        ("--t-end", T_END),
+        ("--tol", tol),
+    ] {
+        cmd.arg(name).arg(format!("{v:e}"));
+    }
+    // Plain decimals (round-trip exact): argparse takes `-2e-1` for an option.
+    cmd.arg("--y0").args(y0.iter().map(|v| v.to_string()));
+    cmd.arg("--reference")
+        .args(reference.iter().map(|v| v.to_string()));
+    cmd.arg("--repeats").arg(repeats.to_string());
+    let out = cmd
+        .output()
+        .map_err(|e| format!("--scipy: cannot run `{python}`: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "--scipy: {SCIPY_SCRIPT} failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        ));
+    }
+    let line = String::from_utf8_lossy(&out.stdout);
+    let cells: Vec<&str> = line.trim().split(',').collect();
+    let bad = || format!("--scipy: unexpected output `{}`", line.trim());
+    if cells.len() != 4 {
+        return Err(bad());
+    }
+    let error: f64 = cells[1].parse().map_err(|_| bad())?;
+    let evals: usize = cells[2].parse().map_err(|_| bad())?;
+    let ms: f64 = cells[3].parse().map_err(|_| bad())?;
+    Ok((error, evals, ms))
 }
 
 /// `(position at T_END, rhs evaluations, wall ms)` of one DOP853 run.
@@ -53,8 +116,8 @@ fn run(sys: &mut dyn OdeSystem, y0: &[f64], tol: f64) -> Result<([f64; 3], usize
     Ok(([y[0], y[1], y[2]], sol.stats.rhs_evals, ms))
 }
 
-fn args() -> Result<(usize, f64), String> {
-    let (mut repeats, mut error) = (15usize, 1e-10f64);
+fn args() -> Result<(usize, f64, Option<String>), String> {
+    let (mut repeats, mut error, mut scipy) = (15usize, 1e-10f64, None);
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
@@ -69,8 +132,9 @@ fn args() -> Result<(usize, f64), String> {
                     .parse()
                     .map_err(|e| format!("--error: {e}"))?
             }
+            "--scipy" => scipy = Some(value("--scipy")?),
             "--help" | "-h" => {
-                println!("sleigh-floor [--repeats N] [--error E]");
+                println!("sleigh-floor [--repeats N] [--error E] [--scipy PYTHON]");
                 std::process::exit(0);
             }
             other => return Err(format!("unknown argument `{other}`")),
@@ -79,7 +143,7 @@ fn args() -> Result<(usize, f64), String> {
     if repeats == 0 || !(error > 0.0 && error.is_finite()) {
         return Err("--repeats must be at least 1 and --error positive".into());
     }
-    Ok((repeats, error))
+    Ok((repeats, error, scipy))
 }
 
 /// Wall time at error `e`, interpolated log-linearly between the rungs
@@ -96,7 +160,7 @@ fn at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
 }
 
 fn report() -> Result<(), String> {
-    let (repeats, target) = args()?;
+    let (repeats, target, scipy) = args()?;
     let sleigh = generic_sleigh().map_err(|e| e.to_string())?;
     let c = Constants::of(&sleigh);
     let y_b = cartesian(Q, U, 0.0, OMEGA).to_vec();
@@ -126,6 +190,7 @@ fn report() -> Result<(), String> {
     let mut rungs = Vec::new();
     let mut ladder =
         String::from("tol,error_b,error_hand,evals_b,evals_hand,ms_b,ms_hand,time_ratio\n");
+    let mut scipy_ladder = String::from("tol,error,evals,ms,speedup_b\n");
     for k in 6..=13 {
         let tol = 10f64.powi(-k);
         let (mut tb, mut th) = (Vec::new(), Vec::new());
@@ -138,12 +203,26 @@ fn report() -> Result<(), String> {
             (ph, eh) = (p, e);
             th.push(ms);
         }
+        let (es, ns, ms) = match &scipy {
+            Some(python) => scipy_run(python, &c, &y_b, reference, tol, repeats)?,
+            None => (f64::NAN, 0, f64::NAN),
+        };
         let r = Rung {
             tol,
-            error: [dist(pb), dist(ph)],
-            ms: [median(&mut tb), median(&mut th)],
-            evals: [eb, eh],
+            error: [dist(pb), dist(ph), es],
+            ms: [median(&mut tb), median(&mut th), ms],
+            evals: [eb, eh, ns],
         };
+        if scipy.is_some() {
+            scipy_ladder.push_str(&format!(
+                "{:e},{:.3e},{},{:.4},{:.1}\n",
+                r.tol,
+                r.error[2],
+                r.evals[2],
+                r.ms[2],
+                r.ms[2] / r.ms[0]
+            ));
+        }
         let cells = [
             format!("{:e}", r.tol),
             format!("{:.3e}", r.error[0]),
@@ -172,15 +251,41 @@ fn report() -> Result<(), String> {
             ));
         }
     };
-    let dir = std::path::Path::new("results/sleigh-floor");
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    for (name, text) in [
+    let mut files = vec![
         ("ladder.csv", ladder),
         (
             "matched.csv",
             format!("error,ms_b,ms_hand,time_ratio,reference_error\n{matched}"),
         ),
-    ] {
+    ];
+    if scipy.is_some() {
+        println!("\nSciPy (solve_ivp DOP853, NumPy KKT right-hand side), same rungs:\n");
+        println!("| tol | error (m) | evaluations | ms | time / B's |");
+        println!("|---|---|---|---|---|");
+        for line in scipy_ladder.lines().skip(1) {
+            println!("| {} |", line.replace(',', " | "));
+        }
+        let (Some(a), Some(p)) = (at_error(&rungs, 0, target), at_error(&rungs, 2, target)) else {
+            return Err(format!(
+                "error {target:.0e} m is not bracketed by SciPy's ladder"
+            ));
+        };
+        println!(
+            "\nAt matched error {target:.0e} m: B {a:.3} ms, SciPy {p:.2} ms: B {:.0}× faster",
+            p / a
+        );
+        files.push(("scipy.csv", scipy_ladder));
+        files.push((
+            "scipy-matched.csv",
+            format!(
+                "error,ms_b,ms_scipy,speedup\n{target:e},{a:.4},{p:.4},{:.1}\n",
+                p / a
+            ),
+        ));
+    }
+    let dir = std::path::Path::new("results/sleigh-floor");
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for (name, text) in files {
         let path = dir.join(name);
         std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     }

@@ -4,7 +4,11 @@
 //! tables of `peers.md` rendered as HTML.
 //!
 //! The page is built from the two files the `peers` binary writes, so it can
-//! be rebuilt without running the peers again (`peers --page`).
+//! be rebuilt without running the peers again (`peers --page`). It also
+//! writes `matched.csv`: every solver's wall time at matched errors
+//! ([`MATCHED_ERRORS`]), interpolated between the tolerances that bracket
+//! each, so that solvers are compared at the same accuracy and not only at
+//! the same tolerance (which buys different errors from different methods).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -91,6 +95,104 @@ fn read_runs(csv_path: &Path) -> Result<Vec<Run>, String> {
     Ok(runs)
 }
 
+/// The errors at which [`matched`] compares the solvers.
+pub const MATCHED_ERRORS: [f64; 3] = [1e-4, 1e-6, 1e-8];
+
+/// `(problem, potential, param)`: one problem of the comparison.
+type Problem = (String, String, String);
+
+/// Wall time (s) of every solver at each of [`MATCHED_ERRORS`], per
+/// problem: the completed runs in tolerance order, the largest error over
+/// the samples, interpolated by [`crate::timing::at_error`]; `None` where
+/// no two successive tolerances bracket the error.
+fn matched(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, [Option<f64>; 3]>> {
+    let mut groups: BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> = BTreeMap::new();
+    for r in runs.iter().filter(|r| r.status == "ok") {
+        groups
+            .entry((r.problem.clone(), r.potential.clone(), r.param.clone()))
+            .or_default()
+            .entry(r.solver.clone())
+            .or_default()
+            .push(r);
+    }
+    groups
+        .into_iter()
+        .map(|(problem, solvers)| {
+            let times = solvers
+                .into_iter()
+                .map(|(solver, mut rs)| {
+                    rs.sort_by(|a, b| b.tol.total_cmp(&a.tol));
+                    let pts: Vec<(f64, f64)> =
+                        rs.iter().map(|r| (r.err_max, r.wall_median_s)).collect();
+                    (
+                        solver,
+                        MATCHED_ERRORS.map(|e| crate::timing::at_error(&pts, e)),
+                    )
+                })
+                .collect();
+            (problem, times)
+        })
+        .collect()
+}
+
+/// `matched.csv` (one row per problem, solver and reached error) and the
+/// HTML tables of the same, one per error.
+fn matched_outputs(runs: &[Run]) -> (String, String) {
+    let m = matched(runs);
+    let mut csv = String::from("problem,potential,param,solver,error,wall_s\n");
+    for ((problem, potential, param), solvers) in &m {
+        for (solver, times) in solvers {
+            for (e, t) in MATCHED_ERRORS.iter().zip(times) {
+                if let Some(t) = t {
+                    let solver = if solver.contains(',') {
+                        format!("\"{solver}\"")
+                    } else {
+                        solver.clone()
+                    };
+                    let _ = writeln!(csv, "{problem},{potential},{param},{solver},{e:e},{t:.6e}");
+                }
+            }
+        }
+    }
+    let mut html = String::from(
+        "<h2>At matched error</h2>\n<p>Wall time (ms, median of the repeats) at which each solver \
+         reaches the same largest error over the samples, interpolated log-linearly between the two \
+         successive tolerances whose errors bracket it (<a href=\"matched.csv\">matched.csv</a>); \
+         “—”: no two tolerances bracket it (not reached, or the error did not fall monotonically). \
+         Equal tolerances buy different errors from different methods; this is the comparison at \
+         equal accuracy.</p>\n",
+    );
+    for (k, e) in MATCHED_ERRORS.iter().enumerate() {
+        let solvers: std::collections::BTreeSet<&String> =
+            m.values().flat_map(|s| s.keys()).collect();
+        let _ = write!(
+            html,
+            "<table><caption>error {e:.0e}</caption><tr><th>problem</th>"
+        );
+        for s in &solvers {
+            let _ = write!(html, "<th>{}</th>", escape(s));
+        }
+        html.push_str("</tr>\n");
+        for ((problem, potential, param), times) in &m {
+            let _ = write!(
+                html,
+                "<tr><td>{}</td>",
+                escape(&format!("{problem} {param} {potential}"))
+            );
+            for s in &solvers {
+                let cell = match times.get(*s).and_then(|t| t[k]) {
+                    Some(t) => format!("{:.3}", t * 1e3),
+                    None => "—".into(),
+                };
+                let _ = write!(html, "<td>{cell}</td>");
+            }
+            html.push_str("</tr>\n");
+        }
+        html.push_str("</table>\n");
+    }
+    (csv, html)
+}
+
 /// The figures: per (problem, potential, parameter), the largest error over
 /// the samples against the median wall time, one line per solver through its
 /// tolerances. Only completed runs are drawn (references and failures are in
@@ -158,6 +260,10 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
     let md = std::fs::read_to_string(&md_path)
         .map_err(|e| format!("cannot read {}: {e}", md_path.display()))?;
     let plots = figures(&runs, dir)?;
+    let (matched_csv, matched_html) = matched_outputs(&runs);
+    let matched_path = dir.join("matched.csv");
+    nonholo_lab::record::write_atomic(&matched_path, matched_csv.as_bytes())
+        .map_err(|e| format!("cannot write {}: {e}", matched_path.display()))?;
 
     let title = "Peers: our integrators beside diffsol and ode_solvers";
     let mut h = format!(
@@ -185,7 +291,8 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
     let _ = writeln!(
         h,
         "<p>Other experiments: <a href=\"../index.html\">every result page</a>. \
-         Files: <a href=\"peers.csv\">peers.csv</a>, <a href=\"peers.md\">peers.md</a>.</p>"
+         Files: <a href=\"peers.csv\">peers.csv</a>, <a href=\"peers.md\">peers.md</a>, \
+         <a href=\"matched.csv\">matched.csv</a>.</p>"
     );
     let _ = writeln!(
         h,
@@ -204,6 +311,7 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
             &rel, &stem, caption,
         ));
     }
+    h.push_str(&matched_html);
     if !md.contains("git revision") {
         h.push_str(
             "<p>The code revision these runs were made with was not recorded (peers.md \
@@ -269,6 +377,23 @@ mod tests {
         // The markdown tables are HTML tables.
         assert!(
             html.contains("<table>") && html.contains("<td>2</td>"),
+            "{html}"
+        );
+        // At matched error: Radau's errors 2e-6 and 2e-8 bracket 1e-6 only
+        // (1e-4 is not reached, 1e-8 not either); the rest have one run.
+        let matched = std::fs::read_to_string(dir.join("matched.csv")).unwrap();
+        let lines: Vec<&str> = matched.lines().collect();
+        assert_eq!(lines.len(), 2, "{matched}");
+        assert!(
+            lines[1].starts_with("visc,paper,k=1e2,nonholo Radau IIA (radau5),1e-6,"),
+            "{matched}"
+        );
+        // log-linear: 1e-6 is log10(2e-6/1e-6)/2 of the way from 1e-4 s to 2e-4 s.
+        let t: f64 = lines[1].rsplit(',').next().unwrap().parse().unwrap();
+        let want = (1e-4f64.ln() + (2f64.log10() / 2.0) * 2f64.ln()).exp();
+        assert!((t / want - 1.0).abs() < 1e-5, "{t} against {want}");
+        assert!(
+            html.contains("At matched error") && html.contains("<td>—</td>"),
             "{html}"
         );
         // peers.md without a recorded revision: the page says so.

@@ -18,6 +18,21 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// The cost at error `e` of a solver run through its tolerances: `points`
+/// are `(error, cost)` in tolerance order (loosest first); the cost is
+/// interpolated log-linearly in the error between the first two successive
+/// points whose errors bracket `e` (`None` if none do: the error was not
+/// reached, or not passed through monotonically).
+pub fn at_error(points: &[(f64, f64)], e: f64) -> Option<f64> {
+    points.windows(2).find_map(|w| {
+        let ((ea, ca), (eb, cb)) = (w[0], w[1]);
+        (ea >= e && e >= eb && ea > eb && ca > 0.0 && cb > 0.0).then(|| {
+            let s = (ea.ln() - e.ln()) / (ea.ln() - eb.ln());
+            (ca.ln() + s * (cb.ln() - ca.ln())).exp()
+        })
+    })
+}
+
 /// Keeps `x` observable to the optimiser.
 pub fn keep<T>(x: T) -> T {
     black_box(x)
@@ -95,4 +110,27 @@ pub fn batch_args(usage: &str) -> Result<(usize, f64), String> {
         }
     }
     Ok((batches, batch_ms))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::at_error;
+
+    #[test]
+    fn cost_at_error_interpolates_log_linearly_between_bracketing_rungs() {
+        // cost ∝ error^(-1/4) through 1e-4 … 1e-8: exact on the power law.
+        let pts: Vec<(f64, f64)> = (4..=8)
+            .map(|k| {
+                let e = 10f64.powi(-k);
+                (e, e.powf(-0.25))
+            })
+            .collect();
+        let c = at_error(&pts, 3e-7).unwrap();
+        assert!((c / 3e-7f64.powf(-0.25) - 1.0).abs() < 1e-12, "{c}");
+        // Endpoints are bracketed, outside is not.
+        assert!(at_error(&pts, 1e-4).is_some() && at_error(&pts, 1e-8).is_some());
+        assert!(at_error(&pts, 1e-3).is_none() && at_error(&pts, 1e-9).is_none());
+        // A rung whose error grew is skipped, not interpolated across.
+        assert!(at_error(&[(1e-6, 1.0), (1e-5, 2.0)], 3e-6).is_none());
+    }
 }

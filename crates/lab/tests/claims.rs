@@ -1243,8 +1243,14 @@ fn bvp_scaling_as_performance_md_states() {
 
 /// The text of docs/performance.md with whitespace runs folded to one space.
 fn performance_md() -> String {
-    let path =
-        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/performance.md");
+    doc_flat("performance.md")
+}
+
+/// `docs/<name>` with runs of white space as one space (prose wraps lines).
+fn doc_flat(name: &str) -> String {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../docs")
+        .join(name);
     let text = std::fs::read_to_string(path).unwrap();
     text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
@@ -1440,4 +1446,49 @@ fn sleigh_floor_as_performance_md_states() {
         let q = num(r, "error_b") / num(r, "error_hand");
         assert!((1.0 / 3.0..3.0).contains(&q), "{r:?}");
     }
+}
+
+/// docs/peers.md's comparison at matched error is
+/// `results/peers/matched.csv` (written by `peers --page` from peers.csv):
+/// the times of BDF and our Radau IIA at k = 1e6, error 1e-6, in the three
+/// forms of `visc`.
+#[test]
+fn peers_at_matched_error_as_peers_md_states() {
+    let rows = table("peers", "matched.csv");
+    let ms = |problem: &str, solver: &str| -> f64 {
+        let r = rows
+            .iter()
+            .find(|r| {
+                r["problem"] == problem
+                    && r["param"] == "k=1e6"
+                    && r["solver"] == solver
+                    && num(r, "error") == 1e-6
+            })
+            .unwrap_or_else(|| panic!("matched.csv has no row for {problem}, {solver}"));
+        num(r, "wall_s") * 1e3
+    };
+    let (bdf, radau) = ("diffsol BDF (NDF, order 1-5)", "nonholo Radau IIA (radau5)");
+    let flat = doc_flat("peers.md");
+    let (a_bdf, a_radau) = (ms("visc-adapted", bdf), ms("visc-adapted", radau));
+    let said = [
+        format!(
+            "on the adapted form diffsol's BDF takes {a_bdf:.2} ms and our Radau IIA {a_radau:.2} ms ({:.1}× BDF's",
+            a_radau / a_bdf
+        ),
+        format!(
+            "in the hand-written body frame ours is the faster, {:.3} ms against {:.3} ms",
+            ms("visc-body", radau),
+            ms("visc-body", bdf)
+        ),
+        format!(
+            "BDF without its failure cap takes {:.2} ms, our full Newton {:.2} ms and our simplified Newton {:.2} ms",
+            ms("visc", "diffsol BDF, no failure cap"),
+            ms("visc", "nonholo Radau IIA (radau5), full Newton"),
+            ms("visc", radau)
+        ),
+    ];
+    for s in said {
+        assert!(flat.contains(&s), "docs/peers.md does not say `{s}`");
+    }
+    assert!(ms("visc-body", radau) < ms("visc-body", bdf));
 }

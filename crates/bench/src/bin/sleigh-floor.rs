@@ -33,7 +33,7 @@ use std::time::Instant;
 
 use nonholo_bench::hand::{Constants, ReducedB};
 use nonholo_bench::setup::{OMEGA, Q, U, cartesian, generic_sleigh};
-use nonholo_bench::timing::median;
+use nonholo_bench::timing::{at_error, median};
 use nonholo_chetaev::Chetaev;
 use nonholo_core::Params;
 use nonholo_core::integrate::{Method, OdeSystem, Options, solve};
@@ -146,17 +146,10 @@ fn args() -> Result<(usize, f64, Option<String>), String> {
     Ok((repeats, error, scipy))
 }
 
-/// Wall time at error `e`, interpolated log-linearly between the rungs
-/// whose errors bracket it; `None` if none do.
-fn at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
-    rungs.windows(2).find_map(|w| {
-        let (a, b) = (&w[0], &w[1]);
-        let (ea, eb) = (a.error[side], b.error[side]);
-        (ea >= e && e >= eb && ea > eb).then(|| {
-            let s = (ea.ln() - e.ln()) / (ea.ln() - eb.ln());
-            (a.ms[side].ln() + s * (b.ms[side].ln() - a.ms[side].ln())).exp()
-        })
-    })
+/// Wall time of `side` at error `e` ([`at_error`] over the rungs).
+fn time_at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
+    let points: Vec<(f64, f64)> = rungs.iter().map(|r| (r.error[side], r.ms[side])).collect();
+    at_error(&points, e)
 }
 
 fn report() -> Result<(), String> {
@@ -237,7 +230,10 @@ fn report() -> Result<(), String> {
         ladder.push_str(&format!("{}\n", cells.join(",")));
         rungs.push(r);
     }
-    let matched = match (at_error(&rungs, 0, target), at_error(&rungs, 1, target)) {
+    let matched = match (
+        time_at_error(&rungs, 0, target),
+        time_at_error(&rungs, 1, target),
+    ) {
         (Some(a), Some(h)) => {
             println!(
                 "\nAt matched error {target:.0e} m: B {a:.3} ms, hand-written {h:.4} ms: {:.1}×",
@@ -265,7 +261,10 @@ fn report() -> Result<(), String> {
         for line in scipy_ladder.lines().skip(1) {
             println!("| {} |", line.replace(',', " | "));
         }
-        let (Some(a), Some(p)) = (at_error(&rungs, 0, target), at_error(&rungs, 2, target)) else {
+        let (Some(a), Some(p)) = (
+            time_at_error(&rungs, 0, target),
+            time_at_error(&rungs, 2, target),
+        ) else {
             return Err(format!(
                 "error {target:.0e} m is not bracketed by SciPy's ladder"
             ));

@@ -106,22 +106,12 @@ type Problem = (String, String, String);
 /// the samples, interpolated by [`crate::timing::at_error`]; `None` where
 /// no two successive tolerances bracket the error.
 fn matched(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, [Option<f64>; 3]>> {
-    let mut groups: BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> = BTreeMap::new();
-    for r in runs.iter().filter(|r| r.status == "ok") {
-        groups
-            .entry((r.problem.clone(), r.potential.clone(), r.param.clone()))
-            .or_default()
-            .entry(r.solver.clone())
-            .or_default()
-            .push(r);
-    }
-    groups
+    completed(runs)
         .into_iter()
         .map(|(problem, solvers)| {
             let times = solvers
                 .into_iter()
-                .map(|(solver, mut rs)| {
-                    rs.sort_by(|a, b| b.tol.total_cmp(&a.tol));
+                .map(|(solver, rs)| {
                     let pts: Vec<(f64, f64)> =
                         rs.iter().map(|r| (r.err_max, r.wall_median_s)).collect();
                     (
@@ -133,6 +123,26 @@ fn matched(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, [Option<f64>; 3]>
             (problem, times)
         })
         .collect()
+}
+
+/// The completed runs by problem and solver, each solver's in tolerance
+/// order (loosest first).
+fn completed(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> {
+    let mut groups: BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> = BTreeMap::new();
+    for r in runs.iter().filter(|r| r.status == "ok") {
+        groups
+            .entry((r.problem.clone(), r.potential.clone(), r.param.clone()))
+            .or_default()
+            .entry(r.solver.clone())
+            .or_default()
+            .push(r);
+    }
+    for solvers in groups.values_mut() {
+        for rs in solvers.values_mut() {
+            rs.sort_by(|a, b| b.tol.total_cmp(&a.tol));
+        }
+    }
+    groups
 }
 
 /// `matched.csv` (one row per problem, solver and reached error) and the
@@ -198,28 +208,15 @@ fn matched_outputs(runs: &[Run]) -> (String, String) {
 /// tolerances. Only completed runs are drawn (references and failures are in
 /// the tables). Returns the PNG paths with their captions.
 fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
-    let mut groups: BTreeMap<(String, String, String), BTreeMap<String, Vec<&Run>>> =
-        BTreeMap::new();
-    for r in runs.iter().filter(|r| r.status == "ok") {
-        groups
-            .entry((r.problem.clone(), r.potential.clone(), r.param.clone()))
-            .or_default()
-            .entry(r.solver.clone())
-            .or_default()
-            .push(r);
-    }
     let mut files = Vec::new();
-    for ((problem, potential, param), solvers) in groups {
+    for ((problem, potential, param), solvers) in completed(runs) {
         let series = solvers
             .into_iter()
-            .map(|(solver, mut rs)| {
-                rs.sort_by(|a, b| b.tol.total_cmp(&a.tol));
-                Series {
-                    label: solver,
-                    x: rs.iter().map(|r| r.wall_median_s).collect(),
-                    y: rs.iter().map(|r| r.err_max).collect(),
-                    pen: None,
-                }
+            .map(|(solver, rs)| Series {
+                label: solver,
+                x: rs.iter().map(|r| r.wall_median_s).collect(),
+                y: rs.iter().map(|r| r.err_max).collect(),
+                pen: None,
             })
             .collect();
         let plot = LinePlot {

@@ -248,6 +248,13 @@ fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
     Ok(files)
 }
 
+/// The matched-error table (`matched.csv`'s format) of the runs in the
+/// CSV file `runs` (`peers.csv`'s format), for another study than the
+/// page's.
+pub fn matched_csv(runs: &Path) -> Result<String, String> {
+    Ok(matched_outputs(&read_runs(runs)?).0)
+}
+
 /// Writes `dir/index.html` (and `dir/plots/`) from `dir/peers.csv` and
 /// `dir/peers.md`, then the list of result pages in `dir`'s parent if that
 /// is a `results` directory.

@@ -233,6 +233,11 @@ pub enum Solver {
     /// Ours, Radau IIA with the full Newton iteration (what `nonholo
     /// simulate` chooses for `visc`).
     OursFullNewton,
+    /// Ours, Radau IIA with simplified Newton keeping its Jacobian while
+    /// the Newton contraction θ stays at or below this threshold instead of
+    /// RADAU5's default 0.001 (`radau5.jacobian_reuse`; Hairer's RADAU5
+    /// suggests 0.1 where Jacobians are costly).
+    OursReuse(Reuse),
     /// diffsol with this method; `max_fails` is its cap on nonlinear-solver
     /// failures over the whole run (`OdeSolverOptions::
     /// max_nonlinear_solver_failures`, default [`DIFFSOL_DEFAULT_CAP`]).
@@ -242,6 +247,22 @@ pub enum Solver {
     },
     /// `ode_solvers::Dop853`.
     OdeSolversDop853,
+}
+
+/// The Jacobian-reuse thresholds tried besides RADAU5's default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reuse {
+    Hundredth,
+    Tenth,
+}
+
+impl Reuse {
+    pub fn theta(self) -> f64 {
+        match self {
+            Reuse::Hundredth => 0.01,
+            Reuse::Tenth => 0.1,
+        }
+    }
 }
 
 /// diffsol's default cap on nonlinear-solver failures per run.
@@ -258,7 +279,7 @@ pub enum DiffsolMethod {
 impl Solver {
     pub fn crate_name(self) -> &'static str {
         match self {
-            Solver::Ours(_) | Solver::OursFullNewton => "nonholo",
+            Solver::Ours(_) | Solver::OursFullNewton | Solver::OursReuse(_) => "nonholo",
             Solver::OdeSolversDop853 => "ode_solvers",
             _ => "diffsol",
         }
@@ -268,6 +289,8 @@ impl Solver {
         match self {
             Solver::Ours(Method::Radau5) => "Radau IIA (radau5)",
             Solver::OursFullNewton => "Radau IIA (radau5), full Newton",
+            Solver::OursReuse(Reuse::Hundredth) => "Radau IIA (radau5), reuse θ ≤ 0.01",
+            Solver::OursReuse(Reuse::Tenth) => "Radau IIA (radau5), reuse θ ≤ 0.1",
             Solver::Ours(Method::Dop853) => "DOP853",
             Solver::Ours(Method::Dopri5) => "DOPRI5",
             Solver::Ours(Method::Rk4) => "RK4",
@@ -299,10 +322,26 @@ impl Solver {
     pub fn run(self, problem: &Problem, tol: f64, grid: &[f64], dense: bool) -> Attempt {
         let attempt = match self {
             Solver::Ours(method) => {
-                run_ours(problem, method, RadauNewton::Simplified, tol, grid, dense)
+                let radau = Radau5Options {
+                    newton: RadauNewton::Simplified,
+                    ..Radau5Options::default()
+                };
+                run_ours(problem, method, radau, tol, grid, dense)
             }
             Solver::OursFullNewton => {
-                run_ours(problem, Method::Radau5, RadauNewton::Full, tol, grid, dense)
+                let radau = Radau5Options {
+                    newton: RadauNewton::Full,
+                    ..Radau5Options::default()
+                };
+                run_ours(problem, Method::Radau5, radau, tol, grid, dense)
+            }
+            Solver::OursReuse(reuse) => {
+                let radau = Radau5Options {
+                    newton: RadauNewton::Simplified,
+                    jacobian_reuse: reuse.theta(),
+                    ..Radau5Options::default()
+                };
+                run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
             Solver::OdeSolversDop853 => run_ode_solvers(problem, tol, grid),
             Solver::Diffsol { method, max_fails } => {
@@ -322,7 +361,7 @@ impl Solver {
 fn run_ours(
     problem: &Problem,
     method: Method,
-    newton: RadauNewton,
+    radau5: Radau5Options,
     tol: f64,
     grid: &[f64],
     dense: bool,
@@ -338,10 +377,7 @@ fn run_ours(
         atol: tol,
         output: grid.to_vec(),
         dense,
-        radau5: Radau5Options {
-            newton,
-            ..Radau5Options::default()
-        },
+        radau5,
         ..Options::default()
     };
     let start = Instant::now();

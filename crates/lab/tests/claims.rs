@@ -1492,3 +1492,68 @@ fn peers_at_matched_error_as_peers_md_states() {
     }
     assert!(ms("visc-body", radau) < ms("visc-body", bdf));
 }
+
+/// docs/peers.md's Jacobian-reuse study is `results/peers/reuse.csv` and
+/// `reuse-matched.csv` (`peers --reuse`): the Jacobian counts at k = 1e6 and
+/// the ranges over k of our time against BDF's at matched error 1e-6.
+#[test]
+fn jacobian_reuse_as_peers_md_states() {
+    let runs = table("peers", "reuse.csv");
+    let matched = table("peers", "reuse-matched.csv");
+    let radau = "Radau IIA (radau5)";
+    let run = |method: &str, tol: f64| {
+        runs.iter()
+            .find(|r| {
+                r["problem"] == "visc-adapted"
+                    && r["param"] == "k=1e6"
+                    && r["method"] == method
+                    && num(r, "tol") == tol
+            })
+            .unwrap_or_else(|| panic!("reuse.csv has no {method} at {tol:e}"))
+    };
+    let tenth = format!("{radau}, reuse θ ≤ 0.1");
+    let mut said = vec![format!(
+        "θ ≤ 0.1 takes {} Jacobians where the default takes {} (1e-8: {} against {}), for {} right-hand sides against {}",
+        run(&tenth, 1e-6)["jac_evals"],
+        run(radau, 1e-6)["jac_evals"],
+        run(&tenth, 1e-8)["jac_evals"],
+        run(radau, 1e-8)["jac_evals"],
+        run(&tenth, 1e-6)["rhs_evals"],
+        run(radau, 1e-6)["rhs_evals"],
+    )];
+    let ratio_range = |problem: &str, solver: &str| {
+        let at = |k: &str, s: &str| {
+            matched
+                .iter()
+                .find(|r| {
+                    r["problem"] == problem
+                        && r["param"] == k
+                        && r["solver"] == s
+                        && num(r, "error") == 1e-6
+                })
+                .map(|r| num(r, "wall_s"))
+                .unwrap_or_else(|| panic!("reuse-matched.csv: no {problem} {k} {s}"))
+        };
+        let v: Vec<f64> = ["k=1e4", "k=1e6", "k=1e8"]
+            .iter()
+            .map(|k| at(k, solver) / at(k, "diffsol BDF (NDF, order 1-5)"))
+            .collect();
+        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = v.iter().cloned().fold(0.0, f64::max);
+        format!("{lo:.2}–{hi:.2}×")
+    };
+    let solvers = [
+        format!("nonholo {radau}"),
+        format!("nonholo {radau}, reuse θ ≤ 0.01"),
+        format!("nonholo {tenth}"),
+    ];
+    let [a0, a1, a2] = solvers.clone().map(|s| ratio_range("visc-adapted", &s));
+    let [b0, b1, b2] = solvers.map(|s| ratio_range("visc-body", &s));
+    said.push(format!(
+        "our time is {a0} BDF's with the default, {a1} with θ ≤ 0.01 and {a2} with θ ≤ 0.1 on the adapted form, and {b0}, {b1} and {b2} in the body frame"
+    ));
+    let flat = doc_flat("peers.md");
+    for s in said {
+        assert!(flat.contains(&s), "docs/peers.md does not say `{s}`");
+    }
+}

@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use nonholo_bench::peers::{
-    DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Row, Solver, measure,
-    reference_distance,
+    DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Reuse, Row, Solver,
+    measure, reference_distance,
 };
 use nonholo_bench::setup::sleigh;
 use nonholo_core::integrate::Method;
@@ -27,13 +27,17 @@ struct Args {
     quick: bool,
     /// Only rebuild index.html from the stored peers.csv and peers.md.
     page: bool,
+    reuse: bool,
 }
 
 const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
   --out DIR      where peers.csv, peers.md and index.html go (default results/peers)
   --repeats N    timed repeats per case, the median is reported (default 7)
   --quick        k = 1e2, 1e6 and tolerances 1e-6 only (a smoke run)
-  --page         run nothing: rebuild index.html and its figures from the stored files";
+  --page         run nothing: rebuild index.html and its figures from the stored files
+  --reuse        run only the Jacobian-reuse study: our Radau IIA with RADAU5's reuse
+                 threshold θ ≤ 0.001 and with 0.01 and 0.1, beside diffsol's BDF, on visc
+                 in the adapted form and the body frame (reuse.csv, reuse-matched.csv)";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -41,6 +45,7 @@ fn parse_args() -> Result<Args, String> {
         repeats: 7,
         quick: false,
         page: false,
+        reuse: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -56,6 +61,7 @@ fn parse_args() -> Result<Args, String> {
             }
             "--quick" => args.quick = true,
             "--page" => args.page = true,
+            "--reuse" => args.reuse = true,
             "-h" | "--help" => {
                 println!("{USAGE}");
                 std::process::exit(0);
@@ -666,10 +672,79 @@ fn load_average() -> String {
         .join(" ")
 }
 
+/// The Jacobian-reuse study: RADAU5 refreshes its Jacobian after every
+/// accepted step whose Newton contraction exceeded θ = 0.001; on `visc` in
+/// the adapted form that is nearly every step. Our Radau IIA at three
+/// thresholds and diffsol's BDF, on the adapted form (AD Jacobian, ~11
+/// right-hand sides) and the body frame (forward differences), k = 1e4 …
+/// 1e8, errors against our Radau IIA at 1e-13 on the adapted form;
+/// `reuse.csv` has every run, `reuse-matched.csv` the times at matched
+/// error.
+fn reuse_study(args: &Args) -> Result<(), String> {
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let tols: &[f64] = if args.quick {
+        &[1e-6]
+    } else {
+        &[1e-4, 1e-6, 1e-8, 1e-10]
+    };
+    let ks: &[f64] = if args.quick { &[1e6] } else { &[1e4, 1e6, 1e8] };
+    let g = grid(5.0, 100);
+    let scene = sleigh(0.4, 0.3, "paper").map_err(|e| e.to_string())?;
+    let load_before = load_average();
+    let mut csv = String::from(Row::HEADER);
+    csv.push('\n');
+    for &k in ks {
+        let adapted = visc_problem(&scene, k, "visc-adapted");
+        let body = visc_problem(&scene, k, "visc-body");
+        eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13, adapted form");
+        let reference = our_reference(&adapted, Method::Radau5, 1e-13, &g)?;
+        let ref_name = "ours radau5 @1e-13, adapted form";
+        for &tol in tols {
+            for p in [&adapted, &body] {
+                for solver in [
+                    Solver::Ours(Method::Radau5),
+                    Solver::OursReuse(Reuse::Hundredth),
+                    Solver::OursReuse(Reuse::Tenth),
+                    BDF,
+                ] {
+                    let row = measure(
+                        p,
+                        solver,
+                        tol,
+                        &g,
+                        &reference,
+                        ref_name,
+                        f64::NAN,
+                        args.repeats,
+                    );
+                    progress(&row);
+                    csv.push_str(&row.csv());
+                    csv.push('\n');
+                }
+            }
+        }
+    }
+    let path = args.out.join("reuse.csv");
+    write_atomic(&path, &csv)?;
+    let matched = nonholo_bench::page::matched_csv(&path)?;
+    write_atomic(&args.out.join("reuse-matched.csv"), &matched)?;
+    eprintln!(
+        "wrote {} and reuse-matched.csv (load average before / after: {load_before} / {})",
+        path.display(),
+        load_average()
+    );
+    println!("{matched}");
+    Ok(())
+}
+
 fn run() -> Result<(), String> {
     let args = parse_args()?;
     if args.page {
         return nonholo_bench::page::write_page(&args.out);
+    }
+    if args.reuse {
+        return reuse_study(&args);
     }
     // Fail before the runs, not after them, if the results cannot be written.
     std::fs::create_dir_all(&args.out)

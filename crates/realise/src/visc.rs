@@ -167,7 +167,7 @@ impl Equations for ViscEquations {
             Form::Cartesian => ViscWork::Cartesian(Box::new(
                 Kkt::new(n, s, info.k()).compiled_for(&self.programs, &Lagrangian(scene), 0, scene),
             )),
-            Form::Adapted => ViscWork::Adapted(Box::new(Rates::new(n, s, self.k))),
+            Form::Adapted => ViscWork::Adapted(Box::new(Rates::new(scene, self.k, &self.programs))),
         }
     }
 

@@ -6,8 +6,8 @@
 //! The page is built from the two files the `peers` binary writes, so it can
 //! be rebuilt without running the peers again (`peers --page`). It also
 //! writes `matched.csv`: every solver's wall time at matched errors
-//! ([`MATCHED_ERRORS`]), interpolated between the tolerances that bracket
-//! each, so that solvers are compared at the same accuracy and not only at
+//! ([`MATCHED_ERRORS`]), interpolated (as a power law) between the tolerances
+//! that bracket each, so that solvers are compared at the same accuracy and not only at
 //! the same tolerance (which buys different errors from different methods).
 
 use std::collections::BTreeMap;
@@ -149,25 +149,26 @@ fn completed(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> {
 /// HTML tables of the same, one per error.
 fn matched_outputs(runs: &[Run]) -> (String, String) {
     let m = matched(runs);
-    let mut csv = String::from("problem,potential,param,solver,error,wall_s\n");
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let _ = w.write_record(["problem", "potential", "param", "solver", "error", "wall_s"]);
     for ((problem, potential, param), solvers) in &m {
         for (solver, times) in solvers {
             for (e, t) in MATCHED_ERRORS.iter().zip(times) {
                 if let Some(t) = t {
-                    let solver = if solver.contains(',') {
-                        format!("\"{solver}\"")
-                    } else {
-                        solver.clone()
-                    };
-                    let _ = writeln!(csv, "{problem},{potential},{param},{solver},{e:e},{t:.6e}");
+                    let (e, t) = (format!("{e:e}"), format!("{t:.6e}"));
+                    let _ = w.write_record([problem, potential, param, solver, &e, &t]);
                 }
             }
         }
     }
+    let csv = w
+        .into_inner()
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
+        .unwrap_or_default();
     let mut html = String::from(
         "<h2>At matched error</h2>\n<p>Wall time (ms, median of the repeats) at which each solver \
-         reaches the same largest error over the samples, interpolated log-linearly between the two \
-         successive tolerances whose errors bracket it (<a href=\"matched.csv\">matched.csv</a>); \
+         reaches the same largest error over the samples, interpolated as a power law (linearly in log time against \
+         log error) between the two successive tolerances whose errors bracket it (<a href=\"matched.csv\">matched.csv</a>); \
          “—”: no two tolerances bracket it (not reached, or the error did not fall monotonically). \
          Equal tolerances buy different errors from different methods; this is the comparison at \
          equal accuracy.</p>\n",
@@ -392,7 +393,7 @@ mod tests {
             lines[1].starts_with("visc,paper,k=1e2,nonholo Radau IIA (radau5),1e-6,"),
             "{matched}"
         );
-        // log-linear: 1e-6 is log10(2e-6/1e-6)/2 of the way from 1e-4 s to 2e-4 s.
+        // power law (linear in log-log): 1e-6 is log10(2e-6/1e-6)/2 of the way from 1e-4 s to 2e-4 s.
         let t: f64 = lines[1].rsplit(',').next().unwrap().parse().unwrap();
         let want = (1e-4f64.ln() + (2f64.log10() / 2.0) * 2f64.ln()).exp();
         assert!((t / want - 1.0).abs() < 1e-5, "{t} against {want}");

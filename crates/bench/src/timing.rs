@@ -20,13 +20,15 @@ pub fn median(v: &mut [f64]) -> f64 {
 
 /// The cost at error `e` of a solver run through its tolerances: `points`
 /// are `(error, cost)` in tolerance order (loosest first); the cost is
-/// interpolated log-linearly in the error between the first two successive
-/// points whose errors bracket `e` (`None` if none do: the error was not
-/// reached, or not passed through monotonically).
+/// interpolated as a power law (linearly in log cost against log error)
+/// between the first two successive points whose errors bracket `e`
+/// (`None` if none do: the error was not reached, or not passed through
+/// monotonically; a zero or non-finite error brackets nothing).
 pub fn at_error(points: &[(f64, f64)], e: f64) -> Option<f64> {
     points.windows(2).find_map(|w| {
         let ((ea, ca), (eb, cb)) = (w[0], w[1]);
-        (ea >= e && e >= eb && ea > eb && ca > 0.0 && cb > 0.0).then(|| {
+        let finite = ea.is_finite() && eb > 0.0 && ca > 0.0 && cb > 0.0;
+        (finite && ea >= e && e >= eb && ea > eb).then(|| {
             let s = (ea.ln() - e.ln()) / (ea.ln() - eb.ln());
             (ca.ln() + s * (cb.ln() - ca.ln())).exp()
         })
@@ -132,5 +134,7 @@ mod tests {
         assert!(at_error(&pts, 1e-3).is_none() && at_error(&pts, 1e-9).is_none());
         // A rung whose error grew is skipped, not interpolated across.
         assert!(at_error(&[(1e-6, 1.0), (1e-5, 2.0)], 3e-6).is_none());
+        // An exact run (error 0) brackets nothing.
+        assert!(at_error(&[(1e-6, 1.0), (0.0, 2.0)], 1e-7).is_none());
     }
 }

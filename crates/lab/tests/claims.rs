@@ -280,23 +280,23 @@ fn time_at_error(
 }
 
 /// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8, A
-/// costs 200–800× C and 410–1830× B with DOPRI5 and DOP853, 450–1160× C and
-/// 1600–7000× B with RK4, 64× C with Radau IIA (paper's potential; with
+/// costs 205–802× C and 412–1825× B with DOPRI5 and DOP853, 451–1158× C and
+/// 1608–7000× B with RK4, 64× C with Radau IIA (paper's potential; with
 /// gravity at the centre of mass A's implicit form does not reach 1e-8).
 #[test]
 fn wp_sleigh_cost_ratios_as_figures_md_states() {
     figures_md_says(&[
-        "200–800× C and 410–1830× B with DOPRI5 and DOP853",
-        "450–1160× C and 1600–7000× B with RK4",
+        "205–802× C and 412–1825× B with DOPRI5 and DOP853",
+        "451–1158× C and 1608–7000× B with RK4",
         "64× C with Radau IIA",
     ]);
     let rows = table("wp-sleigh", "work_precision.csv");
     for point in ["0", "1"] {
         let t = |l: &str| time_at_error(&rows, point, l, 1e-8);
         for (integrator, (c_lo, c_hi), (b_lo, b_hi)) in [
-            ("dopri5", (195.0, 805.0), (405.0, 1835.0)),
-            ("dop853", (195.0, 805.0), (405.0, 1835.0)),
-            ("rk4", (445.0, 1165.0), (1595.0, 7005.0)),
+            ("dopri5", (204.5, 802.5), (411.5, 1825.5)),
+            ("dop853", (204.5, 802.5), (411.5, 1825.5)),
+            ("rk4", (450.5, 1158.5), (1607.5, 7000.5)),
         ] {
             let a = t(&format!("A-{integrator}")).unwrap();
             let c = a / t(&format!("C-{integrator}")).unwrap();

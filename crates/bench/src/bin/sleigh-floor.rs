@@ -12,7 +12,7 @@
 //! 3e-14, and its own error is bounded by its distance to the same at
 //! 1e-13 (printed). Each pair of runs is timed in alternating repeats
 //! (medians). At matched error the time of each side is interpolated
-//! log-linearly in the error between the two rungs that bracket it.
+//! as a power law (linearly in log time against log error) between the two rungs that bracket it.
 //!
 //! With `--scipy PYTHON`, each rung also runs `crates/bench/scipy/sleigh_b.py`
 //! under that interpreter (it needs NumPy and SciPy): the same problem as a
@@ -73,7 +73,8 @@ fn scipy_run(
         ("--t-end", T_END),
         ("--tol", tol),
     ] {
-        cmd.arg(name).arg(format!("{v:e}"));
+        // `--name=value`: argparse would take a separate `-2.9e0` for an option.
+        cmd.arg(format!("{name}={v:e}"));
     }
     // Plain decimals (round-trip exact): argparse takes `-2e-1` for an option.
     cmd.arg("--y0").args(y0.iter().map(|v| v.to_string()));

@@ -246,6 +246,20 @@ pub struct Pieces<'a, T> {
     pub f_accel0: &'a [T],
 }
 
+impl<T: Copy> Pieces<'_, T> {
+    /// `M` (both triangles) into the `n × n` block at the top left of `m`.
+    pub fn mass_into(&self, m: &mut nalgebra::DMatrix<T>, n: usize) {
+        let mut o = 0;
+        for i in 0..n {
+            for j in i..n {
+                m[(i, j)] = self.mass_upper[o];
+                m[(j, i)] = self.mass_upper[o];
+                o += 1;
+            }
+        }
+    }
+}
+
 impl<T> Workspace<T> {
     /// The outputs of the last evaluation, split into the pieces.
     pub fn pieces(&self, c: &Compiled) -> Pieces<'_, T> {

@@ -213,14 +213,7 @@ impl<T: Scalar> Kkt<T> {
             );
             c.eval(w, t, q, qd, p);
             let pc = w.pieces(c);
-            let mut o = 0;
-            for i in 0..n {
-                for j in i..n {
-                    self.matrix[(i, j)] = pc.mass_upper[o];
-                    self.matrix[(j, i)] = pc.mass_upper[o];
-                    o += 1;
-                }
-            }
+            pc.mass_into(&mut self.matrix, n);
             self.sol[..n].copy_from_slice(pc.force);
             let cs = &mut self.cs;
             cs.g.copy_from_slice(pc.g);

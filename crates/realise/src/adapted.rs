@@ -124,14 +124,7 @@ impl<D: Scalar> Frame<D> {
         if let Some((c, w)) = &mut self.program {
             c.eval(w, t, q, &self.zeros, &[]);
             let p = w.pieces(c);
-            let mut o = 0;
-            for i in 0..n {
-                for j in i..n {
-                    self.mass[(i, j)] = p.mass_upper[o];
-                    self.mass[(j, i)] = p.mass_upper[o];
-                    o += 1;
-                }
-            }
+            p.mass_into(&mut self.mass, n);
             for (a, row) in p.g_jac.chunks(n).enumerate() {
                 for (i, &v) in row.iter().enumerate() {
                     self.g[(a, i)] = v;

@@ -423,6 +423,32 @@ fn visc_problem(scene: &nonholo_scenes::Sleigh, k: f64, name: &str) -> Problem {
     }
 }
 
+/// [`measure`] with the run's repeats, its progress line printed.
+#[allow(clippy::too_many_arguments)]
+fn measured(
+    p: &Problem,
+    solver: Solver,
+    tol: f64,
+    g: &[f64],
+    reference: &Reference,
+    ref_name: &str,
+    ref_err: f64,
+    args: &Args,
+) -> Row {
+    let row = measure(
+        p,
+        solver,
+        tol,
+        g,
+        reference,
+        ref_name,
+        ref_err,
+        args.repeats,
+    );
+    progress(&row);
+    row
+}
+
 /// Marks a row as a reference run.
 fn as_reference(row: Row) -> Row {
     Row {
@@ -551,32 +577,14 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
                     ESDIRK34,
                     TR_BDF2,
                 ] {
-                    let row = measure(
-                        p,
-                        solver,
-                        tol,
-                        &g,
-                        &reference,
-                        ref_name,
-                        ref_err,
-                        args.repeats,
-                    );
-                    progress(&row);
+                    let row = measured(p, solver, tol, &g, &reference, ref_name, ref_err, args);
                     let capped_out =
                         row.status == "failed" && row.message.contains("nonlinear solver failures");
                     rows.push(row);
                     if capped_out {
-                        let row = measure(
-                            p,
-                            solver.uncapped(),
-                            tol,
-                            &g,
-                            &reference,
-                            ref_name,
-                            ref_err,
-                            args.repeats,
-                        );
-                        progress(&row);
+                        let uncapped = solver.uncapped();
+                        let row =
+                            measured(p, uncapped, tol, &g, &reference, ref_name, ref_err, args);
                         rows.push(row);
                     }
                 }
@@ -708,17 +716,7 @@ fn reuse_study(args: &Args) -> Result<(), String> {
                     Solver::OursReuse(Reuse::Tenth),
                     BDF,
                 ] {
-                    let row = measure(
-                        p,
-                        solver,
-                        tol,
-                        &g,
-                        &reference,
-                        ref_name,
-                        f64::NAN,
-                        args.repeats,
-                    );
-                    progress(&row);
+                    let row = measured(p, solver, tol, &g, &reference, ref_name, f64::NAN, args);
                     csv.push_str(&row.csv());
                     csv.push('\n');
                 }

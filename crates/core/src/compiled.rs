@@ -5,10 +5,17 @@
 //! derivatives the system needs as graph nodes, and keeps one [`Program`]
 //! for all of them:
 //!
-//! * `M = ∂²ℓ/∂q̇²` (upper triangle) and
+//! * `M = ∂²ℓ/∂q̇²` (the structural nonzeros of its upper triangle) and
 //!   `Q = ∂ℓ/∂q − (∂²ℓ/∂q̇∂q) q̇ − ∂²ℓ/∂q̇∂t`,
 //! * `g`, `G = ∂g/∂q̇`, `ġ₀ = (∂g/∂q) q̇ + ∂g/∂t`,
 //! * `f`, `F = ∂f/∂q`, `ḟ = F q̇ + ∂f/∂t`, `f̈₀ = (∂ḟ/∂q) q̇ + ∂ḟ/∂t`,
+//!
+//! The matrices `M`, `G` and `F` are kept sparse: an entry is computed (and
+//! listed in the [`Pattern`]) only where its derivative is not the constant
+//! zero of the graph. The pattern is structural, found once from the trace
+//! (an entry that is zero only at some states stays in it); differentiation
+//! visits only the inputs a node depends on, so tracing and evaluation grow
+//! with the number of nonzeros, not with `n²`.
 //!
 //! the same quantities, by the same definitions, as the scalar dual passes
 //! of [`crate::ad::Jet`] — but every subexpression (each `sin φ`, each
@@ -29,6 +36,7 @@ use crate::scene::{Holonomic, Nonholonomic, Scalar, ScalarField, Scene, VectorFi
 #[derive(Debug, Clone)]
 pub struct Compiled {
     program: Program,
+    pattern: Pattern,
     n: usize,
     s: usize,
     k: usize,
@@ -36,6 +44,19 @@ pub struct Compiled {
     /// The field's type, checked by [`crate::kkt::Kkt`] in debug builds.
     pub(crate) field: &'static str,
     graph_nodes: usize,
+}
+
+/// The structural nonzeros of the compiled matrices, as `(row, column)`
+/// pairs in the order of their values in [`Pieces`] (row by row, columns
+/// increasing).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Pattern {
+    /// Upper triangle of `M` (`row ≤ column`).
+    pub mass: Vec<(u32, u32)>,
+    /// `G` (`s × n`).
+    pub g_jac: Vec<(u32, u32)>,
+    /// `F` (`k × n`).
+    pub f_jac: Vec<(u32, u32)>,
 }
 
 /// Why a field was not compiled.
@@ -105,12 +126,37 @@ impl Compiled {
         let q_vars: Vec<u32> = (0..n).map(q_var).collect();
 
         let mut outputs = Vec::new();
+        let mut pattern = Pattern::default();
+        // The nonzero derivatives of `x` with respect to the inputs `range`
+        // (columns `input - range.start`), in increasing order.
+        let row = |g: &mut Graph,
+                   x: u32,
+                   r: usize,
+                   range: std::ops::Range<u32>,
+                   from: u32,
+                   outputs: &mut Vec<u32>,
+                   entries: &mut Vec<(u32, u32)>| {
+            let deps: Vec<u32> = g
+                .deps(x)
+                .iter()
+                .copied()
+                .filter(|v| range.contains(v) && *v >= from)
+                .collect();
+            for v in deps {
+                let d = g.diff(x, v);
+                if !g.is_zero(d) {
+                    outputs.push(d);
+                    entries.push((r as u32, v - range.start));
+                }
+            }
+        };
+        let qd_range = qd_var(0)..qd_var(0) + n as u32;
+        let q_range = q_var(0)..q_var(0) + n as u32;
         // M (upper triangle) and Q.
         let momenta: Vec<u32> = (0..n).map(|i| g.diff(ell_id, qd_var(i))).collect();
-        for i in 0..n {
-            for j in i..n {
-                outputs.push(g.diff(momenta[i], qd_var(j)));
-            }
+        for (i, &p_i) in momenta.iter().enumerate() {
+            let (r, o, e) = (i, &mut outputs, &mut pattern.mass);
+            row(&mut g, p_i, r, qd_range.clone(), qd_var(i), o, e);
         }
         for (i, &p_i) in momenta.iter().enumerate() {
             let dl = g.diff(ell_id, q_var(i));
@@ -121,20 +167,18 @@ impl Compiled {
         }
         // g, G, ġ₀.
         outputs.extend(&g_ids);
-        for &gi in &g_ids {
-            for j in 0..n {
-                outputs.push(g.diff(gi, qd_var(j)));
-            }
+        for (r, &gi) in g_ids.iter().enumerate() {
+            let (o, e) = (&mut outputs, &mut pattern.g_jac);
+            row(&mut g, gi, r, qd_range.clone(), 0, o, e);
         }
         for &gi in &g_ids {
             outputs.push(rate(&mut g, gi, &q_vars, &qd_node, t_var));
         }
         // f, F, ḟ, f̈₀.
         outputs.extend(&f_ids);
-        for &fi in &f_ids {
-            for j in 0..n {
-                outputs.push(g.diff(fi, q_var(j)));
-            }
+        for (r, &fi) in f_ids.iter().enumerate() {
+            let (o, e) = (&mut outputs, &mut pattern.f_jac);
+            row(&mut g, fi, r, q_range.clone(), 0, o, e);
         }
         let f_rates: Vec<u32> = f_ids
             .iter()
@@ -146,6 +190,7 @@ impl Compiled {
         }
         Ok(Compiled {
             program: Program::new(&g, &outputs, inputs),
+            pattern,
             n,
             s,
             k,
@@ -191,6 +236,11 @@ impl Compiled {
     pub fn dims(&self) -> (usize, usize, usize) {
         (self.n, self.s, self.k)
     }
+
+    /// The structural nonzeros of `M`, `G` and `F`.
+    pub fn pattern(&self) -> &Pattern {
+        &self.pattern
+    }
 }
 
 /// The program of one formulation's field and scene, compiled on first use
@@ -230,40 +280,70 @@ pub struct Workspace<T> {
     out: Vec<T>,
 }
 
-/// The pieces of the last [`Compiled::eval`], as slices of its outputs.
+/// The pieces of the last [`Compiled::eval`], as slices of its outputs;
+/// the matrices hold the values of their [`Pattern`]'s entries.
 pub struct Pieces<'a, T> {
-    /// Upper triangle of `M`, row by row.
+    pub pattern: &'a Pattern,
+    /// Upper triangle of `M`, at [`Pattern::mass`].
     pub mass_upper: &'a [T],
     pub force: &'a [T],
     pub g: &'a [T],
-    /// `G`, row-major (`s × n`).
+    /// `G` at [`Pattern::g_jac`].
     pub g_jac: &'a [T],
     pub g_rate0: &'a [T],
     pub f: &'a [T],
-    /// `F`, row-major (`k × n`).
+    /// `F` at [`Pattern::f_jac`].
     pub f_jac: &'a [T],
     pub f_rate: &'a [T],
     pub f_accel0: &'a [T],
 }
 
-impl<T: Copy> Pieces<'_, T> {
-    /// `M` (both triangles) into the `n × n` block at the top left of `m`.
+impl<T: Scalar> Pieces<'_, T> {
+    /// `M` (both triangles) into the `n × n` block at the top left of `m`,
+    /// zeros included.
     pub fn mass_into(&self, m: &mut nalgebra::DMatrix<T>, n: usize) {
-        let mut o = 0;
-        for i in 0..n {
-            for j in i..n {
-                m[(i, j)] = self.mass_upper[o];
-                m[(j, i)] = self.mass_upper[o];
-                o += 1;
-            }
+        m.view_mut((0, 0), (n, n)).fill(T::from(0.0));
+        for (&(i, j), &v) in self.pattern.mass.iter().zip(self.mass_upper) {
+            let (i, j) = (i as usize, j as usize);
+            m[(i, j)] = v;
+            m[(j, i)] = v;
         }
+    }
+
+    /// `G` into rows `row..row + s` of `m` (`n` columns, zeros included).
+    pub fn g_jac_into(&self, m: &mut nalgebra::DMatrix<T>, row: usize, n: usize) {
+        scatter(m, row, n, self.g.len(), &self.pattern.g_jac, self.g_jac);
+    }
+
+    /// `G` into rows `row..row + s` of `m`, then `F` into the `k` rows
+    /// after them (`n` columns, zeros included).
+    pub fn jacobians_into(&self, m: &mut nalgebra::DMatrix<T>, row: usize, n: usize) {
+        self.g_jac_into(m, row, n);
+        let s = self.g.len();
+        scatter(m, row + s, n, self.f.len(), &self.pattern.f_jac, self.f_jac);
+    }
+}
+
+/// The `rows × n` block at row `row` of `m`: zeros, then `values` at `entries`.
+fn scatter<T: Scalar>(
+    m: &mut nalgebra::DMatrix<T>,
+    row: usize,
+    n: usize,
+    rows: usize,
+    entries: &[(u32, u32)],
+    values: &[T],
+) {
+    m.view_mut((row, 0), (rows, n)).fill(T::from(0.0));
+    for (&(r, j), &v) in entries.iter().zip(values) {
+        m[(row + r as usize, j as usize)] = v;
     }
 }
 
 impl<T> Workspace<T> {
     /// The outputs of the last evaluation, split into the pieces.
-    pub fn pieces(&self, c: &Compiled) -> Pieces<'_, T> {
+    pub fn pieces<'a>(&'a self, c: &'a Compiled) -> Pieces<'a, T> {
         let (n, s, k) = (c.n, c.s, c.k);
+        let p = &c.pattern;
         let mut rest: &[T] = &self.out;
         let mut take = |len: usize| {
             let (a, b) = rest.split_at(len);
@@ -271,13 +351,14 @@ impl<T> Workspace<T> {
             a
         };
         Pieces {
-            mass_upper: take(n * (n + 1) / 2),
+            pattern: p,
+            mass_upper: take(p.mass.len()),
             force: take(n),
             g: take(s),
-            g_jac: take(s * n),
+            g_jac: take(p.g_jac.len()),
             g_rate0: take(s),
             f: take(k),
-            f_jac: take(k * n),
+            f_jac: take(p.f_jac.len()),
             f_rate: take(k),
             f_accel0: take(k),
         }

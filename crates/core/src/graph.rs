@@ -74,6 +74,10 @@ pub struct Graph {
     /// Value of every node at the state the trace was taken at.
     values: Vec<f64>,
     index: HashMap<Node, u32>,
+    /// The inputs every node depends on, sorted: differentiation skips
+    /// whatever does not depend on its variable, so a Lagrangian that is a
+    /// sum over many bodies is differentiated in time linear in their number.
+    deps: Vec<Box<[u32]>>,
     derivatives: HashMap<(u32, u32), u32>,
     leaks: Vec<&'static str>,
     unsupported: Vec<&'static str>,
@@ -135,8 +139,17 @@ impl Graph {
             return id;
         }
         let id = u32::try_from(self.nodes.len()).expect("graph larger than u32 nodes");
+        let deps: Box<[u32]> = match node {
+            Node::Input(i) => Box::new([i]),
+            _ => match operands(&node) {
+                [Some(a), Some(b)] => union(&self.deps[a as usize], &self.deps[b as usize]),
+                [Some(a), None] => self.deps[a as usize].clone(),
+                _ => Box::new([]),
+            },
+        };
         self.nodes.push(node);
         self.values.push(value);
+        self.deps.push(deps);
         self.index.insert(node, id);
         id
     }
@@ -187,14 +200,34 @@ impl Graph {
         }
     }
 
+    /// The inputs node `id` depends on, in increasing order.
+    pub fn deps(&self, id: u32) -> &[u32] {
+        &self.deps[id as usize]
+    }
+
+    /// Whether node `id` depends on input `var`.
+    pub fn depends(&self, id: u32, var: u32) -> bool {
+        self.deps[id as usize].binary_search(&var).is_ok()
+    }
+
+    /// Whether node `id` is the constant zero (a structural zero).
+    pub fn is_zero(&self, id: u32) -> bool {
+        self.as_const(id) == Some(0.0)
+    }
+
     /// The derivative of node `root` with respect to input `var`, as a node
-    /// of the same graph (memoised: asking again costs a lookup).
+    /// of the same graph (memoised: asking again costs a lookup; a node that
+    /// does not depend on `var` has derivative zero without a walk).
     pub fn diff(&mut self, root: u32, var: u32) -> u32 {
+        if !self.depends(root, var) {
+            return self.constant(0.0);
+        }
         if let Some(&d) = self.derivatives.get(&(root, var)) {
             return d;
         }
         // Children first, without recursion: a depth-first walk that
-        // differentiates a node once all its operands have derivatives.
+        // differentiates a node once all its operands (those that depend on
+        // `var`) have derivatives.
         let mut stack = vec![root];
         while let Some(&id) = stack.last() {
             if self.derivatives.contains_key(&(id, var)) {
@@ -205,7 +238,7 @@ impl Graph {
             let pending: Vec<u32> = operands(&node)
                 .into_iter()
                 .flatten()
-                .filter(|a| !self.derivatives.contains_key(&(*a, var)))
+                .filter(|&a| self.depends(a, var) && !self.derivatives.contains_key(&(a, var)))
                 .collect();
             if pending.is_empty() {
                 let d = self.derivative_of(id, node, var);
@@ -221,7 +254,14 @@ impl Graph {
     /// One step of the chain rule, operands' derivatives already known.
     fn derivative_of(&mut self, id: u32, node: Node, var: u32) -> u32 {
         use Node::*;
-        let d = |g: &Graph, a: u32| g.derivatives[&(a, var)];
+        let zero_id = self.constant(0.0);
+        let d = |g: &Graph, a: u32| {
+            if g.depends(a, var) {
+                g.derivatives[&(a, var)]
+            } else {
+                zero_id
+            }
+        };
         let zero = |g: &mut Graph| g.constant(0.0);
         match node {
             Const(_) => zero(self),
@@ -352,17 +392,55 @@ impl Graph {
         }
     }
 
-    /// `Σ_j ∂root/∂(input vars[j]) · weights[j] (+ ∂root/∂extra)`: a
-    /// directional derivative as one node.
+    /// `Σ_j ∂root/∂(input vars[j]) · weights[j]`: a directional derivative
+    /// as one node. `vars` must be increasing; only those `root` depends on
+    /// are visited (the others add zero), in the same order.
     pub fn directional(&mut self, root: u32, vars: &[u32], weights: &[u32]) -> u32 {
+        debug_assert!(vars.windows(2).all(|w| w[0] < w[1]), "vars increasing");
         let mut acc = self.constant(0.0);
-        for (&v, &w) in vars.iter().zip(weights) {
-            let d = self.diff(root, v);
-            let x = self.op(Node::Mul(d, w));
+        let deps = self.deps[root as usize].clone();
+        for v in deps.iter() {
+            let Ok(j) = vars.binary_search(v) else {
+                continue;
+            };
+            let d = self.diff(root, *v);
+            let x = self.op(Node::Mul(d, weights[j]));
             acc = self.op(Node::Add(acc, x));
         }
         acc
     }
+}
+
+/// The union of two increasing lists.
+fn union(a: &[u32], b: &[u32]) -> Box<[u32]> {
+    if a.is_empty() || a == b {
+        return b.into();
+    }
+    if b.is_empty() {
+        return a.into();
+    }
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => {
+                out.push(a[i]);
+                i += 1;
+            }
+            std::cmp::Ordering::Greater => {
+                out.push(b[j]);
+                j += 1;
+            }
+            std::cmp::Ordering::Equal => {
+                out.push(a[i]);
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out.into()
 }
 
 fn operands(node: &Node) -> [Option<u32>; 2] {

@@ -27,6 +27,7 @@ use crate::compiled::{Compiled, Programs, Refused, Workspace};
 use crate::constraints::ConstraintState;
 use crate::linalg::{Lu, Singular, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
+use crate::sparse::{SPARSE_FROM, SparseKkt};
 use crate::stab::Stabilisation;
 
 /// How the rows of the nonholonomic constraints `g` enter the system: the
@@ -57,6 +58,12 @@ pub trait GRows {
         matrix: &mut DMatrix<T>,
         rhs: &mut [T],
     );
+
+    /// `Some(α)` if the rows are the ideal constraint `G q̈ = −ġ₀ − 2α g`
+    /// (the sparse path of [`Kkt::solve`] writes only those).
+    fn ideal_gain(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// The ideal constraint, `G q̈ = −ġ₀ − 2α g`, with the holonomic rows
@@ -68,6 +75,10 @@ pub struct Ideal(pub Stabilisation);
 impl GRows for Ideal {
     fn holonomic_gains(&self) -> (f64, f64) {
         self.0.gains()
+    }
+
+    fn ideal_gain(&self) -> Option<f64> {
+        Some(self.0.gains().0)
     }
 
     fn write<T: Scalar>(
@@ -101,20 +112,53 @@ pub struct Kkt<T: Scalar = f64> {
     /// ([`Kkt::compile`]), with its buffers; `None`: the scalar passes of
     /// [`Jet`].
     compiled: Option<(Arc<Compiled>, Workspace<T>)>,
+    /// The system stored sparse ([`crate::sparse`]): real systems of at
+    /// least [`SPARSE_FROM`] rows with a compiled program.
+    sparse: Option<SparseKkt>,
 }
 
 impl<T: Scalar> Kkt<T> {
     pub fn new(n: usize, s: usize, k: usize) -> Self {
-        Kkt {
+        let dim = n + s + k;
+        let mut kkt = Kkt {
             n,
             jet: Jet::new(n, s.max(k)),
-            cs: ConstraintState::new(n, s, k),
-            matrix: DMatrix::from_element(n + s + k, n + s + k, T::from(0.0)),
-            lu: Lu::new(n + s + k),
-            scale: vec![1.0; n + s + k],
-            sol: vec![T::from(0.0); n + s + k],
+            cs: ConstraintState::new(0, s, k),
+            matrix: DMatrix::from_element(0, 0, T::from(0.0)),
+            lu: Lu::new(dim),
+            scale: vec![1.0; dim],
+            sol: vec![T::from(0.0); dim],
             compiled: None,
+            sparse: None,
+        };
+        // Large systems get their dense storage when a dense path first
+        // needs it (never, when they solve sparse).
+        if dim < SPARSE_FROM {
+            kkt.dense();
         }
+        kkt
+    }
+
+    /// The dense matrix and constraint Jacobian, allocated if not yet.
+    fn dense(&mut self) {
+        let dim = self.sol.len();
+        if self.matrix.nrows() != dim {
+            self.matrix = DMatrix::from_element(dim, dim, T::from(0.0));
+        }
+        if self.cs.jac.ncols() != self.n {
+            self.cs.jac = DMatrix::from_element(self.cs.s + self.cs.k, self.n, T::from(0.0));
+        }
+    }
+
+    /// Whether [`Kkt::solve`] solves sparse ([`crate::sparse`]).
+    pub fn is_sparse(&self) -> bool {
+        self.sparse.is_some()
+    }
+
+    /// Solve dense whatever the size (a reference for the sparse path).
+    pub fn force_dense(&mut self) {
+        self.sparse = None;
+        self.dense();
     }
 
     /// Compiles the field `ell` (with `np` parameters) and `scene`'s
@@ -136,6 +180,12 @@ impl<T: Scalar> Kkt<T> {
     pub fn use_program(&mut self, c: Arc<Compiled>) {
         debug_assert_eq!(c.dims(), (self.n, self.cs.s, self.cs.k));
         let w = c.workspace();
+        self.sparse = None;
+        if T::REAL && self.sol.len() >= SPARSE_FROM {
+            // A pattern faer refuses stays dense (and its solve then says
+            // where the matrix is singular).
+            self.sparse = SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k).ok();
+        }
         self.compiled = Some((c, w));
     }
 
@@ -202,6 +252,7 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) {
+        self.dense();
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
@@ -221,16 +272,7 @@ impl<T: Scalar> Kkt<T> {
             cs.f.copy_from_slice(pc.f);
             cs.f_rate.copy_from_slice(pc.f_rate);
             cs.f_accel0.copy_from_slice(pc.f_accel0);
-            for (r, row) in pc
-                .g_jac
-                .chunks(n.max(1))
-                .chain(pc.f_jac.chunks(n.max(1)))
-                .enumerate()
-            {
-                for (j, &v) in row.iter().enumerate() {
-                    cs.jac[(r, j)] = v;
-                }
-            }
+            pc.jacobians_into(&mut cs.jac, 0, n);
             if s > 0 {
                 rows.write(n, &self.cs, &mut self.matrix, &mut self.sol);
             }
@@ -264,8 +306,14 @@ impl<T: Scalar> Kkt<T> {
     /// The rows of `f` from the evaluated constraint state.
     fn holonomic_rows<R: GRows>(&mut self, rows: &R) {
         let (n, s, k) = (self.n, self.cs.s, self.cs.k);
-        let (alpha, beta) = rows.holonomic_gains();
         self.cs.write_rows(s..s + k, &mut self.matrix, n + s);
+        self.holonomic_rhs(rows);
+    }
+
+    /// The right-hand side of the rows of `f`.
+    fn holonomic_rhs<R: GRows>(&mut self, rows: &R) {
+        let (n, s, k) = (self.n, self.cs.s, self.cs.k);
+        let (alpha, beta) = rows.holonomic_gains();
         for i in 0..k {
             self.sol[n + s + i] = -self.cs.f_accel0[i]
                 - self.cs.f_rate[i] * (2.0 * alpha)
@@ -286,8 +334,47 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) -> Result<(), Singular> {
+        if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.sparse) {
+            return self.solve_sparse(p, rows, alpha, t, q, qd);
+        }
         self.assemble(ell, p, scene, rows, t, q, qd);
         self.solve_assembled()
+    }
+
+    /// [`Kkt::solve`] on the sparse path: the compiled program's pieces
+    /// into the right-hand side and the stored entries, one sparse LU.
+    fn solve_sparse<R: GRows>(
+        &mut self,
+        p: &[T],
+        rows: &R,
+        alpha: f64,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) -> Result<(), Singular> {
+        let n = self.n;
+        let s = self.cs.s;
+        let (Some((c, w)), Some(sparse)) = (&mut self.compiled, &mut self.sparse) else {
+            unreachable!("the sparse path needs a program");
+        };
+        c.eval(w, t, q, qd, p);
+        let pc = w.pieces(c);
+        self.sol[..n].copy_from_slice(pc.force);
+        let cs = &mut self.cs;
+        cs.g.copy_from_slice(pc.g);
+        cs.g_rate0.copy_from_slice(pc.g_rate0);
+        cs.f.copy_from_slice(pc.f);
+        cs.f_rate.copy_from_slice(pc.f_rate);
+        cs.f_accel0.copy_from_slice(pc.f_accel0);
+        for i in 0..s {
+            self.sol[n + i] = -cs.g_rate0[i] - cs.g[i] * (2.0 * alpha);
+        }
+        let (alpha_f, beta) = rows.holonomic_gains();
+        for i in 0..cs.k {
+            self.sol[n + s + i] =
+                -cs.f_accel0[i] - cs.f_rate[i] * (2.0 * alpha_f) - cs.f[i] * (beta * beta);
+        }
+        sparse.solve(&pc, &mut self.sol)
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.
@@ -296,6 +383,7 @@ impl<T: Scalar> Kkt<T> {
     /// overflowed, or a NaN from a derivative not defined at the state) is
     /// reported as a [`Singular`] with a NaN pivot, as a non-finite matrix is.
     pub fn solve_assembled(&mut self) -> Result<(), Singular> {
+        self.dense();
         let n = self.n;
         solve_saddle(
             &mut self.matrix,

@@ -37,6 +37,7 @@ pub mod project;
 pub mod quadrature;
 pub mod run;
 pub mod scene;
+pub mod sparse;
 pub mod stab;
 
 pub use binding::{Binding, Equations, EvalError};

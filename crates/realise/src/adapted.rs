@@ -125,11 +125,7 @@ impl<D: Scalar> Frame<D> {
             c.eval(w, t, q, &self.zeros, &[]);
             let p = w.pieces(c);
             p.mass_into(&mut self.mass, n);
-            for (a, row) in p.g_jac.chunks(n).enumerate() {
-                for (i, &v) in row.iter().enumerate() {
-                    self.g[(a, i)] = v;
-                }
-            }
+            p.g_jac_into(&mut self.g, 0, n);
         } else {
             self.jet.mass(
                 &Lagrangian(scene),

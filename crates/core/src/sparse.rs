@@ -1,0 +1,245 @@
+//! The KKT system of [`crate::kkt`] stored sparse and factored by faer's
+//! sparse LU, for scenes whose size makes the dense `O((n + s + k)³)` solve
+//! the cost of a right-hand side.
+//!
+//! The pattern is the compiled program's ([`crate::compiled::Pattern`]):
+//! `M` (both triangles), `G` and `Gᵀ`, `F` and `Fᵀ`, fixed once, so the
+//! fill-reducing ordering and the symbolic factorisation are computed once
+//! too; every solve scatters the program's values into the stored entries,
+//! equilibrates them as the dense path does ([`crate::linalg::equilibrate`]:
+//! `dᵢ = 1/√|Mᵢᵢ|` on the primal block, each constraint row by its largest
+//! scaled entry), refactors numerically in a reused workspace and solves in
+//! place. Only the ideal constraint rows (B and C) are written here; the
+//! realisations' rows stay dense.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par};
+
+use crate::compiled::{Pattern, Pieces};
+use crate::linalg::Singular;
+use crate::scene::Scalar;
+
+/// Size of the KKT system `n + s + k` from which [`crate::kkt::Kkt`] solves
+/// sparse when the program compiled (measured: `scale-report` of
+/// `nonholo-bench`, docs/performance.md).
+pub const SPARSE_FROM: usize = 48;
+
+/// Where a stored entry's value comes from.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    /// Entry `i` of the program's upper triangle of `M`.
+    Mass(u32),
+    /// Entry `i` of `G`.
+    G(u32),
+    /// Entry `i` of `F`.
+    F(u32),
+}
+
+/// The sparse KKT system of one compiled program, with its factorisation
+/// workspace.
+pub struct SparseKkt {
+    n: usize,
+    dim: usize,
+    symbolic: SymbolicSparseColMat<usize>,
+    /// Row, column and source of every stored entry, in storage order.
+    entries: Vec<(u32, u32, Source)>,
+    values: Vec<f64>,
+    lu_symbolic: SymbolicLu<usize>,
+    numeric: NumericLu<usize, f64>,
+    buffer: MemBuffer,
+    /// Storage position of each `Mᵢᵢ`.
+    diagonal: Vec<usize>,
+    scale: Vec<f64>,
+    /// The right-hand side, then the solution, in `f64`.
+    rhs: Vec<f64>,
+}
+
+impl std::fmt::Debug for SparseKkt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SparseKkt")
+            .field("dim", &self.dim)
+            .field("nonzeros", &self.entries.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Clone for SparseKkt {
+    /// A fresh workspace for the same pattern (the factors are not copied).
+    fn clone(&self) -> Self {
+        SparseKkt {
+            n: self.n,
+            dim: self.dim,
+            symbolic: self.symbolic.clone(),
+            entries: self.entries.clone(),
+            values: self.values.clone(),
+            lu_symbolic: self.lu_symbolic.clone(),
+            numeric: NumericLu::new(),
+            buffer: MemBuffer::new(scratch(&self.lu_symbolic)),
+            diagonal: self.diagonal.clone(),
+            scale: self.scale.clone(),
+            rhs: self.rhs.clone(),
+        }
+    }
+}
+
+fn scratch(lu: &SymbolicLu<usize>) -> faer::dyn_stack::StackReq {
+    lu.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default())
+        .or(lu.solve_in_place_scratch::<f64>(1, Par::Seq))
+}
+
+impl SparseKkt {
+    /// The pattern of the system of `(n, s, k)` with the structural
+    /// nonzeros of `pattern`, ordered and analysed once. `Err` says why faer
+    /// refused it (a structurally singular system).
+    pub fn new(pattern: &Pattern, n: usize, s: usize, k: usize) -> Result<SparseKkt, String> {
+        let dim = n + s + k;
+        let mut entries: Vec<(u32, u32, Source)> = Vec::new();
+        for (i, &(r, c)) in pattern.mass.iter().enumerate() {
+            entries.push((r, c, Source::Mass(i as u32)));
+            if r != c {
+                entries.push((c, r, Source::Mass(i as u32)));
+            }
+        }
+        for (rows, offset, source) in [
+            (&pattern.g_jac, n, Source::G as fn(u32) -> Source),
+            (&pattern.f_jac, n + s, Source::F as fn(u32) -> Source),
+        ] {
+            for (i, &(r, c)) in rows.iter().enumerate() {
+                let r = r + offset as u32;
+                entries.push((r, c, source(i as u32)));
+                entries.push((c, r, source(i as u32)));
+            }
+        }
+        entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
+        let mut col_ptr = vec![0usize; dim + 1];
+        for &(_, c, _) in &entries {
+            col_ptr[c as usize + 1] += 1;
+        }
+        for j in 0..dim {
+            col_ptr[j + 1] += col_ptr[j];
+        }
+        let row_idx: Vec<usize> = entries.iter().map(|&(r, _, _)| r as usize).collect();
+        let mut diagonal = vec![usize::MAX; n];
+        for (p, &(r, c, _)) in entries.iter().enumerate() {
+            if r == c && (r as usize) < n {
+                diagonal[r as usize] = p;
+            }
+        }
+        if let Some(i) = diagonal.iter().position(|&p| p == usize::MAX) {
+            return Err(format!(
+                "the mass matrix has no entry on its diagonal at row {i}"
+            ));
+        }
+        let symbolic = SymbolicSparseColMat::new_checked(dim, dim, col_ptr, None, row_idx);
+        let lu_symbolic = factorize_symbolic_lu(symbolic.as_ref(), Default::default())
+            .map_err(|e| format!("faer's symbolic LU refused the KKT pattern: {e:?}"))?;
+        Ok(SparseKkt {
+            n,
+            dim,
+            values: vec![0.0; entries.len()],
+            buffer: MemBuffer::new(scratch(&lu_symbolic)),
+            numeric: NumericLu::new(),
+            lu_symbolic,
+            symbolic,
+            entries,
+            diagonal,
+            scale: vec![1.0; dim],
+            rhs: Vec::with_capacity(dim),
+        })
+    }
+
+    /// Stored entries.
+    pub fn nonzeros(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// The stored entries `(row, column)` in storage order (by column).
+    pub fn entries(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.entries
+            .iter()
+            .map(|&(r, c, _)| (r as usize, c as usize))
+    }
+
+    /// Solves the system with the matrix of `pieces` and right-hand side
+    /// `sol`, in place. Real only: `T` is `f64` ([`Scalar::REAL`]; the
+    /// values pass through `re()`, exactly).
+    pub fn solve<T: Scalar>(
+        &mut self,
+        pieces: &Pieces<'_, T>,
+        sol: &mut [T],
+    ) -> Result<(), Singular> {
+        debug_assert!(T::REAL, "the sparse KKT path is real");
+        let (n, dim) = (self.n, self.dim);
+        self.rhs.clear();
+        self.rhs.extend(sol.iter().map(|x| x.re()));
+        let rhs = &mut self.rhs[..];
+        for (v, &(_, _, src)) in self.values.iter_mut().zip(&self.entries) {
+            *v = match src {
+                Source::Mass(i) => pieces.mass_upper[i as usize].re(),
+                Source::G(i) => pieces.g_jac[i as usize].re(),
+                Source::F(i) => pieces.f_jac[i as usize].re(),
+            };
+        }
+        // Equilibration, as `linalg::equilibrate`.
+        let d = &mut self.scale;
+        let diag_max = self
+            .diagonal
+            .iter()
+            .fold(0.0f64, |m, &p| m.max(self.values[p].abs()));
+        let floor = (f64::EPSILON * diag_max).max(f64::MIN_POSITIVE);
+        for (i, &p) in self.diagonal.iter().enumerate() {
+            d[i] = 1.0 / self.values[p].abs().max(floor).sqrt();
+        }
+        d[n..].fill(0.0);
+        for (&(r, c, _), &v) in self.entries.iter().zip(&self.values) {
+            let (r, c) = (r as usize, c as usize);
+            if r >= n && c < n {
+                d[r] = d[r].max((v * d[c]).abs());
+            }
+        }
+        for x in &mut d[n..dim] {
+            *x = if *x > 0.0 { 1.0 / *x } else { 1.0 };
+        }
+        for (v, &(r, c, _)) in self.values.iter_mut().zip(&self.entries) {
+            *v *= d[r as usize] * d[c as usize];
+        }
+        for (x, s) in rhs.iter_mut().zip(d.iter()) {
+            *x *= *s;
+        }
+        let scale = self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let singular = |column: usize| Singular {
+            column,
+            pivot: 0.0,
+            scale,
+        };
+        let a = SparseColMatRef::new(self.symbolic.as_ref(), &self.values);
+        let stack = MemStack::new(&mut self.buffer);
+        let lu = self
+            .lu_symbolic
+            .factorize_numeric_lu(&mut self.numeric, a, Par::Seq, stack, Default::default())
+            .map_err(|_| singular(0))?;
+        let stack = MemStack::new(&mut self.buffer);
+        lu.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, dim, 1),
+            Par::Seq,
+            stack,
+        );
+        for (x, s) in rhs.iter_mut().zip(self.scale.iter()) {
+            *x *= *s;
+        }
+        if let Some(column) = rhs.iter().position(|x| !x.is_finite()) {
+            return Err(Singular {
+                column,
+                pivot: f64::NAN,
+                scale,
+            });
+        }
+        for (x, &v) in sol.iter_mut().zip(rhs.iter()) {
+            *x = T::from(v);
+        }
+        Ok(())
+    }
+}

@@ -8,6 +8,7 @@
 //! | `pendulum` | x, y | 1 holonomic | — | — |
 //! | `coin-incline` | x, y, ψ, θ, φ | 2 linear nonholonomic | — | — |
 //! | `bicycle` | x, y, ψ, φ, θ, δ, θR, θF | 1 holonomic, 4 linear nonholonomic | — | — |
+//! | `sleigh-train` | xᵢ, yᵢ, φᵢ for N sleighs | 2(N − 1) holonomic, N linear nonholonomic | — | — |
 //!
 //! Code that must work with any scene receives it through [`SceneVisitor`],
 //! which is called with the concrete scene type so that everything
@@ -20,6 +21,7 @@ pub mod disk;
 pub mod pendulum;
 mod rigid;
 pub mod sleigh;
+pub mod trailer;
 
 use nonholo_core::{Error, Params, Scene, SceneInfo};
 
@@ -29,6 +31,7 @@ pub use coin::Coin;
 pub use disk::RollingDisk;
 pub use pendulum::Pendulum;
 pub use sleigh::{Potential, Sleigh};
+pub use trailer::Train;
 
 /// The gravitational acceleration `g` (m/s², default 9.81, at least 0),
 /// a parameter of every scene with weight.
@@ -49,6 +52,7 @@ pub const ALL: &[&SceneInfo] = &[
     &pendulum::INFO,
     &bicycle::INFO,
     &coin::INFO,
+    &trailer::INFO,
 ];
 
 /// Something to do with a scene of any type.
@@ -67,6 +71,7 @@ pub enum AnyScene {
     /// Boxed: its 26 parameters make it several times larger than the others.
     Bicycle(Box<Bicycle>),
     Coin(Coin),
+    Train(Train),
 }
 
 impl AnyScene {
@@ -78,6 +83,7 @@ impl AnyScene {
             AnyScene::Pendulum(s) => s.info(),
             AnyScene::Bicycle(s) => s.info(),
             AnyScene::Coin(s) => s.info(),
+            AnyScene::Train(s) => s.info(),
         }
     }
 
@@ -89,6 +95,7 @@ impl AnyScene {
             AnyScene::Pendulum(s) => s.params(),
             AnyScene::Bicycle(s) => s.params(),
             AnyScene::Coin(s) => s.params(),
+            AnyScene::Train(s) => s.params(),
         }
     }
 
@@ -101,6 +108,7 @@ impl AnyScene {
             AnyScene::Pendulum(s) => v.visit(s),
             AnyScene::Bicycle(s) => v.visit(*s),
             AnyScene::Coin(s) => v.visit(s),
+            AnyScene::Train(s) => v.visit(s),
         }
     }
 }
@@ -128,6 +136,7 @@ pub fn build(name: &str, params: &[(String, String)]) -> Result<AnyScene, Error>
         "pendulum" => AnyScene::Pendulum(Pendulum::from_params(&p)?),
         "bicycle" => AnyScene::Bicycle(Box::new(Bicycle::from_params(&p)?)),
         "coin-incline" => AnyScene::Coin(Coin::from_params(&p)?),
+        "sleigh-train" => AnyScene::Train(Train::from_params(&p)?),
         other => unreachable!("scene `{other}` listed in ALL but not built"),
     })
 }

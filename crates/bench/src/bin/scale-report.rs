@@ -1,0 +1,366 @@
+//! How the cost of formulation B grows with the size of the scene: the
+//! train of `N` hitched sleighs (`sleigh-train`, `3N` coordinates, `N`
+//! blades, `2(N − 1)` hitches) for `N` from 1 to 1000 (issue 13, parts 2–3).
+//!
+//! `cargo run --release -p nonholo-bench --bin scale-report [-- --rounds R --out DIR]`
+//!
+//! Per `N`, at the train's default state (in line, lead sleigh at
+//! `u = 1 m/s`, `ω = 0.3 rad/s`):
+//!
+//! * the one-off compilation of `L`, `g`, `f` into one program (seconds),
+//!   its instructions and the structural nonzeros of the KKT matrix;
+//! * one right-hand side of B as the integrators call it (the sparse KKT
+//!   solve of [`nonholo_core::sparse`] above its threshold);
+//! * the KKT solve alone, sparse and dense (dense up to `N = 100`);
+//! * one Jacobian of the right-hand side (`2·3N` dual passes of the dense
+//!   KKT solve; up to `N = 30`);
+//! * one DOP853 run of B over `[0, 2] s` at `rtol = atol = 1e-8` (the
+//!   model built, its program compiled, beforehand): steps, right-hand
+//!   sides, wall time, and the part of it that is not right-hand sides
+//!   (the check of the initial data, the monitors of every step, the
+//!   integrator's own arithmetic).
+//!
+//! The sizes are interleaved, `R` rounds (default 3), medians reported.
+//! The exponent is the least-squares slope of log cost against log `N` over
+//! `N ≥ 10`. `scale.csv` in DIR (default `results/scale`) keeps the numbers
+//! docs/performance.md quotes.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Instant;
+
+use nonholo_chetaev::Chetaev;
+use nonholo_core::compiled::Compiled;
+use nonholo_core::integrate::{Method, OdeSystem, Options};
+use nonholo_core::kkt::{Ideal, Kkt};
+use nonholo_core::scene::Lagrangian;
+use nonholo_core::sparse::SparseKkt;
+use nonholo_core::stab::Stabilisation;
+use nonholo_core::{Params, RunConfig, Scene, simulate};
+use nonholo_scenes::Train;
+
+const SIZES: [usize; 7] = [1, 3, 10, 30, 100, 300, 1000];
+/// Largest `N` whose KKT system is also solved dense.
+const DENSE_UP_TO: usize = 100;
+/// Largest `N` whose Jacobian is timed.
+const JACOBIAN_UP_TO: usize = 30;
+
+/// Seconds per call of `f`, over calls adding up to about `ms`.
+fn per_call(mut f: impl FnMut(), ms: f64) -> f64 {
+    let start = Instant::now();
+    f();
+    let first = start.elapsed().as_secs_f64();
+    let calls = ((ms * 1e-3 / first.max(1e-9)).ceil() as usize).clamp(1, 1_000_000);
+    let start = Instant::now();
+    for _ in 0..calls {
+        f();
+    }
+    start.elapsed().as_secs_f64() / calls as f64
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return f64::NAN;
+    }
+    s.sort_by(f64::total_cmp);
+    s[s.len() / 2]
+}
+
+/// Least-squares slope of `ln y` against `ln x` over finite pairs with `x ≥ 10`.
+fn slope(x: &[usize], y: &[f64]) -> f64 {
+    let (lx, ly): (Vec<f64>, Vec<f64>) = x
+        .iter()
+        .zip(y)
+        .filter(|(a, b)| **a >= 10 && b.is_finite() && **b > 0.0)
+        .map(|(a, b)| ((*a as f64).ln(), b.ln()))
+        .unzip();
+    let n = lx.len() as f64;
+    if n < 2.0 {
+        return f64::NAN;
+    }
+    let (mx, my) = (lx.iter().sum::<f64>() / n, ly.iter().sum::<f64>() / n);
+    let sxy: f64 = lx.iter().zip(&ly).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let sxx: f64 = lx.iter().map(|a| (a - mx) * (a - mx)).sum();
+    sxy / sxx
+}
+
+/// One size: the scene, B bound to it, the state, and the measurements.
+struct Size {
+    n_sleighs: usize,
+    train: Train,
+    b: Chetaev<Train>,
+    y: Vec<f64>,
+    program: Arc<Compiled>,
+    nonzeros: usize,
+    compile_s: Vec<f64>,
+    rhs_s: Vec<f64>,
+    sparse_s: Vec<f64>,
+    dense_s: Vec<f64>,
+    jacobian_s: Vec<f64>,
+    run: Option<(usize, usize, f64)>,
+}
+
+impl Size {
+    fn new(n_sleighs: usize) -> Result<Size, String> {
+        let info = nonholo_scenes::trailer::INFO;
+        let p = Params::resolve(
+            info.params,
+            &[("N".to_string(), n_sleighs.to_string())],
+            "parameter",
+        )
+        .map_err(|e| e.to_string())?;
+        let train = Train::from_params(&p).map_err(|e| e.to_string())?;
+        let q = train.default_q();
+        let mut qd = vec![0.0; q.len()];
+        train.velocities_from(&q, &[1.0, 0.3], &mut qd);
+        let y = [q, qd].concat();
+        let b = Chetaev::new(train.clone(), Params::defaults(nonholo_chetaev::OPTIONS))
+            .map_err(|e| e.to_string())?;
+        let start = Instant::now();
+        let program =
+            Arc::new(Compiled::new(&Lagrangian(&train), 0, &train).map_err(|e| e.to_string())?);
+        let compile = start.elapsed().as_secs_f64();
+        let ti = train.info();
+        let nonzeros = SparseKkt::new(program.pattern(), ti.n(), ti.s(), ti.k())
+            .map(|s| s.nonzeros())
+            .unwrap_or(0);
+        Ok(Size {
+            n_sleighs,
+            train,
+            b,
+            y,
+            program,
+            nonzeros,
+            compile_s: vec![compile],
+            rhs_s: Vec::new(),
+            sparse_s: Vec::new(),
+            dense_s: Vec::new(),
+            jacobian_s: Vec::new(),
+            run: None,
+        })
+    }
+
+    fn measure(&mut self, ms: f64) -> Result<(), String> {
+        let dim = self.y.len();
+        let mut dy = vec![0.0; dim];
+        self.b
+            .rhs(0.0, &self.y, &mut dy)
+            .map_err(|e| format!("N = {}: {}", self.n_sleighs, e.message))?;
+        let (b, y) = (&mut self.b, &self.y);
+        self.rhs_s.push(per_call(
+            || {
+                let _ = std::hint::black_box(b.rhs(0.0, y, &mut dy));
+            },
+            ms,
+        ));
+        let info = self.train.info();
+        let n = info.n();
+        let (q, qd) = self.y.split_at(n);
+        let rows = Ideal(Stabilisation::None);
+        let train = &self.train;
+        let mut kkt: Kkt<f64> = Kkt::for_scene(info);
+        kkt.use_program(self.program.clone());
+        let solve = |kkt: &mut Kkt<f64>| {
+            kkt.solve(&Lagrangian(train), &[], train, &rows, 0.0, q, qd)
+                .map_err(|e| format!("N = {}: {e}", self.n_sleighs))
+        };
+        solve(&mut kkt)?;
+        let sparse = kkt.is_sparse();
+        let t = per_call(
+            || {
+                let _ = std::hint::black_box(solve(&mut kkt));
+            },
+            ms,
+        );
+        self.sparse_s.push(if sparse { t } else { f64::NAN });
+        if self.n_sleighs <= DENSE_UP_TO {
+            kkt.force_dense();
+            solve(&mut kkt)?;
+            self.dense_s.push(per_call(
+                || {
+                    let _ = std::hint::black_box(solve(&mut kkt));
+                },
+                ms,
+            ));
+        }
+        if self.n_sleighs <= JACOBIAN_UP_TO {
+            let mut jac = vec![0.0; dim * dim];
+            let (b, y) = (&mut self.b, &self.y);
+            self.jacobian_s.push(per_call(
+                || {
+                    let _ = std::hint::black_box(b.jacobian(0.0, y, &mut jac));
+                },
+                ms,
+            ));
+        }
+        if self.run.is_none() {
+            let model = Chetaev::new(
+                self.train.clone(),
+                Params::defaults(nonholo_chetaev::OPTIONS),
+            )
+            .map_err(|e| e.to_string())?;
+            let n = self.train.info().n();
+            let initial = nonholo_core::Initial {
+                t0: 0.0,
+                q: self.y[..n].to_vec(),
+                qd: self.y[n..].to_vec(),
+                extra: Vec::new(),
+            };
+            let start = Instant::now();
+            let r = simulate(
+                Box::new(model),
+                initial,
+                RunConfig {
+                    method: Method::Dop853,
+                    options: Options {
+                        rtol: 1e-8,
+                        atol: 1e-8,
+                        output: vec![0.0, 2.0],
+                        ..Options::default()
+                    },
+                    t_end: 2.0,
+                    project_init: false,
+                },
+            );
+            let wall = start.elapsed().as_secs_f64();
+            let r = r.map_err(|e| format!("N = {}: the run failed: {e}", self.n_sleighs))?;
+            if let Some(f) = &r.failure {
+                return Err(format!("N = {}: the run failed: {f}", self.n_sleighs));
+            }
+            let st = &r.solution.stats;
+            self.run = Some((st.steps, st.rhs_evals, wall));
+        }
+        Ok(())
+    }
+}
+
+fn run() -> Result<(), String> {
+    let mut rounds = 3usize;
+    let mut out = PathBuf::from("results/scale");
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--rounds" => {
+                let v = it.next().ok_or("--rounds needs a value")?;
+                rounds = v
+                    .parse()
+                    .map_err(|_| format!("--rounds: cannot read `{v}` as a count"))?;
+            }
+            "--out" => out = PathBuf::from(it.next().ok_or("--out needs a directory")?),
+            "-h" | "--help" => {
+                println!("usage: scale-report [--rounds R] [--out DIR]");
+                return Ok(());
+            }
+            other => return Err(format!("unknown argument `{other}` (try --help)")),
+        }
+    }
+    let mut sizes = Vec::new();
+    for &n in &SIZES {
+        eprintln!("scale-report: compiling N = {n}");
+        sizes.push(Size::new(n)?);
+    }
+    for round in 0..rounds {
+        eprintln!("scale-report: round {}/{rounds}", round + 1);
+        for s in &mut sizes {
+            s.measure(40.0)?;
+        }
+    }
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let path = out.join("scale.csv");
+    let mut w = csv::Writer::from_path(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    w.write_record([
+        "N",
+        "n",
+        "kkt_size",
+        "kkt_nonzeros",
+        "instructions",
+        "compile_s",
+        "rhs_us",
+        "kkt_sparse_us",
+        "kkt_dense_us",
+        "jacobian_ms",
+        "run_steps",
+        "run_rhs",
+        "run_s",
+        "run_other_s",
+    ])
+    .map_err(|e| e.to_string())?;
+    println!(
+        "| N | n | KKT size | nonzeros | instructions | compile (s) | RHS (µs) | KKT sparse (µs) | KKT dense (µs) | Jacobian (ms) | run: steps, RHS, s | run, not RHS (s) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let cols: Vec<[f64; 5]> = sizes
+        .iter()
+        .map(|s| {
+            [
+                median(&s.compile_s),
+                median(&s.rhs_s) * 1e6,
+                median(&s.sparse_s) * 1e6,
+                median(&s.dense_s) * 1e6,
+                median(&s.jacobian_s) * 1e3,
+            ]
+        })
+        .collect();
+    for (s, c) in sizes.iter().zip(&cols) {
+        let info = s.train.info();
+        let (steps, rhs, wall) = s.run.unwrap_or((0, 0, f64::NAN));
+        let other = wall - rhs as f64 * c[1] * 1e-6;
+        let fmt = |v: f64| {
+            if v.is_finite() {
+                format!("{v:.4}")
+            } else {
+                String::new()
+            }
+        };
+        w.write_record([
+            s.n_sleighs.to_string(),
+            info.n().to_string(),
+            (info.n() + info.s() + info.k()).to_string(),
+            s.nonzeros.to_string(),
+            s.program.size().0.to_string(),
+            fmt(c[0]),
+            fmt(c[1]),
+            fmt(c[2]),
+            fmt(c[3]),
+            fmt(c[4]),
+            steps.to_string(),
+            rhs.to_string(),
+            fmt(wall),
+            fmt(other),
+        ])
+        .map_err(|e| e.to_string())?;
+        println!(
+            "| {} | {} | {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {steps}, {rhs}, {wall:.3} | {other:.3} |",
+            s.n_sleighs,
+            info.n(),
+            info.n() + info.s() + info.k(),
+            s.nonzeros,
+            s.program.size().0,
+            c[0],
+            c[1],
+            fmt(c[2]),
+            fmt(c[3]),
+            fmt(c[4]),
+        );
+    }
+    w.flush().map_err(|e| e.to_string())?;
+    let ns: Vec<usize> = sizes.iter().map(|s| s.n_sleighs).collect();
+    let col = |i: usize| cols.iter().map(|c| c[i]).collect::<Vec<f64>>();
+    println!();
+    println!(
+        "exponents over N ≥ 10: compile {:.2}, RHS {:.2}, KKT sparse {:.2}, KKT dense {:.2}, Jacobian {:.2}",
+        slope(&ns, &col(0)),
+        slope(&ns, &col(1)),
+        slope(&ns, &col(2)),
+        slope(&ns, &col(3)),
+        slope(&ns, &col(4)),
+    );
+    eprintln!("scale-report: wrote {}", path.display());
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    nonholo_bench::report_main(run)
+}

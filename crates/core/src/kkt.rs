@@ -112,8 +112,9 @@ pub struct Kkt<T: Scalar = f64> {
     /// ([`Kkt::compile`]), with its buffers; `None`: the scalar passes of
     /// [`Jet`].
     compiled: Option<(Arc<Compiled>, Workspace<T>)>,
-    /// The system stored sparse ([`crate::sparse`]): real systems of at
-    /// least [`SPARSE_FROM`] rows with a compiled program.
+    /// The system stored sparse ([`crate::sparse`]): systems of at least
+    /// [`SPARSE_FROM`] rows with a compiled program, over `f64` or `Dual64`
+    /// (Jacobian columns).
     sparse: Option<SparseKkt>,
 }
 
@@ -161,6 +162,22 @@ impl<T: Scalar> Kkt<T> {
         self.dense();
     }
 
+    /// Solve sparse whatever the size, if the program compiled and `T` is
+    /// real (for measuring where [`SPARSE_FROM`] should be); `Err` says
+    /// why not.
+    pub fn force_sparse(&mut self) -> Result<(), String> {
+        let Some((c, _)) = &self.compiled else {
+            return Err("no compiled program: the scalar passes solve dense".into());
+        };
+        if !(T::REAL || T::FIRST_ORDER) {
+            return Err(
+                "the sparse path is real or first-order dual; higher duals solve dense".into(),
+            );
+        }
+        self.sparse = Some(SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k)?);
+        Ok(())
+    }
+
     /// Compiles the field `ell` (with `np` parameters) and `scene`'s
     /// constraints into one program ([`crate::compiled`]) that every later
     /// [`Kkt::assemble`] evaluates instead of the scalar passes; keeps the
@@ -181,7 +198,7 @@ impl<T: Scalar> Kkt<T> {
         debug_assert_eq!(c.dims(), (self.n, self.cs.s, self.cs.k));
         let w = c.workspace();
         self.sparse = None;
-        if T::REAL && self.sol.len() >= SPARSE_FROM {
+        if (T::REAL || T::FIRST_ORDER) && self.sol.len() >= SPARSE_FROM {
             // A pattern faer refuses stays dense (and its solve then says
             // where the matrix is singular).
             self.sparse = SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k).ok();

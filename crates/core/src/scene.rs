@@ -29,6 +29,24 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
     /// must leave automatic differentiation (a call into a numerical
     /// library) branches on it.
     const REAL: bool = false;
+
+    /// Whether the type is a first-order dual number over `f64` (`Dual64`,
+    /// a value and one directional derivative): [`Scalar::tangent`] and
+    /// [`Scalar::from_tangent`] then split and join it, for code that
+    /// propagates derivatives through a numerical library by hand (the
+    /// sparse KKT solve of [`crate::sparse`]).
+    const FIRST_ORDER: bool = false;
+
+    /// The derivative part of a first-order dual number (0 otherwise).
+    fn tangent(&self) -> f64 {
+        0.0
+    }
+
+    /// The number with value `re` and derivative part `eps` (where
+    /// [`Scalar::FIRST_ORDER`]; otherwise `re` alone).
+    fn from_tangent(re: f64, _eps: f64) -> Self {
+        Self::from(re)
+    }
 }
 
 impl Scalar for f64 {
@@ -60,7 +78,26 @@ macro_rules! scalar_over_inner {
     };
 }
 
-scalar_over_inner!(Real, Dual, Dual2, Dual3, HyperDual, HyperHyperDual);
+scalar_over_inner!(Real, Dual2, Dual3, HyperDual, HyperHyperDual);
+
+impl<T: Scalar> Scalar for Dual<T> {
+    const FIRST_ORDER: bool = T::REAL;
+
+    #[inline]
+    fn modulus(&self) -> f64 {
+        self.re.modulus()
+    }
+
+    #[inline]
+    fn tangent(&self) -> f64 {
+        self.eps.re()
+    }
+
+    #[inline]
+    fn from_tangent(re: f64, eps: f64) -> Self {
+        Dual::new(T::from(re), T::from(eps))
+    }
+}
 
 /// Static-size vector duals (feature `vector-duals`): every first and
 /// mixed second derivative along `M × N` directions in one evaluation.

@@ -9,8 +9,9 @@
 //! equilibrates them as the dense path does ([`crate::linalg::equilibrate`]:
 //! `dᵢ = 1/√|Mᵢᵢ|` on the primal block, each constraint row by its largest
 //! scaled entry), refactors numerically in a reused workspace and solves in
-//! place. Only the ideal constraint rows (B and C) are written here; the
-//! realisations' rows stay dense.
+//! place. Over `Dual64` (a Jacobian column) the same factors also give the
+//! derivative part of the solution. Only the ideal constraint rows (B and
+//! C) are written here; the realisations' rows stay dense.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
@@ -22,9 +23,10 @@ use crate::linalg::Singular;
 use crate::scene::Scalar;
 
 /// Size of the KKT system `n + s + k` from which [`crate::kkt::Kkt`] solves
-/// sparse when the program compiled (measured: `scale-report` of
-/// `nonholo-bench`, docs/performance.md).
-pub const SPARSE_FROM: usize = 48;
+/// sparse when the program compiled. Measured on `sleigh-train`
+/// (`scale-report` of `nonholo-bench`, docs/performance.md): the dense LU
+/// is faster at 16 rows, the sparse one from 22 on.
+pub const SPARSE_FROM: usize = 24;
 
 /// Where a stored entry's value comes from.
 #[derive(Debug, Clone, Copy)]
@@ -54,6 +56,8 @@ pub struct SparseKkt {
     scale: Vec<f64>,
     /// The right-hand side, then the solution, in `f64`.
     rhs: Vec<f64>,
+    /// Their derivative parts (first-order dual numbers).
+    tangent: Vec<f64>,
 }
 
 impl std::fmt::Debug for SparseKkt {
@@ -80,6 +84,7 @@ impl Clone for SparseKkt {
             diagonal: self.diagonal.clone(),
             scale: self.scale.clone(),
             rhs: self.rhs.clone(),
+            tangent: self.tangent.clone(),
         }
     }
 }
@@ -147,6 +152,7 @@ impl SparseKkt {
             diagonal,
             scale: vec![1.0; dim],
             rhs: Vec::with_capacity(dim),
+            tangent: Vec::with_capacity(dim),
         })
     }
 
@@ -163,24 +169,29 @@ impl SparseKkt {
     }
 
     /// Solves the system with the matrix of `pieces` and right-hand side
-    /// `sol`, in place. Real only: `T` is `f64` ([`Scalar::REAL`]; the
-    /// values pass through `re()`, exactly).
+    /// `sol`, in place, for `T` real ([`Scalar::REAL`]: the values pass
+    /// through `re()`, exactly) or a first-order dual number
+    /// ([`Scalar::FIRST_ORDER`], a Jacobian column): with `K = K₀ + εK₁`,
+    /// `b = b₀ + εb₁`, the solution is `x₀ = K₀⁻¹b₀` and
+    /// `x₁ = K₀⁻¹(b₁ − K₁x₀)` — forward differentiation of the solve, as the
+    /// dense LU does it by running on dual numbers, with one factorisation.
     pub fn solve<T: Scalar>(
         &mut self,
         pieces: &Pieces<'_, T>,
         sol: &mut [T],
     ) -> Result<(), Singular> {
-        debug_assert!(T::REAL, "the sparse KKT path is real");
+        debug_assert!(T::REAL || T::FIRST_ORDER, "the sparse KKT path");
         let (n, dim) = (self.n, self.dim);
         self.rhs.clear();
         self.rhs.extend(sol.iter().map(|x| x.re()));
         let rhs = &mut self.rhs[..];
+        let value = |src: Source| match src {
+            Source::Mass(i) => pieces.mass_upper[i as usize],
+            Source::G(i) => pieces.g_jac[i as usize],
+            Source::F(i) => pieces.f_jac[i as usize],
+        };
         for (v, &(_, _, src)) in self.values.iter_mut().zip(&self.entries) {
-            *v = match src {
-                Source::Mass(i) => pieces.mass_upper[i as usize].re(),
-                Source::G(i) => pieces.g_jac[i as usize].re(),
-                Source::F(i) => pieces.f_jac[i as usize].re(),
-            };
+            *v = value(src).re();
         }
         // Equilibration, as `linalg::equilibrate`.
         let d = &mut self.scale;
@@ -227,18 +238,43 @@ impl SparseKkt {
             Par::Seq,
             stack,
         );
+        if T::FIRST_ORDER {
+            // y₁ = A₀⁻¹(D b₁ − A₁ y₀), A = D K D, with the same factors.
+            let t = &mut self.tangent;
+            t.clear();
+            t.extend(sol.iter().zip(&self.scale).map(|(x, s)| x.tangent() * s));
+            for &(r, c, src) in &self.entries {
+                let (r, c) = (r as usize, c as usize);
+                t[r] -= value(src).tangent() * self.scale[r] * self.scale[c] * rhs[c];
+            }
+            let stack = MemStack::new(&mut self.buffer);
+            lu.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(t, dim, 1),
+                Par::Seq,
+                stack,
+            );
+            for (x, s) in t.iter_mut().zip(self.scale.iter()) {
+                *x *= *s;
+            }
+        }
         for (x, s) in rhs.iter_mut().zip(self.scale.iter()) {
             *x *= *s;
         }
-        if let Some(column) = rhs.iter().position(|x| !x.is_finite()) {
+        let bad = |v: &[f64]| v.iter().position(|x| !x.is_finite());
+        if let Some(column) = bad(rhs).or_else(|| bad(&self.tangent).filter(|_| T::FIRST_ORDER)) {
             return Err(Singular {
                 column,
                 pivot: f64::NAN,
                 scale,
             });
         }
-        for (x, &v) in sol.iter_mut().zip(rhs.iter()) {
-            *x = T::from(v);
+        for (i, x) in sol.iter_mut().enumerate() {
+            *x = if T::FIRST_ORDER {
+                T::from_tangent(rhs[i], self.tangent[i])
+            } else {
+                T::from(rhs[i])
+            };
         }
         Ok(())
     }

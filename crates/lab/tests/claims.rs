@@ -1557,3 +1557,110 @@ fn jacobian_reuse_as_peers_md_states() {
         assert!(flat.contains(&s), "docs/peers.md does not say `{s}`");
     }
 }
+
+/// docs/performance.md §9: the table of `sleigh-train`'s costs is
+/// `results/scale/scale.csv` row by row, the fitted exponents are
+/// `fits.csv`'s, the right-hand side's is at most 1.2, and the sentences
+/// about the threshold, the Jacobian and the runs hold.
+#[test]
+fn scale_as_performance_md_states() {
+    let flat = performance_md();
+    let rows = table("scale", "scale.csv");
+    let fits = table("scale", "fits.csv");
+    let fit = |q: &str| {
+        num(
+            fits.iter().find(|r| r["quantity"] == q).unwrap(),
+            "exponent",
+        )
+    };
+    let f = |r: &HashMap<String, String>, k: &str, d: usize| {
+        if r[k].is_empty() {
+            "—".to_string()
+        } else {
+            format!("{:.*}", d, num(r, k))
+        }
+    };
+    for r in &rows {
+        let line = format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r["N"],
+            r["kkt_size"],
+            r["kkt_nonzeros"],
+            r["instructions"],
+            f(r, "compile_s", 3),
+            f(r, "rhs_us", 2),
+            f(r, "kkt_dense_us", 1),
+            f(r, "jacobian_ms", 3),
+            f(r, "radau_ms_per_step", 3),
+        );
+        assert!(flat.contains(&line), "performance.md lacks `{line}`");
+    }
+    let said = format!(
+        "{:.2} for the right-hand side ({:.2} for the sparse KKT solve alone, {:.2} for the dense \
+         one), {:.2} for the Jacobian, {:.2} for a Radau IIA step and {:.2} for compiling",
+        fit("rhs"),
+        fit("kkt_sparse"),
+        fit("kkt_dense"),
+        fit("jacobian"),
+        fit("radau_step"),
+        fit("compile"),
+    );
+    assert!(flat.contains(&said), "performance.md lacks `{said}`");
+    assert!(fit("rhs") <= 1.2 && fit("kkt_sparse") <= 1.2);
+    assert!(fit("jacobian") > 1.2 && fit("radau_step") > 1.2);
+    let at = |n: &str| rows.iter().find(|r| r["N"] == n).unwrap();
+    // Dense faster to 16 rows, sparse from 28, within 15 % at 22.
+    for r in &rows {
+        let (rows_kkt, sp, de) = (
+            num(r, "kkt_size"),
+            r["kkt_sparse_us"].clone(),
+            r["kkt_dense_us"].clone(),
+        );
+        let (Ok(sp), Ok(de)) = (sp.parse::<f64>(), de.parse::<f64>()) else {
+            continue;
+        };
+        if rows_kkt <= 16.0 {
+            assert!(de < sp, "{rows_kkt} rows: dense {de} sparse {sp}");
+        } else if rows_kkt >= 28.0 {
+            assert!(sp < de, "{rows_kkt} rows: dense {de} sparse {sp}");
+        } else {
+            assert!(
+                (sp / de - 1.0).abs() < 0.15,
+                "{rows_kkt} rows: dense {de} sparse {sp}"
+            );
+        }
+    }
+    let r1000 = at("1000");
+    assert!(flat.contains(&format!(
+        "cost {:.0} µs per right-hand side",
+        num(r1000, "rhs_us")
+    )));
+    assert!(flat.contains(&format!("compiling takes {:.2} s", num(r1000, "compile_s"))));
+    assert!(flat.contains(&format!(
+        "1.17 s at `N = 1000`, {:.2} s of which",
+        num(r1000, "run_other_s")
+    )));
+    assert!((num(r1000, "run_s") - 1.17).abs() < 0.005);
+    assert!(flat.contains(&format!(
+        "the dense solve already costs {:.0} ms at `N = 100`",
+        num(at("100"), "kkt_dense_us") / 1e3
+    )));
+    assert!(flat.contains(&format!("{:.0} ms now", num(at("30"), "jacobian_ms"))));
+    let per_step: Vec<f64> = ["10", "30", "100"]
+        .iter()
+        .map(|n| num(at(n), "radau_jacobians") / num(at(n), "radau_steps"))
+        .collect();
+    let (lo, hi) = per_step
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!(flat.contains(&format!("({lo:.2}–{hi:.2} Jacobians per step")));
+    let steps: Vec<f64> = rows
+        .iter()
+        .filter(|r| num(r, "N") >= 5.0)
+        .map(|r| num(r, "run_steps"))
+        .collect();
+    let (lo, hi) = steps
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!(flat.contains(&format!("takes {lo}–{hi} steps at every `N ≥ 5`")));
+}

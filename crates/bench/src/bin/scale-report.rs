@@ -11,19 +11,25 @@
 //!   its instructions and the structural nonzeros of the KKT matrix;
 //! * one right-hand side of B as the integrators call it (the sparse KKT
 //!   solve of [`nonholo_core::sparse`] above its threshold);
-//! * the KKT solve alone, sparse and dense (dense up to `N = 100`);
-//! * one Jacobian of the right-hand side (`2·3N` dual passes of the dense
-//!   KKT solve; up to `N = 30`);
+//! * the KKT solve alone, sparse and dense, at every size (dense up to
+//!   `N = 100`): where they cross is where `SPARSE_FROM` belongs;
+//! * one Jacobian of the right-hand side (`2·3N` `Dual64` passes, each one
+//!   program evaluation and one sparse solve with its derivative part; up
+//!   to `N = 300`: the Jacobian of the chain is dense, `(6N)²` entries);
 //! * one DOP853 run of B over `[0, 2] s` at `rtol = atol = 1e-8` (the
 //!   model built, its program compiled, beforehand): steps, right-hand
 //!   sides, wall time, and the part of it that is not right-hand sides
 //!   (the check of the initial data, the monitors of every step, the
-//!   integrator's own arithmetic).
+//!   integrator's own arithmetic);
+//! * one Radau IIA run of B, same span and tolerances, up to `N = 100`:
+//!   steps, Jacobians, LU factorisations, wall time per step (its Newton
+//!   matrices are dense: the Jacobian of the chain's right-hand side is).
 //!
 //! The sizes are interleaved, `R` rounds (default 3), medians reported.
 //! The exponent is the least-squares slope of log cost against log `N` over
-//! `N ≥ 10`. `scale.csv` in DIR (default `results/scale`) keeps the numbers
-//! docs/performance.md quotes.
+//! `N ≥ 10`. `scale.csv` and `fits.csv` in DIR (default `results/scale`)
+//! keep the numbers docs/performance.md quotes; `scale.png` and `scale.svg`
+//! plot them.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -38,13 +44,16 @@ use nonholo_core::scene::Lagrangian;
 use nonholo_core::sparse::SparseKkt;
 use nonholo_core::stab::Stabilisation;
 use nonholo_core::{Params, RunConfig, Scene, simulate};
+use nonholo_lab::plot::{LinePlot, Series, line_plot};
 use nonholo_scenes::Train;
 
-const SIZES: [usize; 7] = [1, 3, 10, 30, 100, 300, 1000];
+const SIZES: [usize; 11] = [1, 2, 3, 4, 5, 7, 10, 30, 100, 300, 1000];
 /// Largest `N` whose KKT system is also solved dense.
 const DENSE_UP_TO: usize = 100;
-/// Largest `N` whose Jacobian is timed.
-const JACOBIAN_UP_TO: usize = 30;
+/// Largest `N` whose Jacobian is timed (it is dense: `(6N)²` entries).
+const JACOBIAN_UP_TO: usize = 300;
+/// Largest `N` run with Radau IIA (dense `6N × 6N` Newton matrices).
+const RADAU_UP_TO: usize = 100;
 
 /// Seconds per call of `f`, over calls adding up to about `ms`.
 fn per_call(mut f: impl FnMut(), ms: f64) -> f64 {
@@ -100,6 +109,8 @@ struct Size {
     dense_s: Vec<f64>,
     jacobian_s: Vec<f64>,
     run: Option<(usize, usize, f64)>,
+    /// Radau IIA: steps, Jacobians, LU factorisations, wall time.
+    radau: Option<(usize, usize, usize, f64)>,
 }
 
 impl Size {
@@ -139,6 +150,7 @@ impl Size {
             dense_s: Vec::new(),
             jacobian_s: Vec::new(),
             run: None,
+            radau: None,
         })
     }
 
@@ -166,15 +178,15 @@ impl Size {
             kkt.solve(&Lagrangian(train), &[], train, &rows, 0.0, q, qd)
                 .map_err(|e| format!("N = {}: {e}", self.n_sleighs))
         };
+        kkt.force_sparse()
+            .map_err(|e| format!("N = {}: {e}", self.n_sleighs))?;
         solve(&mut kkt)?;
-        let sparse = kkt.is_sparse();
-        let t = per_call(
+        self.sparse_s.push(per_call(
             || {
                 let _ = std::hint::black_box(solve(&mut kkt));
             },
             ms,
-        );
-        self.sparse_s.push(if sparse { t } else { f64::NAN });
+        ));
         if self.n_sleighs <= DENSE_UP_TO {
             kkt.force_dense();
             solve(&mut kkt)?;
@@ -196,43 +208,64 @@ impl Size {
             ));
         }
         if self.run.is_none() {
-            let model = Chetaev::new(
-                self.train.clone(),
-                Params::defaults(nonholo_chetaev::OPTIONS),
-            )
-            .map_err(|e| e.to_string())?;
-            let n = self.train.info().n();
-            let initial = nonholo_core::Initial {
-                t0: 0.0,
-                q: self.y[..n].to_vec(),
-                qd: self.y[n..].to_vec(),
-                extra: Vec::new(),
-            };
-            let start = Instant::now();
-            let r = simulate(
-                Box::new(model),
-                initial,
-                RunConfig {
-                    method: Method::Dop853,
-                    options: Options {
-                        rtol: 1e-8,
-                        atol: 1e-8,
-                        output: vec![0.0, 2.0],
-                        ..Options::default()
-                    },
-                    t_end: 2.0,
-                    project_init: false,
-                },
-            );
-            let wall = start.elapsed().as_secs_f64();
-            let r = r.map_err(|e| format!("N = {}: the run failed: {e}", self.n_sleighs))?;
-            if let Some(f) = &r.failure {
-                return Err(format!("N = {}: the run failed: {f}", self.n_sleighs));
+            let (steps, rhs, _, _, wall) = self.simulate(Method::Dop853)?;
+            self.run = Some((steps, rhs, wall));
+            if self.n_sleighs <= RADAU_UP_TO {
+                let (steps, _, jac, lu, wall) = self.simulate(Method::Radau5)?;
+                self.radau = Some((steps, jac, lu, wall));
             }
-            let st = &r.solution.stats;
-            self.run = Some((st.steps, st.rhs_evals, wall));
         }
         Ok(())
+    }
+}
+
+impl Size {
+    /// One run of B over `[0, 2] s` at `rtol = atol = 1e-8`, the model
+    /// built (its program compiled) before the clock starts: steps,
+    /// right-hand sides, Jacobians, LU factorisations, wall time.
+    fn simulate(&self, method: Method) -> Result<(usize, usize, usize, usize, f64), String> {
+        let model = Chetaev::new(
+            self.train.clone(),
+            Params::defaults(nonholo_chetaev::OPTIONS),
+        )
+        .map_err(|e| e.to_string())?;
+        let n = self.train.info().n();
+        let initial = nonholo_core::Initial {
+            t0: 0.0,
+            q: self.y[..n].to_vec(),
+            qd: self.y[n..].to_vec(),
+            extra: Vec::new(),
+        };
+        let start = Instant::now();
+        let r = simulate(
+            Box::new(model),
+            initial,
+            RunConfig {
+                method,
+                options: Options {
+                    rtol: 1e-8,
+                    atol: 1e-8,
+                    output: vec![0.0, 2.0],
+                    ..Options::default()
+                },
+                t_end: 2.0,
+                project_init: false,
+            },
+        );
+        let wall = start.elapsed().as_secs_f64();
+        let fail = |e: String| format!("N = {}, {method:?}: the run failed: {e}", self.n_sleighs);
+        let r = r.map_err(|e| fail(e.to_string()))?;
+        if let Some(f) = &r.failure {
+            return Err(fail(f.to_string()));
+        }
+        let st = &r.solution.stats;
+        Ok((
+            st.steps,
+            st.rhs_evals,
+            st.jacobian_evals,
+            st.lu_decompositions,
+            wall,
+        ))
     }
 }
 
@@ -285,12 +318,17 @@ fn run() -> Result<(), String> {
         "run_rhs",
         "run_s",
         "run_other_s",
+        "radau_steps",
+        "radau_jacobians",
+        "radau_lu",
+        "radau_s",
+        "radau_ms_per_step",
     ])
     .map_err(|e| e.to_string())?;
     println!(
-        "| N | n | KKT size | nonzeros | instructions | compile (s) | RHS (µs) | KKT sparse (µs) | KKT dense (µs) | Jacobian (ms) | run: steps, RHS, s | run, not RHS (s) |"
+        "| N | n | KKT size | nonzeros | instructions | compile (s) | RHS (µs) | KKT sparse (µs) | KKT dense (µs) | Jacobian (ms) | DOP853: steps, RHS, s | DOP853, not RHS (s) | Radau: steps, Jacobians, LU | Radau (ms/step) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let cols: Vec<[f64; 5]> = sizes
         .iter()
         .map(|s| {
@@ -307,6 +345,8 @@ fn run() -> Result<(), String> {
         let info = s.train.info();
         let (steps, rhs, wall) = s.run.unwrap_or((0, 0, f64::NAN));
         let other = wall - rhs as f64 * c[1] * 1e-6;
+        let (rs, rj, rl, rw) = s.radau.unwrap_or((0, 0, 0, f64::NAN));
+        let per_step = rw / rs.max(1) as f64 * 1e3;
         let fmt = |v: f64| {
             if v.is_finite() {
                 format!("{v:.4}")
@@ -329,10 +369,15 @@ fn run() -> Result<(), String> {
             rhs.to_string(),
             fmt(wall),
             fmt(other),
+            rs.to_string(),
+            rj.to_string(),
+            rl.to_string(),
+            fmt(rw),
+            fmt(per_step),
         ])
         .map_err(|e| e.to_string())?;
         println!(
-            "| {} | {} | {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {steps}, {rhs}, {wall:.3} | {other:.3} |",
+            "| {} | {} | {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {steps}, {rhs}, {wall:.3} | {other:.3} | {rs}, {rj}, {rl} | {} |",
             s.n_sleighs,
             info.n(),
             info.n() + info.s() + info.k(),
@@ -343,21 +388,96 @@ fn run() -> Result<(), String> {
             fmt(c[2]),
             fmt(c[3]),
             fmt(c[4]),
+            fmt(per_step),
         );
     }
     w.flush().map_err(|e| e.to_string())?;
     let ns: Vec<usize> = sizes.iter().map(|s| s.n_sleighs).collect();
-    let col = |i: usize| cols.iter().map(|c| c[i]).collect::<Vec<f64>>();
+    let col = |i: usize| -> Vec<f64> {
+        if i == 5 {
+            // Radau's wall time per step.
+            return sizes
+                .iter()
+                .map(|s| {
+                    s.radau
+                        .map_or(f64::NAN, |(st, _, _, w)| w / st.max(1) as f64)
+                })
+                .collect();
+        }
+        cols.iter().map(|c| c[i]).collect()
+    };
+    let fits = [
+        ("compile", slope(&ns, &col(0))),
+        ("rhs", slope(&ns, &col(1))),
+        ("kkt_sparse", slope(&ns, &col(2))),
+        ("kkt_dense", slope(&ns, &col(3))),
+        ("jacobian", slope(&ns, &col(4))),
+        ("radau_step", slope(&ns, &col(5))),
+    ];
     println!();
     println!(
-        "exponents over N ≥ 10: compile {:.2}, RHS {:.2}, KKT sparse {:.2}, KKT dense {:.2}, Jacobian {:.2}",
-        slope(&ns, &col(0)),
-        slope(&ns, &col(1)),
-        slope(&ns, &col(2)),
-        slope(&ns, &col(3)),
-        slope(&ns, &col(4)),
+        "exponents over N ≥ 10: {}",
+        fits.iter()
+            .map(|(k, v)| format!("{k} {v:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
+    let fits_path = out.join("fits.csv");
+    let mut w =
+        csv::Writer::from_path(&fits_path).map_err(|e| format!("{}: {e}", fits_path.display()))?;
+    w.write_record(["quantity", "exponent"])
+        .map_err(|e| e.to_string())?;
+    for (k, v) in fits {
+        w.write_record([k.to_string(), format!("{v:.4}")])
+            .map_err(|e| e.to_string())?;
+    }
+    w.flush().map_err(|e| e.to_string())?;
+    let xs: Vec<f64> = ns.iter().map(|&n| n as f64).collect();
+    // Only the sizes measured (the dense solve stops at N = 100, the
+    // Jacobian at 300); the slope is fitted over N ≥ 10.
+    let series = |label: &str, i: usize, factor: f64| {
+        let (x, y): (Vec<f64>, Vec<f64>) = xs
+            .iter()
+            .zip(col(i))
+            .filter(|(_, v)| v.is_finite())
+            .map(|(x, v)| (*x, v * factor))
+            .unzip();
+        let fit: Vec<usize> = x.iter().map(|v| *v as usize).collect();
+        Series {
+            label: format!("{label}: slope {:.2} over N ≥ 10", slope(&fit, &y)),
+            x,
+            y,
+            pen: None,
+        }
+    };
+    let plot = LinePlot {
+        title: "Cost against size: B on N hitched sleighs (sleigh-train)".into(),
+        x_label: "N, sleighs [-]".into(),
+        y_label: "wall time per call [s]".into(),
+        log_x: true,
+        log_y: true,
+        series: vec![
+            series(
+                "B right-hand side (dense KKT below 24 rows, sparse from 24)",
+                1,
+                1e-6,
+            ),
+            series("KKT solve, dense LU at every size", 3, 1e-6),
+            series(
+                "Jacobian of the right-hand side (dense, 6N columns)",
+                4,
+                1e-3,
+            ),
+            series("one Radau IIA step (dense Newton matrices)", 5, 1.0),
+            series("compiling L, g, f (once per scene)", 0, 1.0),
+        ],
+        ..LinePlot::default()
+    };
+    let written = line_plot(&plot, &out.join("scale"))?;
     eprintln!("scale-report: wrote {}", path.display());
+    for w in written {
+        eprintln!("scale-report: wrote {}", w.display());
+    }
     Ok(())
 }
 

@@ -491,8 +491,8 @@ pub fn record(
     start: &str,
     ends_from: Option<&str>,
 ) -> Result<RunRecord, String> {
-    let info = nonholo_scenes::info(&job.scene).map_err(|e| e.to_string())?;
     let scene = nonholo_scenes::build(&job.scene, &job.params).map_err(|e| e.to_string())?;
+    let info = scene.info();
     let sol = &solved.solution;
     let n = sol.n;
     let rows =
@@ -941,14 +941,15 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
             ));
         }
     };
-    let info = flag(
+    flag(
         "--scene",
         nonholo_scenes::info(&scene_name).map_err(|e| e.to_string()),
     )?;
     let mut params = data.as_ref().map(|d| d.params.clone()).unwrap_or_default();
     params = crate::experiment::spec::override_with(&params, &pairs("--param", &args.params)?);
-    // The parameters resolve (ranges, names) before anything else is asked.
-    nonholo_scenes::build(&scene_name, &params)?;
+    // The parameters resolve (ranges, names) before anything else is asked;
+    // the built scene's description has its own size (`sleigh-train`).
+    let info = nonholo_scenes::build(&scene_name, &params)?.info();
     let formulation = flag(
         "--formulation",
         formulation(

@@ -1664,3 +1664,53 @@ fn scale_as_performance_md_states() {
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
     assert!(flat.contains(&format!("takes {lo}–{hi} steps at every `N ≥ 5`")));
 }
+
+/// figures.md, wp-train (its claim): B's largest errors at rtol 1e-11 with
+/// DOPRI5, DOP853 and Radau IIA; C 33–35 000 times B's error at the same
+/// tolerance and integrator; C's right-hand sides 2.5–3.3 times B's with
+/// DOP853. Errors and counts are deterministic, not timings.
+#[test]
+fn wp_train_as_figures_md_states() {
+    figures_md_says(&[
+        "to 1.6e-11, 1.2e-10 and 4.6e-9 m at rtol 1e-11",
+        "33–35 000 times less accurate than B",
+        "2.5–3.3 times B's right-hand sides with DOP853",
+    ]);
+    let rows = table("wp-train", "work_precision.csv");
+    let at = |label: &str, tol: f64| {
+        rows.iter()
+            .find(|r| r["label"] == label && (num(r, "tolerance") / tol - 1.0).abs() < 1e-9)
+            .unwrap_or_else(|| panic!("no {label} at {tol}"))
+    };
+    for (label, e) in [
+        ("B-dopri5", 1.6e-11),
+        ("B-dop853", 1.2e-10),
+        ("B-radau5", 4.6e-9),
+    ] {
+        let got = num(at(label, 1e-11), "err_max");
+        assert!((got / e - 1.0).abs() < 0.05, "{label}: {got:e}");
+    }
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for integrator in ["dopri5", "dop853", "radau5"] {
+        for k in 5..=11 {
+            let tol = 10f64.powi(-k);
+            let r = num(at(&format!("C-{integrator}"), tol), "err_max")
+                / num(at(&format!("B-{integrator}"), tol), "err_max");
+            (lo, hi) = (lo.min(r), hi.max(r));
+        }
+    }
+    assert!(
+        (33.0..34.0).contains(&lo) && (34_500.0..35_500.0).contains(&hi),
+        "{lo} {hi}"
+    );
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for k in 5..=11 {
+        let tol = 10f64.powi(-k);
+        let r = num(at("C-dop853", tol), "rhs_evals") / num(at("B-dop853", tol), "rhs_evals");
+        (lo, hi) = (lo.min(r), hi.max(r));
+    }
+    assert!(
+        (2.45..2.55).contains(&lo) && (3.25..3.35).contains(&hi),
+        "{lo} {hi}"
+    );
+}

@@ -794,3 +794,53 @@ fn killed_and_interrupted_sweeps_resume_to_the_same_bytes() {
         "only {killed} of 5 SIGKILL trials hit a running sweep"
     );
 }
+
+/// `sleigh-train`'s `N` sets its coordinates: an experiment may fix it in
+/// `[params]` (and then runs, its tables named by that train's
+/// coordinates), but sweeping it or setting it per formulation is refused
+/// at once, naming the field.
+#[test]
+fn the_size_of_a_scene_is_fixed_per_experiment() {
+    let root = scratch("rel-train");
+    let head = r#"[experiment]
+name = "tr"
+title = "t"
+claim = "c"
+scene = "sleigh-train"
+
+[params]
+N = 4
+
+[time]
+t_end = 0.2
+output_every = 0.05
+
+[[formulation]]
+label = "B"
+formulation = "chetaev"
+"#;
+    for (tag, tail, needle) in [
+        (
+            "sweep",
+            "\n[sweep]\nmode = \"grid\"\nvalues = { \"param.N\" = [2, 3] }\n",
+            "`sweep.values.param.N`: `N` sets the size of scene `sleigh-train`",
+        ),
+        (
+            "line",
+            "params = { N = 5 }\n",
+            "`formulation.params.N`: `N` sets the size of scene `sleigh-train`",
+        ),
+    ] {
+        let file = experiment(&root, tag, &format!("{head}{tail}"));
+        let o = nonholo_in(&root, &["experiment", &file]);
+        assert_no_panic(&o);
+        assert_eq!(code(&o), Some(2), "{tag}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{tag}: {}", stderr(&o));
+    }
+    let file = experiment(&root, "fixed", head);
+    let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);
+    assert_no_panic(&o);
+    assert_eq!(code(&o), Some(0), "{}", stderr(&o));
+    let runs = std::fs::read_to_string(root.join("results/tr/runs.csv")).unwrap();
+    assert!(runs.contains("completed"), "{runs}");
+}

@@ -345,7 +345,7 @@ fn compute_point(exp: &Experiment, spec: &BvpSpec, point: &Point) -> Result<Poin
     let h_min = spec.h[spec.h.len() - 1];
     let grid = output_grid(t_max, h_min)?;
     let params = sweep::apply_point(exp, point)?.params;
-    let n = nonholo_scenes::info(&exp.scene)
+    let n = nonholo_scenes::describe(&exp.scene, &params)
         .map_err(|e| e.to_string())?
         .n();
     let ivps = run_ivps(exp, point, &grid, t_max)?;
@@ -939,7 +939,7 @@ fn coordinate_unit(scene: &str) -> String {
 /// The two coordinates the paths figure draws: `[plots] phase`, or the
 /// first two.
 fn path_axes(exp: &Experiment) -> Option<[usize; 2]> {
-    let info = nonholo_scenes::info(&exp.scene).ok()?;
+    let info = exp.scene_info().ok()?;
     match &exp.phase {
         Some([a, b]) => Some([info.coordinate_index(a)?, info.coordinate_index(b)?]),
         None if info.n() >= 2 => Some([0, 1]),
@@ -1189,7 +1189,7 @@ fn draw(
             )?);
         }
         if let Some([a, b]) = path_axes(exp) {
-            let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+            let info = exp.scene_info()?;
             let series = p
                 .paths
                 .iter()
@@ -1203,8 +1203,8 @@ fn draw(
             written.extend(line_plot(
                 &LinePlot {
                     title: format!("The motions on [0, {} s]{where_}", crate::fields::num(t1)),
-                    x_label: super::plots::quantity_label_in(&exp.scene, info.coordinates[a].name),
-                    y_label: super::plots::quantity_label_in(&exp.scene, info.coordinates[b].name),
+                    x_label: super::plots::quantity_label_in(Some(info), info.coordinates[a].name),
+                    y_label: super::plots::quantity_label_in(Some(info), info.coordinates[b].name),
                     equal_aspect: info.coordinates[a].unit == info.coordinates[b].unit,
                     series,
                     ..LinePlot::default()

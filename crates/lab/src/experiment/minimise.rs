@@ -141,7 +141,8 @@ fn at_point(exp: &Experiment, m: &MinimiseSpec, point: &Point, dir: &Path) -> Mi
         undefined: 0,
         error: None,
     };
-    let angles: Vec<bool> = nonholo_scenes::info(&exp.scene)
+    let angles: Vec<bool> = exp
+        .scene_info()
         .map(|i| {
             i.coordinates
                 .iter()

@@ -150,13 +150,13 @@ pub fn caption(exp: &Experiment, stem: &str) -> String {
 
 /// `name [unit]` of a velocity-chart value, coordinate or velocity.
 fn quantity_label(exp: &Experiment, name: &str) -> String {
-    quantity_label_in(&exp.scene, name)
+    quantity_label_in(exp.scene_info().ok(), name)
 }
 
 /// `name [unit]` for a coordinate, `<coord>_dot` or velocity-chart value of
 /// `scene` (`[–]` where it has no unit).
-pub(crate) fn quantity_label_in(scene: &str, name: &str) -> String {
-    let Ok(info) = nonholo_scenes::info(scene) else {
+pub(crate) fn quantity_label_in(info: Option<&nonholo_core::SceneInfo>, name: &str) -> String {
+    let Some(info) = info else {
         return format!("{name} [–]");
     };
     let unit = info
@@ -177,7 +177,7 @@ pub(crate) fn quantity_label_in(scene: &str, name: &str) -> String {
 }
 
 fn coordinate_label(exp: &Experiment, k: usize) -> String {
-    nonholo_scenes::info(&exp.scene)
+    exp.scene_info()
         .ok()
         .and_then(|i| {
             i.coordinates
@@ -193,7 +193,7 @@ fn coordinate_label(exp: &Experiment, k: usize) -> String {
 /// unit that follows from the unit of the constraints (multipliers `J`
 /// over it, the realisations' gains `k`, `N` by their definition).
 pub(super) fn axis_label(exp: &Experiment, name: &str) -> String {
-    let info = nonholo_scenes::info(&exp.scene).ok();
+    let info = exp.scene_info().ok();
     let (owner, rest) = match name.split_once('.') {
         Some((l, r)) if exp.formulations.iter().any(|f| f.label == l) => (Some(l), r),
         _ => (None, name),
@@ -274,7 +274,7 @@ pub fn trajectories(
                 ));
             }
             let t = Trajectory::read(&p)?;
-            let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+            let info = exp.scene_info().map_err(|e| e.to_string())?;
             let needed = ["t", "residual", "energy"]
                 .into_iter()
                 .chain(info.coordinates.iter().map(|c| c.name))
@@ -409,7 +409,7 @@ fn time_series(
 ) -> Result<Vec<PathBuf>, String> {
     let plots = dir.join("plots");
     let mut files = Vec::new();
-    let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+    let info = exp.scene_info().map_err(|e| e.to_string())?;
     let coords: Vec<String> = info
         .coordinates
         .iter()

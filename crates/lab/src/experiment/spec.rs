@@ -611,6 +611,15 @@ pub struct Experiment {
     pub repeats: usize,
 }
 
+impl Experiment {
+    /// The description of the experiment's scene with its `[params]`
+    /// (the coordinates of `sleigh-train` depend on its `N`; the
+    /// parameters that do cannot be swept, so every point shares it).
+    pub fn scene_info(&self) -> Result<&'static nonholo_core::SceneInfo, String> {
+        nonholo_scenes::describe(&self.scene, &self.params).map_err(|e| e.to_string())
+    }
+}
+
 /// An error in an experiment file, naming the file, line and key.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpecError(pub String);
@@ -709,6 +718,22 @@ pub(crate) fn override_with(
         .collect();
     out.extend(extra.iter().cloned());
     out
+}
+
+/// `t`, unless it varies a parameter that changes the scene's coordinates
+/// ([`nonholo_scenes::structural`]): every point of an experiment has the
+/// same coordinates.
+fn fixed_size(scene: &str, t: Target) -> Result<Target, String> {
+    let p = match &t {
+        Target::Param(p) | Target::FormParam(_, p) => p,
+        _ => return Ok(t),
+    };
+    if nonholo_scenes::structural(scene).contains(&p.as_str()) {
+        return Err(format!(
+            "`{p}` sets the size of scene `{scene}` (its coordinates): it cannot vary within one              experiment; set it in [params] and write one experiment per value"
+        ));
+    }
+    Ok(t)
 }
 
 fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
@@ -987,7 +1012,23 @@ impl Experiment {
                 },
                 options: entries(&ctx, "formulation.options", &f.options)?,
                 init: entries(&ctx, "formulation.init", &f.init)?,
-                params: entries(&ctx, "formulation.params", &f.params)?,
+                params: {
+                    let own = entries(&ctx, "formulation.params", &f.params)?;
+                    if let Some((k, v)) = f
+                        .params
+                        .iter()
+                        .find(|(k, _)| nonholo_scenes::structural(&scene).contains(&k.as_str()))
+                    {
+                        return Err(ctx.err(
+                            v.span(),
+                            &format!("formulation.params.{k}"),
+                            format!(
+                                "`{k}` sets the size of scene `{scene}` (its coordinates): every                                  formulation of an experiment shares it; set it in [params]"
+                            ),
+                        ));
+                    }
+                    own
+                },
                 work_precision: None,
             });
         }
@@ -1036,9 +1077,11 @@ impl Experiment {
                             ));
                         }
                         for (k, vals) in &sw.values {
-                            let target = parse_target(k, &labels).map_err(|m| {
-                                ctx.err(vals.span(), &format!("sweep.values.{k}"), m)
-                            })?;
+                            let target = parse_target(k, &labels)
+                                .and_then(|t| fixed_size(&scene, t))
+                                .map_err(|m| {
+                                    ctx.err(vals.span(), &format!("sweep.values.{k}"), m)
+                                })?;
                             if vals.get_ref().is_empty() {
                                 return Err(ctx.err(
                                     vals.span(),
@@ -1120,6 +1163,7 @@ impl Experiment {
                         };
                         for (k, r) in &sw.ranges {
                             let target = parse_target(k, &labels)
+                                .and_then(|t| fixed_size(&scene, t))
                                 .map_err(|m| ctx.err(r.span(), &format!("sweep.ranges.{k}"), m))?;
                             let v = r.get_ref();
                             let log = sw.log.contains(k);
@@ -1190,7 +1234,7 @@ impl Experiment {
 
         // Quantities a measure or a plot may name: the velocity-chart
         // values, coordinates and velocities of the scene.
-        let quantities: Vec<String> = nonholo_scenes::info(&scene)
+        let quantities: Vec<String> = nonholo_scenes::describe(&scene, &params)
             .map(|i| {
                 i.velocity_chart
                     .iter()
@@ -1406,7 +1450,8 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
             "must be `init.<name>` or `param.<name>`",
         ));
     };
-    let info = nonholo_scenes::info(file.experiment.scene.get_ref())
+    let params = entries(ctx, "params", &file.params)?;
+    let info = nonholo_scenes::describe(file.experiment.scene.get_ref(), &params)
         .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
     let known = match table {
         "param" => info
@@ -1962,8 +2007,9 @@ fn minimise(ctx: &Ctx, exp: &Experiment, m: &MinimiseFile) -> Result<MinimiseSpe
     }
     let labels: Vec<String> = exp.formulations.iter().map(|f| f.label.clone()).collect();
     let over = m.over.get_ref().clone();
-    let target =
-        parse_target(&over, &labels).map_err(|e| ctx.err(m.over.span(), "minimise.over", e))?;
+    let target = parse_target(&over, &labels)
+        .and_then(|t| fixed_size(&exp.scene, t))
+        .map_err(|e| ctx.err(m.over.span(), "minimise.over", e))?;
     if target == Target::Case || exp.axes.iter().any(|a| a.name == over) {
         return Err(ctx.err(
             m.over.span(),

@@ -601,7 +601,7 @@ fn swept_label(scene: &str, over: &str) -> String {
                 .unwrap_or("–");
             format!("{name} [{unit}]")
         }
-        Some((_, name)) => super::plots::quantity_label_in(scene, name),
+        Some((_, name)) => super::plots::quantity_label_in(nonholo_scenes::info(scene).ok(), name),
         None => format!("{over} [–]"),
     }
 }

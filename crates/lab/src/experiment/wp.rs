@@ -127,7 +127,7 @@ fn stored(dir: &Path, exp: &Experiment, point: &Point) -> Option<WpPoint> {
 
 /// Coordinates `(name, unit)` of the experiment's scene.
 fn coordinates(exp: &Experiment) -> Result<Vec<(String, String)>, String> {
-    let info = nonholo_scenes::info(&exp.scene).map_err(|e| e.to_string())?;
+    let info = exp.scene_info()?;
     Ok(info
         .coordinates
         .iter()

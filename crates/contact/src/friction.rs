@@ -97,7 +97,9 @@ pub const INFO: FormulationInfo = FormulationInfo {
     applicable,
 };
 
-/// `friction` applies to scenes that declare their contacts.
+/// `friction` applies to scenes that declare their contacts, with at most
+/// [`nonholo_core::scene::MAX_CONSTRAINTS`] nonholonomic rows (its
+/// per-row state is held in fixed arrays).
 fn applicable(scene: &SceneInfo) -> Result<(), String> {
     if scene.contacts.is_empty() {
         return Err(
@@ -105,6 +107,13 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
              no friction to realise them"
                 .into(),
         );
+    }
+    let most = nonholo_core::scene::MAX_CONSTRAINTS;
+    if scene.s() > most {
+        return Err(format!(
+            "the scene has {} nonholonomic constraints; friction supports at most {most}",
+            scene.s()
+        ));
     }
     Ok(())
 }

@@ -396,7 +396,10 @@ impl Graph {
     /// as one node. `vars` must be increasing; only those `root` depends on
     /// are visited (the others add zero), in the same order.
     pub fn directional(&mut self, root: u32, vars: &[u32], weights: &[u32]) -> u32 {
-        debug_assert!(vars.windows(2).all(|w| w[0] < w[1]), "vars increasing");
+        assert!(
+            vars.windows(2).all(|w| w[0] < w[1]),
+            "directional: vars must increase"
+        );
         let mut acc = self.constant(0.0);
         let deps = self.deps[root as usize].clone();
         for v in deps.iter() {

@@ -23,10 +23,11 @@ use crate::linalg::Singular;
 use crate::scene::Scalar;
 
 /// Size of the KKT system `n + s + k` from which [`crate::kkt::Kkt`] solves
-/// sparse when the program compiled. Measured on `sleigh-train`
-/// (`scale-report` of `nonholo-bench`, docs/performance.md): the dense LU
-/// is faster at 16 rows, the sparse one from 22 on.
-pub const SPARSE_FROM: usize = 24;
+/// sparse when the program compiled: between the sizes where the two solves
+/// were measured to cross on `sleigh-train` (`scale-report` of
+/// `nonholo-bench`, docs/performance.md §9), the dense LU faster at 16 rows,
+/// the sparse one at 22 and beyond.
+pub const SPARSE_FROM: usize = 20;
 
 /// Where a stored entry's value comes from.
 #[derive(Debug, Clone, Copy)]
@@ -220,6 +221,9 @@ impl SparseKkt {
             *x *= *s;
         }
         let scale = self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let b_max = rhs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // faer refuses only a structurally singular matrix; its column is
+        // not reported (0 here).
         let singular = |column: usize| Singular {
             column,
             pivot: 0.0,
@@ -258,6 +262,24 @@ impl SparseKkt {
                 *x *= *s;
             }
         }
+        // A numerically singular matrix gives faer's LU a tiny pivot and a
+        // large, finite solution where the dense LU refuses any pivot below
+        // `dim ε max|A|`. The same verdict here, from the solution: with
+        // `A y = b`, `cond(A) ≥ |y| |A| / |b|`; beyond `1/(dim ε)` no digit of
+        // `y` is right, and the system is reported singular at the largest
+        // entry of `y`.
+        let y_max = rhs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if b_max > 0.0 && y_max * scale > b_max / (dim as f64 * f64::EPSILON) {
+            let column = rhs
+                .iter()
+                .position(|v| v.abs() == y_max)
+                .unwrap_or_default();
+            return Err(Singular {
+                column,
+                pivot: b_max / y_max,
+                scale,
+            });
+        }
         for (x, s) in rhs.iter_mut().zip(self.scale.iter()) {
             *x *= *s;
         }
@@ -277,5 +299,65 @@ impl SparseKkt {
             };
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::{Lu, solve_saddle};
+
+    /// `M = I₂` and two constraint rows that are equal up to `δ` in one
+    /// entry: regular for `δ = 0.5`, singular to working precision for
+    /// `δ = 2 ulp`. The sparse solve agrees with the dense one on the first
+    /// and refuses the second, as the dense LU does.
+    #[test]
+    fn near_singular_systems_are_refused_as_the_dense_lu_refuses_them() {
+        let pattern = Pattern {
+            mass: vec![(0, 0), (1, 1)],
+            g_jac: vec![(0, 0), (0, 1), (1, 0), (1, 1)],
+            f_jac: vec![],
+        };
+        let mut sparse = SparseKkt::new(&pattern, 2, 2, 0).unwrap();
+        for (delta, regular) in [(0.5, true), (4.0 * f64::EPSILON, false)] {
+            let g_jac = [1.0, 1.0, 1.0, 1.0 + delta];
+            let pieces = Pieces {
+                pattern: &pattern,
+                mass_upper: &[1.0, 1.0],
+                force: &[0.3, -0.2],
+                g: &[0.0, 0.0],
+                g_jac: &g_jac,
+                g_rate0: &[0.0, 0.0],
+                f: &[],
+                f_jac: &[],
+                f_rate: &[],
+                f_accel0: &[],
+            };
+            let rhs = [0.3, -0.2, 0.1, 0.7];
+            let mut x = rhs;
+            let got = sparse.solve(&pieces, &mut x);
+            let mut a = nalgebra::DMatrix::from_row_slice(
+                4,
+                4,
+                &[
+                    1.0, 0.0, 1.0, 1.0, //
+                    0.0, 1.0, 1.0, g_jac[3], //
+                    1.0, 1.0, 0.0, 0.0, //
+                    1.0, g_jac[3], 0.0, 0.0,
+                ],
+            );
+            let mut y = rhs;
+            let dense = solve_saddle(&mut a, 2, &mut Lu::new(4), &mut [0.0; 4], &mut y);
+            assert_eq!(got.is_ok(), regular, "δ = {delta}: {got:?}");
+            assert_eq!(dense.is_ok(), regular, "δ = {delta}: {dense:?}");
+            if regular {
+                for (u, v) in x.iter().zip(&y) {
+                    assert!(
+                        (u - v).abs() < 1e-13 * v.abs().max(1.0),
+                        "{x:?} against {y:?}"
+                    );
+                }
+            }
+        }
     }
 }

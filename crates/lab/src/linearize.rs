@@ -2,7 +2,7 @@
 //! steady motion of a scene (crate `nonholo-stability`, docs/stability.md).
 
 use clap::Args;
-use nonholo_core::Initial;
+use nonholo_core::{Initial, SceneInfo};
 use nonholo_stability::{Linearisation, Options, linearize};
 use serde::Serialize;
 
@@ -47,11 +47,7 @@ pub struct LinearizeArgs {
 /// The resolved steady state for `steady` pairs: the pairs, plus every
 /// velocity (or velocity-chart value, if the scene has a chart and no
 /// `<coord>_dot` is given) not given, at zero.
-pub fn steady_pairs(
-    scene: &str,
-    given: &[(String, String)],
-) -> Result<Vec<(String, String)>, CliError> {
-    let info = nonholo_scenes::info(scene)?;
+pub fn steady_pairs(info: &SceneInfo, given: &[(String, String)]) -> Vec<(String, String)> {
     let has = |n: &str| given.iter().any(|(k, _)| k == n);
     let dots_given = given.iter().any(|(k, _)| k.ends_with("_dot"));
     let mut out = given.to_vec();
@@ -71,7 +67,7 @@ pub fn steady_pairs(
             }
         }
     }
-    Ok(out)
+    out
 }
 
 /// Builds the model and linearises it about the steady motion `steady`.
@@ -85,8 +81,9 @@ pub fn linearise_at(
 ) -> Result<Linearisation, CliError> {
     let built = nonholo_scenes::build(scene, params)?;
     let mut model = formulations::build_model(built.clone(), formulation, options)?;
+    let given = steady_pairs(built.info(), steady);
     let initial: Initial = built.visit(ResolveInit {
-        given: steady_pairs(scene, steady)?,
+        given,
         extra: model.extra_init_names(),
     })?;
     Ok(linearize(model.as_mut(), &initial, opts)?)

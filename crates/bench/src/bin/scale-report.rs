@@ -11,8 +11,9 @@
 //!   its instructions and the structural nonzeros of the KKT matrix;
 //! * one right-hand side of B as the integrators call it (the sparse KKT
 //!   solve of [`nonholo_core::sparse`] above its threshold);
-//! * the KKT solve alone, sparse and dense, at every size (dense up to
-//!   `N = 100`): where they cross is where `SPARSE_FROM` belongs;
+//! * the KKT solve (the program's evaluation included), sparse and dense,
+//!   at every size (dense up to `N = 100`): where they cross is where
+//!   `SPARSE_FROM` belongs;
 //! * one Jacobian of the right-hand side (`2·3N` `Dual64` passes, each one
 //!   program evaluation and one sparse solve with its derivative part; up
 //!   to `N = 300`: the Jacobian of the chain is dense, `(6N)²` entries);
@@ -25,7 +26,9 @@
 //!   steps, Jacobians, LU factorisations, wall time per step (its Newton
 //!   matrices are dense: the Jacobian of the chain's right-hand side is).
 //!
-//! The sizes are interleaved, `R` rounds (default 3), medians reported.
+//! The timings of one call are interleaved across the sizes, `R` rounds
+//! (default 3), medians reported; the compilation and the two runs are
+//! measured once per size.
 //! The exponent is the least-squares slope of log cost against log `N` over
 //! `N ≥ 10`. `scale.csv` and `fits.csv` in DIR (default `results/scale`)
 //! keep the numbers docs/performance.md quotes; `scale.png` and `scale.svg`
@@ -458,7 +461,7 @@ fn run() -> Result<(), String> {
         log_y: true,
         series: vec![
             series(
-                "B right-hand side (dense KKT below 24 rows, sparse from 24)",
+                "B right-hand side (dense KKT below 20 rows, sparse from 20)",
                 1,
                 1e-6,
             ),

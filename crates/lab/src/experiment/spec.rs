@@ -730,7 +730,8 @@ fn fixed_size(scene: &str, t: Target) -> Result<Target, String> {
     };
     if nonholo_scenes::structural(scene).contains(&p.as_str()) {
         return Err(format!(
-            "`{p}` sets the size of scene `{scene}` (its coordinates): it cannot vary within one              experiment; set it in [params] and write one experiment per value"
+            "`{p}` sets the size of scene `{scene}` (its coordinates): it cannot vary within one \
+             experiment; set it in [params] and write one experiment per value"
         ));
     }
     Ok(t)
@@ -1023,7 +1024,8 @@ impl Experiment {
                             v.span(),
                             &format!("formulation.params.{k}"),
                             format!(
-                                "`{k}` sets the size of scene `{scene}` (its coordinates): every                                  formulation of an experiment shares it; set it in [params]"
+                                "`{k}` sets the size of scene `{scene}` (its coordinates): every \
+                                 formulation of an experiment shares it; set it in [params]"
                             ),
                         ));
                     }
@@ -1453,6 +1455,17 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
     let params = entries(ctx, "params", &file.params)?;
     let info = nonholo_scenes::describe(file.experiment.scene.get_ref(), &params)
         .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
+    if table == "param" && nonholo_scenes::structural(info.name).contains(&name) {
+        return Err(ctx.err(
+            st.over.span(),
+            "stability.over",
+            format!(
+                "`{name}` sets the size of scene `{}` (its coordinates): it cannot vary within \
+                 one experiment",
+                info.name
+            ),
+        ));
+    }
     let known = match table {
         "param" => info
             .params
@@ -1710,7 +1723,8 @@ fn bvp(
     if b.lines.is_empty() {
         return Err(whole("[bvp] needs at least one [[bvp.line]]"));
     }
-    let info = nonholo_scenes::info(file.experiment.scene.get_ref())
+    let params = entries(ctx, "params", &file.params)?;
+    let info = nonholo_scenes::describe(file.experiment.scene.get_ref(), &params)
         .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
     let mut lines: Vec<BvpLine> = Vec::new();
     for l in &b.lines {

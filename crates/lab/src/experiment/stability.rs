@@ -148,8 +148,7 @@ pub fn check(exp: &Experiment) -> Result<(), String> {
                 .map_err(|e| format!("{} at {} = {value}: {e}", f.label, spec.over))?;
             let model = crate::formulations::build_model(scene.clone(), &f.formulation, &f.options)
                 .map_err(|e| format!("{}: {e}", f.label))?;
-            let steady =
-                crate::linearize::steady_pairs(&exp.scene, &init).map_err(|e| e.to_string())?;
+            let steady = crate::linearize::steady_pairs(scene.info(), &init);
             scene
                 .visit(crate::simulate::ResolveInit {
                     given: steady,

@@ -23,7 +23,7 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 
 use crate::ad::Jet;
-use crate::compiled::{Compiled, Programs, Refused, Workspace};
+use crate::compiled::{Compiled, Pieces, Programs, Refused, Workspace};
 use crate::constraints::ConstraintState;
 use crate::linalg::{Lu, Singular, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
@@ -94,6 +94,17 @@ impl GRows for Ideal {
             rhs[n + i] = -cs.g_rate0[i] - cs.g[i] * (2.0 * alpha);
         }
     }
+}
+
+/// The program's force into `force` and its constraint values into `cs`
+/// (the Jacobians stay in the pieces: dense users scatter them).
+fn load<T: Scalar>(pc: &Pieces<'_, T>, cs: &mut ConstraintState<T>, force: &mut [T]) {
+    force.copy_from_slice(pc.force);
+    cs.g.copy_from_slice(pc.g);
+    cs.g_rate0.copy_from_slice(pc.g_rate0);
+    cs.f.copy_from_slice(pc.f);
+    cs.f_rate.copy_from_slice(pc.f_rate);
+    cs.f_accel0.copy_from_slice(pc.f_accel0);
 }
 
 /// Workspace of the KKT solve over base scalar `T`.
@@ -282,14 +293,8 @@ impl<T: Scalar> Kkt<T> {
             c.eval(w, t, q, qd, p);
             let pc = w.pieces(c);
             pc.mass_into(&mut self.matrix, n);
-            self.sol[..n].copy_from_slice(pc.force);
-            let cs = &mut self.cs;
-            cs.g.copy_from_slice(pc.g);
-            cs.g_rate0.copy_from_slice(pc.g_rate0);
-            cs.f.copy_from_slice(pc.f);
-            cs.f_rate.copy_from_slice(pc.f_rate);
-            cs.f_accel0.copy_from_slice(pc.f_accel0);
-            pc.jacobians_into(&mut cs.jac, 0, n);
+            load(&pc, &mut self.cs, &mut self.sol[..n]);
+            pc.jacobians_into(&mut self.cs.jac, 0, n);
             if s > 0 {
                 rows.write(n, &self.cs, &mut self.matrix, &mut self.sol);
             }
@@ -371,27 +376,19 @@ impl<T: Scalar> Kkt<T> {
     ) -> Result<(), Singular> {
         let n = self.n;
         let s = self.cs.s;
-        let (Some((c, w)), Some(sparse)) = (&mut self.compiled, &mut self.sparse) else {
+        let Some((c, w)) = &mut self.compiled else {
             unreachable!("the sparse path needs a program");
         };
         c.eval(w, t, q, qd, p);
-        let pc = w.pieces(c);
-        self.sol[..n].copy_from_slice(pc.force);
-        let cs = &mut self.cs;
-        cs.g.copy_from_slice(pc.g);
-        cs.g_rate0.copy_from_slice(pc.g_rate0);
-        cs.f.copy_from_slice(pc.f);
-        cs.f_rate.copy_from_slice(pc.f_rate);
-        cs.f_accel0.copy_from_slice(pc.f_accel0);
+        load(&w.pieces(c), &mut self.cs, &mut self.sol[..n]);
         for i in 0..s {
-            self.sol[n + i] = -cs.g_rate0[i] - cs.g[i] * (2.0 * alpha);
+            self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
         }
-        let (alpha_f, beta) = rows.holonomic_gains();
-        for i in 0..cs.k {
-            self.sol[n + s + i] =
-                -cs.f_accel0[i] - cs.f_rate[i] * (2.0 * alpha_f) - cs.f[i] * (beta * beta);
-        }
-        sparse.solve(&pc, &mut self.sol)
+        self.holonomic_rhs(rows);
+        let (Some((c, w)), Some(sparse)) = (&self.compiled, &mut self.sparse) else {
+            unreachable!("the sparse path needs a program");
+        };
+        sparse.solve(&w.pieces(c), &mut self.sol)
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.

@@ -390,3 +390,22 @@ impl<S: OdeSystem> OdeSystem for Unremembered<S> {
         self.inner.rhs(t, y, dy)
     }
 }
+
+/// B on `sleigh-train` with `n_sleighs` sleighs at its default positions,
+/// the lead sleigh at `u = 1`, `ω = 0.3` (the state of `scale-report`).
+/// From 20 KKT rows (`N ≥ 4`) B solves its system sparse.
+pub fn train_case(n_sleighs: usize) -> Result<RhsCase, Error> {
+    let info = nonholo_scenes::trailer::INFO;
+    let n = n_sleighs.to_string();
+    let train = nonholo_scenes::Train::from_params(&options(info.params, &[("N", &n)])?)?;
+    let q = train.default_q();
+    let mut qd = vec![0.0; q.len()];
+    train.velocities_from(&q, &[1.0, 0.3], &mut qd);
+    let b = Chetaev::new(train, Params::defaults(nonholo_chetaev::OPTIONS))?;
+    Ok(RhsCase::new(
+        "B train",
+        "B on sleigh-train",
+        Box::new(b),
+        [q, qd].concat(),
+    ))
+}

@@ -5,7 +5,9 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use nonholo_bench::setup::{RhsCase, contact_cases, embedding_explicit, residual_case, rhs_pairs};
+use nonholo_bench::setup::{
+    RhsCase, contact_cases, embedding_explicit, residual_case, rhs_pairs, train_case,
+};
 
 struct Counting;
 
@@ -179,4 +181,29 @@ fn gauss_and_friction_allocate_nothing() {
             case.name
         );
     }
+}
+
+/// B on twenty hitched sleighs solves its 118-row KKT system sparse with
+/// faer (real for the right-hand side, `Dual64` for Jacobian columns):
+/// once warm, neither allocates (faer's numeric LU keeps its factor storage
+/// and the `MemBuffer` between solves).
+#[test]
+fn sparse_rhs_and_jacobian_of_the_train_allocate_nothing() {
+    let mut b = train_case(20).unwrap();
+    // 60 coordinates, 20 blades, 38 hitch rows: the sparse path.
+    assert_eq!(b.dim(), 120);
+    assert!(118 >= nonholo_core::sparse::SPARSE_FROM);
+    assert_rhs_allocates_nothing(&mut b);
+    let dim = b.dim();
+    let mut jac = vec![0.0; dim * dim];
+    assert!(b.jacobian(&mut jac).unwrap());
+    let (n, bytes) = count(|| {
+        for _ in 0..10 {
+            b.jacobian(&mut jac).unwrap();
+        }
+    });
+    assert_eq!(
+        n, 0,
+        "train jacobian: {n} allocations ({bytes} bytes) in 10 calls"
+    );
 }

@@ -347,6 +347,7 @@ mod degenerate {
         description: "",
         coordinates: &[Named::new("x", "m", ""), Named::new("y", "m", "")],
         params: PARAMS,
+        structural: &[],
         holonomic: &[],
         nonholonomic: &["x ẏ = 0"],
         constraint_kind: ConstraintKind::Linear,

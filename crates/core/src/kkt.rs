@@ -112,6 +112,10 @@ fn load<T: Scalar>(pc: &Pieces<'_, T>, cs: &mut ConstraintState<T>, force: &mut 
 pub struct Kkt<T: Scalar = f64> {
     n: usize,
     pub jet: Jet<T>,
+    /// Constraint values and rates of the last evaluation. Its dense
+    /// Jacobian `cs.jac` is filled by [`Kkt::assemble`] and by dense solves
+    /// only: after a sparse solve ([`Kkt::is_sparse`]) it is unallocated or
+    /// stale, and the Jacobian lives in the sparse system.
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
@@ -250,6 +254,8 @@ impl<T: Scalar> Kkt<T> {
 
     /// The assembled matrix and right-hand side of [`Kkt::assemble`]
     /// (before any solve overwrites the right-hand side with the solution).
+    /// Only [`Kkt::assemble`] fills it: a sparse [`Kkt::solve`] leaves it
+    /// empty (`0 × 0`) or stale, so call `assemble` before reading it.
     pub fn system(&self) -> (&DMatrix<T>, &[T]) {
         (&self.matrix, &self.sol)
     }

@@ -272,6 +272,12 @@ pub struct SceneInfo {
     /// Generalised coordinates `q` (length `n`).
     pub coordinates: &'static [Named],
     pub params: &'static [ParamSpec],
+    /// The parameters that change the description itself (its coordinates
+    /// and constraints), e.g. `sleigh-train`'s `N`: [`Scene::info`] then
+    /// depends on the built scene, and an experiment may set them but not
+    /// sweep them (its points would not share coordinates). Empty for most
+    /// scenes.
+    pub structural: &'static [&'static str],
     /// Holonomic constraints `f(q, t) = 0`, as formulas (their number is `k`).
     pub holonomic: &'static [&'static str],
     /// Nonholonomic constraints `g(q, q̇, t) = 0`, as formulas (their number is `s`).

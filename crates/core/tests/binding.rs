@@ -45,6 +45,7 @@ const INFO: SceneInfo = SceneInfo {
     description: "",
     coordinates: &[Named::new("q", "m", "")],
     params: PARAMS,
+    structural: &[],
     holonomic: &[],
     nonholonomic: &[],
     constraint_kind: ConstraintKind::Linear,

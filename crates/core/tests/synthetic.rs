@@ -28,6 +28,7 @@ const INFO: SceneInfo = SceneInfo {
         Named::new("c", "rad", ""),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &["a² + b sin t − 1 = 0"],
     nonholonomic: &["ċ + sin(a) ḃ² + t b = 0"],
     constraint_kind: ConstraintKind::Nonlinear,

@@ -48,6 +48,7 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("z", "m", "height of the weight"),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &[],
     nonholonomic: &["ż + c √(ẋ² + ẏ²) = 0"],
     constraint_kind: ConstraintKind::Nonlinear,

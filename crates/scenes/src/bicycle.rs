@@ -190,6 +190,7 @@ pub const INFO: SceneInfo = SceneInfo {
         ),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &["z of the front contact point = 0 (the front wheel touches the ground)"],
     nonholonomic: &[
         "rear contact point of the wheel at rest, x",

@@ -95,6 +95,7 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("phi", "rad", "spin of the disk about its axle"),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &[],
     nonholonomic: &["ẋ + R φ̇ cos ψ = 0", "ẏ + R φ̇ sin ψ = 0"],
     constraint_kind: ConstraintKind::Linear,

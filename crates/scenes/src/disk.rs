@@ -66,6 +66,7 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("psi", "rad", "rolling angle"),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &[],
     nonholonomic: &["ẋ − R ψ̇ cos θ = 0", "ẏ − R ψ̇ sin θ = 0"],
     constraint_kind: ConstraintKind::Linear,

@@ -125,22 +125,18 @@ pub fn info(name: &str) -> Result<&'static SceneInfo, Error> {
         })
 }
 
-/// The parameters of scene `name` that change its description (its
-/// coordinates and constraints): `sleigh-train`'s `N`. An experiment may
-/// set them but not sweep them (its points would not share coordinates).
+/// The parameters of scene `name` that change its description
+/// ([`SceneInfo::structural`]; empty for an unknown name).
 pub fn structural(name: &str) -> &'static [&'static str] {
-    match name {
-        "sleigh-train" => &["N"],
-        _ => &[],
-    }
+    info(name).map_or(&[], |i| i.structural)
 }
 
 /// The description of scene `name` with these parameter overrides: the
-/// registry's ([`info`]) unless a [`structural`] parameter makes it depend
-/// on them, then the built scene's.
+/// registry's ([`info`]) unless a [`SceneInfo::structural`] parameter makes
+/// it depend on them, then the built scene's.
 pub fn describe(name: &str, params: &[(String, String)]) -> Result<&'static SceneInfo, Error> {
     let info = info(name)?;
-    if structural(name).is_empty() {
+    if info.structural.is_empty() {
         return Ok(info);
     }
     Ok(build(name, params)?.info())

@@ -47,6 +47,7 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("y", "m", "height of the bob above the pivot"),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &["x² + y² − l² = 0"],
     nonholonomic: &[],
     constraint_kind: ConstraintKind::Linear,

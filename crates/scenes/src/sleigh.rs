@@ -89,6 +89,7 @@ pub const INFO: SceneInfo = SceneInfo {
         Named::new("phi", "rad", "heading from the x axis"),
     ],
     params: PARAMS,
+    structural: &[],
     holonomic: &[],
     nonholonomic: &["ẏ cos φ − ẋ sin φ = 0"],
     constraint_kind: ConstraintKind::Linear,

@@ -53,6 +53,33 @@ fn size_follows_n_and_bad_n_is_refused_by_name() {
     assert!(build("sleigh-train", &[("N".into(), "4".into())]).is_ok());
 }
 
+/// Every scene states its structural parameters in its description: each
+/// is one of its parameters, and only they change the description
+/// `describe` returns (the registry's otherwise).
+#[test]
+fn structural_parameters_are_declared_and_read_from_the_description() {
+    for info in nonholo_scenes::ALL {
+        for p in info.structural {
+            assert!(
+                info.params.iter().any(|s| s.name == *p),
+                "{}: structural `{p}` is not a parameter",
+                info.name
+            );
+        }
+        assert_eq!(nonholo_scenes::structural(info.name), info.structural);
+        let d = nonholo_scenes::describe(info.name, &[]).unwrap();
+        assert_eq!(d.n(), info.n(), "{}", info.name);
+    }
+    assert_eq!(nonholo_scenes::structural("sleigh-train"), ["N"]);
+    let d = nonholo_scenes::describe("sleigh-train", &[("N".into(), "5".into())]).unwrap();
+    assert_eq!((d.n(), d.s(), d.k()), (15, 5, 8));
+    let d = nonholo_scenes::describe("sleigh-incline", &[("a".into(), "0.2".into())]).unwrap();
+    assert!(std::ptr::eq(
+        d,
+        nonholo_scenes::info("sleigh-incline").unwrap()
+    ));
+}
+
 /// The velocities of the chart satisfy every blade (`g = 0`) and every
 /// hitch at velocity level (`ḟ = F q̇ = 0`) at any positions: the trailers'
 /// rates are found from the pin velocities exactly.

@@ -1455,7 +1455,7 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
     let params = entries(ctx, "params", &file.params)?;
     let info = nonholo_scenes::describe(file.experiment.scene.get_ref(), &params)
         .map_err(|e| ctx.err(file.experiment.scene.span(), "experiment.scene", e))?;
-    if table == "param" && nonholo_scenes::structural(info.name).contains(&name) {
+    if table == "param" && info.structural.contains(&name) {
         return Err(ctx.err(
             st.over.span(),
             "stability.over",

@@ -15,6 +15,12 @@
 //! gains `α`, `β` are zero unless Baumgarte stabilisation is chosen;
 //! projection stabilisation moves the state back onto the constraints after
 //! every accepted step instead. State `y = (q, q̇)`.
+//!
+//! [`dae::ChetaevDae`] writes the same equations as an index-1
+//! differential-algebraic system in `(q, q̇, q̈, −λ, −ν)` with sparse
+//! Jacobians, for Radau IIA on large scenes.
+
+pub mod dae;
 
 use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};

@@ -37,6 +37,9 @@ use crate::scene::{Holonomic, Nonholonomic, Scalar, ScalarField, Scene, VectorFi
 pub struct Compiled {
     program: Program,
     pattern: Pattern,
+    /// The inputs every output depends on (sorted; input numbering of
+    /// [`Compiled::dependencies`]), parallel to the outputs.
+    deps: Vec<Vec<u32>>,
     n: usize,
     s: usize,
     k: usize,
@@ -188,9 +191,11 @@ impl Compiled {
         for &r in &f_rates {
             outputs.push(rate(&mut g, r, &q_vars, &qd_node, t_var));
         }
+        let deps = outputs.iter().map(|&o| g.deps(o).to_vec()).collect();
         Ok(Compiled {
             program: Program::new(&g, &outputs, inputs),
             pattern,
+            deps,
             n,
             s,
             k,
@@ -240,6 +245,14 @@ impl Compiled {
     /// The structural nonzeros of `M`, `G` and `F`.
     pub fn pattern(&self) -> &Pattern {
         &self.pattern
+    }
+
+    /// For every piece's value, the inputs it structurally depends on, in
+    /// increasing order: `0` is `t`, `1 + j` is `q_j`, `1 + n + j` is `q̇_j`,
+    /// `1 + 2n + j` is parameter `j`. A value whose list lacks an input has
+    /// derivative zero with respect to it at every state.
+    pub fn dependencies(&self) -> Pieces<'_, Vec<u32>> {
+        split(self, &self.deps)
     }
 }
 
@@ -342,9 +355,16 @@ fn scatter<T: Scalar>(
 impl<T> Workspace<T> {
     /// The outputs of the last evaluation, split into the pieces.
     pub fn pieces<'a>(&'a self, c: &'a Compiled) -> Pieces<'a, T> {
+        split(c, &self.out)
+    }
+}
+
+/// Outputs of `c` (values, or anything kept per output) split into the pieces.
+fn split<'a, T>(c: &'a Compiled, out: &'a [T]) -> Pieces<'a, T> {
+    {
         let (n, s, k) = (c.n, c.s, c.k);
         let p = &c.pattern;
-        let mut rest: &[T] = &self.out;
+        let mut rest: &[T] = out;
         let mut take = |len: usize| {
             let (a, b) = rest.split_at(len);
             rest = b;

@@ -80,7 +80,7 @@ pub use options::{Method, Options, Radau5Options, RadauNewton};
 pub use solution::{Solution, Stats};
 pub use solver::Solver;
 pub use stop::StopReason;
-pub use system::{ImplicitSystem, OdeSystem, jacobian_mismatch};
+pub use system::{ImplicitSystem, OdeSystem, Sparsity, jacobian_mismatch};
 
 /// Integrates `sys` from `(t0, y0)` to `t_end` with `method` and `opts`.
 ///

@@ -71,6 +71,17 @@ pub trait OdeSystem {
     }
 }
 
+/// The entries `(row, column)` that may be nonzero in the Jacobians of an
+/// [`ImplicitSystem`] (see [`ImplicitSystem::sparsity`]); no entry twice in
+/// one list.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Sparsity {
+    /// Entries of `∂F/∂y`.
+    pub jy: Vec<(usize, usize)>,
+    /// Entries of `∂F/∂y'`.
+    pub jyp: Vec<(usize, usize)>,
+}
+
 /// A fully implicit system `F(t, y, y') = 0` of fixed dimension, including
 /// differential-algebraic systems (`∂F/∂y'` singular) of index up to 3.
 ///
@@ -90,7 +101,9 @@ pub trait ImplicitSystem {
     ) -> Result<(), SystemError>;
 
     /// `∂F/∂y` into `jy` and `∂F/∂y'` into `jyp`, both row-major `dim × dim`
-    /// (`jy[i * dim + j] = ∂F_i/∂y_j`).
+    /// (`jy[i * dim + j] = ∂F_i/∂y_j`); or, for a system with a
+    /// [`ImplicitSystem::sparsity`], their values at the listed entries, in
+    /// the order of the lists (`jy[p]` is the entry `sparsity.jy[p]`).
     fn jacobians(
         &mut self,
         t: f64,
@@ -99,6 +112,15 @@ pub trait ImplicitSystem {
         jy: &mut [f64],
         jyp: &mut [f64],
     ) -> Result<(), SystemError>;
+
+    /// The structural nonzeros of `∂F/∂y` and `∂F/∂y'`, for a system whose
+    /// Jacobians are sparse: Radau IIA then stores and factors its
+    /// iteration matrices sparse (faer) and [`ImplicitSystem::jacobians`]
+    /// writes values at these entries only. `None` (the default): dense.
+    /// Called once per run; the pattern must hold at every state.
+    fn sparsity(&self) -> Option<Sparsity> {
+        None
+    }
 
     /// A name for component `i` of `y` (and of the equation `F_i` paired
     /// with it), for messages; `y[i]` by default.

@@ -312,6 +312,7 @@
 mod linalg;
 mod newton;
 mod problem;
+mod sparse;
 mod tableau;
 mod work;
 
@@ -325,6 +326,7 @@ use crate::{
 };
 use newton::{Newton, NewtonParams};
 use problem::{Dae, Ode, Problem, UROUND};
+use sparse::SparseIteration;
 use work::Work;
 
 /// Number of coefficient vectors of the collocation polynomial in the
@@ -465,7 +467,21 @@ fn driver<P: Problem>(
     {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
-    let mut core = RadauCore::new(index, opts, P::IDENTITY_JP);
+    // Sparse iteration matrices for a system with sparse Jacobians.
+    let sparse = match p.sparsity() {
+        None => None,
+        Some(_) if opts.radau5.newton == RadauNewton::Full => {
+            let msg = "full Newton (`newton = full`) forms dense stage Jacobians: it is not \
+                       available for a system that gives its Jacobians sparse"
+                .to_string();
+            return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
+        }
+        Some(sp) => match SparseIteration::new(n, &sp) {
+            Ok(it) => Some((it, sp.jy.len(), sp.jyp.len())),
+            Err(msg) => return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0)),
+        },
+    };
+    let mut core = RadauCore::new(index, opts, P::IDENTITY_JP, sparse);
     if let Some(yp0) = yp0 {
         if let Err(e) = core.consistent(&mut p, t0, y0, yp0, opts) {
             let evals = p.evals();
@@ -525,7 +541,12 @@ struct RadauCore {
 }
 
 impl RadauCore {
-    fn new(index: Vec<u8>, opts: &Options, identity_jp: bool) -> Self {
+    fn new(
+        index: Vec<u8>,
+        opts: &Options,
+        identity_jp: bool,
+        sparse: Option<(SparseIteration, usize, usize)>,
+    ) -> Self {
         let n = index.len();
         let rtol = 0.1 * opts.rtol.powf(2.0 / 3.0);
         let atol = atol_vector(opts, n)
@@ -543,7 +564,7 @@ impl RadauCore {
         };
         let full = opts.radau5.newton == RadauNewton::Full;
         RadauCore {
-            w: Work::new(n, identity_jp, full),
+            w: Work::new(n, identity_jp, full, sparse),
             index,
             yp: vec![0.0; n],
             res: vec![0.0; n],

@@ -195,8 +195,7 @@ impl Work {
                 d1[i] = -(ti[1][0] * g1 + ti[1][1] * g2 + ti[1][2] * g3);
                 d2[i] = -(ti[2][0] * g1 + ti[2][1] * g2 + ti[2][2] * g3);
             }
-            self.e1.solve(d0);
-            self.e2.solve(d1, d2);
+            self.solve_stages();
             m.newt += 1;
             stats.newton_iterations += 1;
             let dyno = self.correction_norm();

@@ -10,7 +10,7 @@
 
 use crate::driver::Hooks;
 use crate::explicit::control::{Rhs, Tol, hinit, hinit_guess};
-use crate::{ImplicitSystem, OdeSystem, SystemError};
+use crate::{ImplicitSystem, OdeSystem, Sparsity, SystemError};
 
 /// The rounding unit of RADAU5 (`WORK(1)` default `1e-16`).
 pub(super) const UROUND: f64 = 1e-16;
@@ -76,6 +76,12 @@ pub(super) trait Problem: Hooks {
 
     /// The index class (1, 2, 3) of every component.
     fn variable_index(&self, index: &mut [u8]);
+
+    /// The sparsity of `J` and `J'` when the problem gives them sparse
+    /// ([`ImplicitSystem::sparsity`]); `None`: dense.
+    fn sparsity(&self) -> Option<Sparsity> {
+        None
+    }
 
     /// A name for component `i`, for messages.
     fn component_name(&self, i: usize) -> String {
@@ -301,6 +307,10 @@ impl<S: ImplicitSystem + ?Sized> Problem for Dae<'_, S> {
 
     fn variable_index(&self, index: &mut [u8]) {
         self.sys.variable_index(index);
+    }
+
+    fn sparsity(&self) -> Option<Sparsity> {
+        self.sys.sparsity()
     }
 
     fn component_name(&self, i: usize) -> String {

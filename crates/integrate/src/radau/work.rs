@@ -5,6 +5,7 @@
 use super::NCOEF;
 use super::linalg::{ComplexLu, RealLu};
 use super::problem::Problem;
+use super::sparse::SparseIteration;
 use super::tableau::Tableau;
 
 /// Workspaces of the full Newton iteration (`RadauNewton::Full`).
@@ -24,14 +25,18 @@ pub(super) struct FullNewton {
 pub(super) struct Work {
     pub(super) n: usize,
     pub(super) tab: Tableau,
-    /// `J = ∂F/∂y`, row-major.
+    /// `J = ∂F/∂y`, row-major; with [`Work::sparse`] its values at the
+    /// system's listed entries.
     pub(super) jy: Vec<f64>,
-    /// `J' = ∂F/∂y'` (empty for explicit ODEs, where `J' = I`).
+    /// `J' = ∂F/∂y'` (empty for explicit ODEs, where `J' = I`), as `jy`.
     pub(super) jyp: Vec<f64>,
-    /// `γ/h J' + J`, factored.
+    /// `γ/h J' + J`, factored (dense; empty with [`Work::sparse`]).
     pub(super) e1: RealLu,
-    /// `(α + iβ)/h J' + J`, factored.
+    /// `(α + iβ)/h J' + J`, factored (dense; empty with [`Work::sparse`]).
     pub(super) e2: ComplexLu,
+    /// Both iteration matrices stored sparse, for a system with sparse
+    /// Jacobians (simplified Newton only).
+    pub(super) sparse: Option<Box<SparseIteration>>,
     /// Transformed stage increments `W = (T⁻¹ ⊗ I) Z`.
     pub(super) w: [Vec<f64>; 3],
     /// Stage increments `Z_i = Y_i − y_n`.
@@ -61,19 +66,27 @@ pub(super) struct Work {
 }
 
 impl Work {
-    pub(super) fn new(n: usize, identity_jp: bool, full: bool) -> Self {
+    /// Workspaces for dimension `n`; `sparse` with the sparse iteration
+    /// matrices and the number of entries of `J` and of `J'`.
+    pub(super) fn new(
+        n: usize,
+        identity_jp: bool,
+        full: bool,
+        sparse: Option<(SparseIteration, usize, usize)>,
+    ) -> Self {
         let v = || vec![0.0; n];
+        let (jy, jyp, dense) = match &sparse {
+            Some((_, jy, jyp)) => (*jy, *jyp, 0),
+            None => (n * n, if identity_jp { 0 } else { n * n }, n),
+        };
         Work {
             n,
             tab: Tableau::new(),
-            jy: vec![0.0; n * n],
-            jyp: if identity_jp {
-                Vec::new()
-            } else {
-                vec![0.0; n * n]
-            },
-            e1: RealLu::new(n),
-            e2: ComplexLu::new(n),
+            jy: vec![0.0; jy],
+            jyp: vec![0.0; jyp],
+            e1: RealLu::new(dense),
+            e2: ComplexLu::new(dense),
+            sparse: sparse.map(|(s, _, _)| Box::new(s)),
             w: [v(), v(), v()],
             z: [v(), v(), v()],
             dw: [v(), v(), v()],
@@ -108,6 +121,9 @@ impl Work {
         let identity_jp = self.jyp.is_empty();
         let (g, a, b) = (self.tab.gamma / h, self.tab.alpha / h, self.tab.beta / h);
         let complex = self.full.is_none();
+        if let Some(sp) = &mut self.sparse {
+            return sp.factor(&self.jy, &self.jyp, g, complex.then_some((a, b)));
+        }
         self.e1.a.copy_from_slice(&self.jy);
         if identity_jp {
             for i in 0..n {
@@ -136,6 +152,30 @@ impl Work {
             }
         }
         self.e2.factor()
+    }
+
+    /// `err ← (γ/h J' + J)⁻¹ err`.
+    fn solve_real_err(&mut self) {
+        match &mut self.sparse {
+            Some(sp) => sp.solve_real(&mut self.err),
+            None => self.e1.solve(&mut self.err),
+        }
+    }
+
+    /// The two linear systems of a simplified Newton iteration: `d0` with
+    /// the real matrix, `d1 + i d2` with the complex one, in place.
+    pub(super) fn solve_stages(&mut self) {
+        let [d0, d1, d2] = &mut self.dw;
+        match &mut self.sparse {
+            Some(sp) => {
+                sp.solve_real(d0);
+                sp.solve_complex(d1, d2);
+            }
+            None => {
+                self.e1.solve(d0);
+                self.e2.solve(d1, d2);
+            }
+        }
     }
 
     /// Error scale of a step of size `h` from the base scale `sk`.
@@ -206,6 +246,8 @@ impl Work {
         }
         if P::IDENTITY_JP {
             self.err_rhs.copy_from_slice(&self.err);
+        } else if let Some(sp) = &self.sparse {
+            sp.jyp_mul(&self.jyp, &self.err, &mut self.err_rhs);
         } else {
             for i in 0..n {
                 let row = &self.jyp[i * n..(i + 1) * n];
@@ -215,7 +257,7 @@ impl Work {
         for i in 0..n {
             self.err[i] = self.err_rhs[i] - res[i];
         }
-        self.e1.solve(&mut self.err);
+        self.solve_real_err();
         let e = self.norm(&self.err).max(1e-10);
         if !(e >= 1.0 && second) {
             return e;
@@ -229,7 +271,7 @@ impl Work {
         for i in 0..n {
             self.err[i] = self.err_rhs[i] - self.err[i];
         }
-        self.e1.solve(&mut self.err);
+        self.solve_real_err();
         let e2 = self.norm(&self.err).max(1e-10);
         if e2.is_finite() { e2 } else { e }
     }
@@ -274,7 +316,7 @@ mod tests {
 
     #[test]
     fn nested_form_is_radau5_collocation_polynomial() {
-        let mut w = Work::new(1, true, false);
+        let mut w = Work::new(1, true, false, None);
         let c = w.tab.c;
         let y = [0.7];
         w.z = [vec![0.31], vec![-0.42], vec![0.125]];

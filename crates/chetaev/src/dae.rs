@@ -1,0 +1,435 @@
+//! B as an index-1 differential-algebraic system with sparse Jacobians,
+//! for Radau IIA on scenes whose size makes the ODE form's dense Jacobian
+//! the cost of a step.
+//!
+//! The ODE form `q̈ = a(q, q̇)` solves the KKT system inside every
+//! right-hand side, so `∂a/∂(q, q̇)` couples every coordinate with every
+//! other (on a chain of bodies, moving one body changes every constraint
+//! force): its Jacobian is dense, `(2n)²` entries. Here the KKT unknowns
+//! are part of the state instead, `y = (q, v, w)` with `w = (q̈, μ_g, μ_f)`
+//! (length `m = n + s + k`), and the equations are those of the KKT system
+//! itself:
+//!
+//! ```text
+//! q' − v = 0
+//! v' − q̈ = 0
+//! K(t, q, v) w − b(t, q, v) = 0,   K = [M Gᵀ Fᵀ; G 0 0; F 0 0],
+//!                                  b = (Q, −ġ₀ − 2αg, −f̈₀ − 2αḟ − β²f)
+//! ```
+//!
+//! (`α`, `β` the Baumgarte gains, zero without stabilisation), whose
+//! algebraic part is solvable for `w` wherever `K` is regular: index 1, and
+//! the same motion as B's ODE form. Every entry of its Jacobian is local:
+//! `∂(Kw − b)/∂w = K` is the KKT pattern, and `∂(Kw − b)/∂(q, v)` has the
+//! entries that the compiled program's dependencies allow
+//! ([`Compiled::dependencies`]). That block is computed by forward
+//! differentiation along a few seeded directions: columns are grouped so
+//! that no two columns of a group share a row (greedy colouring, Curtis,
+//! Powell & Reid 1974), and one pass of the program over `Dual64` per group
+//! gives all of the group's columns. On a chain the number of groups does
+//! not grow with its length, so a Jacobian costs a fixed number of
+//! right-hand sides, and Radau IIA's iteration matrices, of the same
+//! pattern plus `J'`, are factored sparse ([`ImplicitSystem::sparsity`]).
+
+use std::sync::Arc;
+
+use nonholo_core::compiled::{Compiled, Pieces, Workspace};
+use nonholo_core::integrate::{ImplicitSystem, Sparsity, SystemError};
+use nonholo_core::kkt::{Ideal, Kkt};
+use nonholo_core::scene::{Lagrangian, Scalar};
+use nonholo_core::stab::Stabilisation;
+use nonholo_core::{Error, Scene};
+use num_dual::Dual64;
+
+/// Where an entry of `K` takes its value from.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    /// Entry `i` of the upper triangle of `M`.
+    Mass(usize),
+    G(usize),
+    F(usize),
+}
+
+/// B on `scene` as the index-1 system of the [module docs](self).
+pub struct ChetaevDae<S: Scene> {
+    scene: S,
+    program: Arc<Compiled>,
+    /// Baumgarte gains `(α, β)` of the constraint rows.
+    gains: (f64, f64),
+    stab: Stabilisation,
+    n: usize,
+    s: usize,
+    k: usize,
+    /// Entries `(row, column, source)` of `K`, both triangles.
+    kkt: Vec<(usize, usize, Source)>,
+    sparsity: Sparsity,
+    /// Position in the `∂F/∂y` list where `K`'s entries start.
+    kkt_at: usize,
+    /// The `(q, v)` columns of the algebraic rows, grouped by colour:
+    /// `(position in the ∂F/∂y list, row of K)` for every entry of a
+    /// column of that colour.
+    groups: Vec<Vec<(usize, usize)>>,
+    /// Colour of every `(q, v)` column (`u32::MAX`: no entry).
+    colour: Vec<u32>,
+    real: Workspace<f64>,
+    dual: Workspace<Dual64>,
+    /// `(q, v)` over `Dual64` for a seeded pass.
+    seeded: Vec<Dual64>,
+    /// `∂(Kw − b)` along one seed.
+    tangent: Vec<f64>,
+}
+
+impl<S: Scene + Clone> Clone for ChetaevDae<S> {
+    fn clone(&self) -> Self {
+        ChetaevDae {
+            scene: self.scene.clone(),
+            program: self.program.clone(),
+            gains: self.gains,
+            stab: self.stab,
+            n: self.n,
+            s: self.s,
+            k: self.k,
+            kkt: self.kkt.clone(),
+            sparsity: self.sparsity.clone(),
+            kkt_at: self.kkt_at,
+            groups: self.groups.clone(),
+            colour: self.colour.clone(),
+            real: self.program.workspace(),
+            dual: self.program.workspace(),
+            seeded: self.seeded.clone(),
+            tangent: self.tangent.clone(),
+        }
+    }
+}
+
+/// `out = part(K) w − part(b)` for the pieces `pc`, where `part` takes the
+/// value (residual) or the derivative part (a Jacobian column group).
+#[allow(clippy::too_many_arguments)]
+fn kkt_apply<T: Scalar>(
+    pc: &Pieces<'_, T>,
+    kkt: &[(usize, usize, Source)],
+    (n, s): (usize, usize),
+    (alpha, beta): (f64, f64),
+    part: impl Fn(&T) -> f64,
+    w: &[f64],
+    out: &mut [f64],
+) {
+    let k = pc.f.len();
+    for i in 0..n {
+        out[i] = -part(&pc.force[i]);
+    }
+    for i in 0..s {
+        out[n + i] = part(&pc.g_rate0[i]) + 2.0 * alpha * part(&pc.g[i]);
+    }
+    for i in 0..k {
+        out[n + s + i] = part(&pc.f_accel0[i])
+            + 2.0 * alpha * part(&pc.f_rate[i])
+            + beta * beta * part(&pc.f[i]);
+    }
+    for &(r, c, src) in kkt {
+        let v = match src {
+            Source::Mass(i) => &pc.mass_upper[i],
+            Source::G(i) => &pc.g_jac[i],
+            Source::F(i) => &pc.f_jac[i],
+        };
+        out[r] += part(v) * w[c];
+    }
+}
+
+impl<S: Scene> ChetaevDae<S> {
+    /// B on `scene` with stabilisation `stab` (none or Baumgarte; a
+    /// projection has no place in this form). Compiles the scene's
+    /// program; a scene whose trace is refused (it branches on values) has
+    /// no DAE form.
+    pub fn new(scene: S, stab: Stabilisation) -> Result<Self, Error> {
+        let info = scene.info();
+        let refuse = |reason: String| Error::NotApplicable {
+            formulation: "chetaev (DAE form)".into(),
+            scene: info.name.into(),
+            reason,
+        };
+        if stab == Stabilisation::Projection {
+            return Err(refuse(
+                "stab = \"projection\": the DAE form keeps the constraints through its \
+                 algebraic equations; choose none or baumgarte"
+                    .into(),
+            ));
+        }
+        let program = Compiled::new(&Lagrangian(&scene), 0, &scene)
+            .map_err(|e| refuse(format!("it needs the scene compiled into one program: {e}")))?;
+        let (n, s, k) = (info.n(), info.s(), info.k());
+        let gains = stab.gains();
+        let p = program.pattern();
+        let mut kkt = Vec::new();
+        for (i, &(r, c)) in p.mass.iter().enumerate() {
+            let (r, c) = (r as usize, c as usize);
+            kkt.push((r, c, Source::Mass(i)));
+            if r != c {
+                kkt.push((c, r, Source::Mass(i)));
+            }
+        }
+        for (i, &(r, c)) in p.g_jac.iter().enumerate() {
+            let (r, c) = (n + r as usize, c as usize);
+            kkt.push((r, c, Source::G(i)));
+            kkt.push((c, r, Source::G(i)));
+        }
+        for (i, &(r, c)) in p.f_jac.iter().enumerate() {
+            let (r, c) = (n + s + r as usize, c as usize);
+            kkt.push((r, c, Source::F(i)));
+            kkt.push((c, r, Source::F(i)));
+        }
+
+        // The (q, v) columns each row of `Kw − b` depends on.
+        let m = n + s + k;
+        let deps = program.dependencies();
+        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); m];
+        let mut add = |r: usize, d: &[u32]| rows[r].extend_from_slice(d);
+        for i in 0..n {
+            add(i, &deps.force[i]);
+        }
+        for i in 0..s {
+            add(n + i, &deps.g_rate0[i]);
+            if gains.0 != 0.0 {
+                add(n + i, &deps.g[i]);
+            }
+        }
+        for i in 0..k {
+            add(n + s + i, &deps.f_accel0[i]);
+            if gains.0 != 0.0 {
+                add(n + s + i, &deps.f_rate[i]);
+            }
+            if gains.1 != 0.0 {
+                add(n + s + i, &deps.f[i]);
+            }
+        }
+        for &(r, _, src) in &kkt {
+            let d = match src {
+                Source::Mass(i) => &deps.mass_upper[i],
+                Source::G(i) => &deps.g_jac[i],
+                Source::F(i) => &deps.f_jac[i],
+            };
+            add(r, d);
+        }
+        // Inputs 1..=n are q, n+1..=2n are q̇: columns 0..2n of (q, v).
+        let qv = |d: u32| (1..=2 * n as u32).contains(&d).then(|| d as usize - 1);
+        let rows: Vec<Vec<usize>> = rows
+            .into_iter()
+            .map(|mut r| {
+                r.sort_unstable();
+                r.dedup();
+                r.into_iter().filter_map(qv).collect()
+            })
+            .collect();
+
+        // ∂F/∂y: ∂(q' − v)/∂v, ∂(v' − q̈)/∂q̈, K, then the (q, v) block.
+        let mut jy: Vec<(usize, usize)> = Vec::new();
+        jy.extend((0..n).map(|i| (i, n + i)));
+        jy.extend((0..n).map(|i| (n + i, 2 * n + i)));
+        let kkt_at = jy.len();
+        jy.extend(kkt.iter().map(|&(r, c, _)| (2 * n + r, 2 * n + c)));
+        let mut cols: Vec<Vec<(usize, usize)>> = vec![Vec::new(); 2 * n];
+        for (r, row) in rows.iter().enumerate() {
+            for &c in row {
+                cols[c].push((jy.len(), r));
+                jy.push((2 * n + r, c));
+            }
+        }
+        let colour = colour_columns(&cols, &rows);
+        let colours = colour
+            .iter()
+            .filter(|&&c| c != u32::MAX)
+            .max()
+            .map_or(0, |&c| c + 1);
+        let mut groups = vec![Vec::new(); colours as usize];
+        for (c, entries) in cols.iter().enumerate() {
+            if colour[c] != u32::MAX {
+                groups[colour[c] as usize].extend_from_slice(entries);
+            }
+        }
+        let sparsity = Sparsity {
+            jy,
+            jyp: (0..2 * n).map(|i| (i, i)).collect(),
+        };
+        Ok(ChetaevDae {
+            real: program.workspace(),
+            dual: program.workspace(),
+            scene,
+            program: Arc::new(program),
+            gains,
+            stab,
+            n,
+            s,
+            k,
+            kkt,
+            sparsity,
+            kkt_at,
+            groups,
+            colour,
+            seeded: vec![Dual64::from(0.0); 2 * n],
+            tangent: vec![0.0; m],
+        })
+    }
+
+    /// `(n, s, k)` of the scene.
+    pub fn dims(&self) -> (usize, usize, usize) {
+        (self.n, self.s, self.k)
+    }
+
+    /// Column groups of a Jacobian: its passes of the program over `Dual64`.
+    pub fn colours(&self) -> usize {
+        self.groups.len()
+    }
+
+    /// Consistent initial data from positions and velocities: `w` from one
+    /// KKT solve, `y = (q, q̇, w)`, `y' = (q̇, q̈, 0)` (the algebraic
+    /// components' derivatives are not part of the equations).
+    pub fn initial(&self, t: f64, q: &[f64], qd: &[f64]) -> Result<(Vec<f64>, Vec<f64>), Error> {
+        let n = self.n;
+        let mut kkt: Kkt<f64> = Kkt::for_scene(self.scene.info());
+        kkt.use_program(self.program.clone());
+        let ell = Lagrangian(&self.scene);
+        kkt.solve(&ell, &[], &self.scene, &Ideal(self.stab), t, q, qd)
+            .map_err(|e| Error::InconsistentInit {
+                formulation: "chetaev",
+                reason: format!("the KKT system at t = {t} is singular: {e}"),
+            })?;
+        let y = [q, qd, &kkt.sol].concat();
+        let mut yp = vec![0.0; y.len()];
+        yp[..n].copy_from_slice(qd);
+        yp[n..2 * n].copy_from_slice(&kkt.sol[..n]);
+        Ok((y, yp))
+    }
+}
+
+/// Greedy colouring of the `(q, v)` columns: no two columns of one colour
+/// share a row. `cols[c]` lists `(_, row)` of column `c`, `rows[r]` the
+/// columns of row `r`; columns without entries get `u32::MAX`.
+fn colour_columns(cols: &[Vec<(usize, usize)>], rows: &[Vec<usize>]) -> Vec<u32> {
+    let mut colour = vec![u32::MAX; cols.len()];
+    // `taken[c] == j`: colour `c` is used by a neighbour of column `j`.
+    let mut taken: Vec<usize> = Vec::new();
+    for (j, entries) in cols.iter().enumerate() {
+        if entries.is_empty() {
+            continue;
+        }
+        for &(_, r) in entries {
+            for &other in &rows[r] {
+                let c = colour[other];
+                if c != u32::MAX {
+                    taken[c as usize] = j;
+                }
+            }
+        }
+        let c = taken.iter().position(|&t| t != j).unwrap_or(taken.len());
+        if c == taken.len() {
+            taken.push(usize::MAX);
+        }
+        colour[j] = c as u32;
+    }
+    colour
+}
+
+impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
+    fn dim(&self) -> usize {
+        2 * self.n + self.n + self.s + self.k
+    }
+
+    fn residual(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        yp: &[f64],
+        res: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let n = self.n;
+        let (q, rest) = y.split_at(n);
+        let (v, w) = rest.split_at(n);
+        for i in 0..n {
+            res[i] = yp[i] - v[i];
+            res[n + i] = yp[n + i] - w[i];
+        }
+        self.program.eval(&mut self.real, t, q, v, &[]);
+        let pc = self.real.pieces(&self.program);
+        kkt_apply(
+            &pc,
+            &self.kkt,
+            (n, self.s),
+            self.gains,
+            |x| *x,
+            w,
+            &mut res[2 * n..],
+        );
+        Ok(())
+    }
+
+    fn jacobians(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        _yp: &[f64],
+        jy: &mut [f64],
+        jyp: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let n = self.n;
+        let (q, rest) = y.split_at(n);
+        let (v, w) = rest.split_at(n);
+        jyp.fill(1.0);
+        jy[..2 * n].fill(-1.0);
+        // K at (q, v).
+        self.program.eval(&mut self.real, t, q, v, &[]);
+        let pc = self.real.pieces(&self.program);
+        for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
+            *x = match src {
+                Source::Mass(i) => pc.mass_upper[i],
+                Source::G(i) => pc.g_jac[i],
+                Source::F(i) => pc.f_jac[i],
+            };
+        }
+        // One seeded pass per colour.
+        for (colour, group) in self.groups.iter().enumerate() {
+            for (j, x) in self.seeded.iter_mut().enumerate() {
+                let value = if j < n { q[j] } else { v[j - n] };
+                let seed = if self.colour[j] == colour as u32 {
+                    1.0
+                } else {
+                    0.0
+                };
+                *x = Dual64::new(value, seed);
+            }
+            let (qs, vs) = self.seeded.split_at(n);
+            self.program
+                .eval(&mut self.dual, Dual64::from(t), qs, vs, &[]);
+            let pc = self.dual.pieces(&self.program);
+            let (s, gains) = (self.s, self.gains);
+            kkt_apply(
+                &pc,
+                &self.kkt,
+                (n, s),
+                gains,
+                |x| x.tangent(),
+                w,
+                &mut self.tangent,
+            );
+            for &(at, r) in group {
+                jy[at] = self.tangent[r];
+            }
+        }
+        Ok(())
+    }
+
+    fn sparsity(&self) -> Option<Sparsity> {
+        Some(self.sparsity.clone())
+    }
+
+    fn component_name(&self, i: usize) -> String {
+        let (n, s) = (self.n, self.s);
+        let name = |j: usize| self.scene.info().coordinates[j].name;
+        match i {
+            i if i < n => name(i).to_string(),
+            i if i < 2 * n => format!("d{}/dt", name(i - n)),
+            i if i < 3 * n => format!("d²{}/dt²", name(i - 2 * n)),
+            i if i < 3 * n + s => format!("μ_g[{}]", i - 3 * n),
+            i => format!("μ_f[{}]", i - 3 * n - s),
+        }
+    }
+}

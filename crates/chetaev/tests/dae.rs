@@ -1,0 +1,173 @@
+//! B as an index-1 DAE with sparse Jacobians (`nonholo_chetaev::dae`):
+//! its coloured Jacobian against central differences of its residual
+//! (every entry outside the pattern zero too), the number of colours
+//! against the train's length, and its motion under Radau IIA against B's
+//! ODE form under DOP853 at a tight tolerance.
+
+use nonholo_chetaev::Chetaev;
+use nonholo_chetaev::dae::ChetaevDae;
+use nonholo_core::integrate::{ImplicitSystem, Method, Options, solve, solve_implicit};
+use nonholo_core::stab::Stabilisation;
+use nonholo_core::{Params, Scene};
+use nonholo_scenes::{Sleigh, Train};
+
+fn train(n: usize, h: f64) -> Train {
+    let given = vec![
+        ("N".to_string(), n.to_string()),
+        ("h".to_string(), h.to_string()),
+        ("alpha".to_string(), "0.2".to_string()),
+    ];
+    let p = Params::resolve(nonholo_scenes::trailer::INFO.params, &given, "parameter").unwrap();
+    Train::from_params(&p).unwrap()
+}
+
+/// Deterministic values in `[−1, 1]`.
+fn values(count: usize, seed: u64) -> Vec<f64> {
+    let mut x = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    (0..count)
+        .map(|_| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((x >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        })
+        .collect()
+}
+
+/// The sparse Jacobian of `dae` at `y` against central differences of the
+/// residual (step 1e-6): every listed entry within `1e-7` of the largest
+/// entry of its column (at least 1), every other entry below that too.
+fn check_jacobian<S: Scene>(dae: &mut ChetaevDae<S>, y: &[f64]) {
+    let dim = dae.dim();
+    let sp = dae.sparsity().unwrap();
+    let yp = values(dim, 7);
+    let mut jy = vec![0.0; sp.jy.len()];
+    let mut jyp = vec![0.0; sp.jyp.len()];
+    dae.jacobians(0.3, y, &yp, &mut jy, &mut jyp).unwrap();
+    let mut listed = vec![0.0; dim * dim];
+    let mut is_listed = vec![false; dim * dim];
+    for (&(r, c), &v) in sp.jy.iter().zip(&jy) {
+        assert!(!is_listed[r * dim + c], "entry ({r}, {c}) listed twice");
+        listed[r * dim + c] = v;
+        is_listed[r * dim + c] = true;
+    }
+    let (mut plus, mut minus) = (vec![0.0; dim], vec![0.0; dim]);
+    let mut yy = y.to_vec();
+    for c in 0..dim {
+        let step = 1e-6;
+        yy[c] = y[c] + step;
+        dae.residual(0.3, &yy, &yp, &mut plus).unwrap();
+        yy[c] = y[c] - step;
+        dae.residual(0.3, &yy, &yp, &mut minus).unwrap();
+        yy[c] = y[c];
+        let fd: Vec<f64> = (0..dim)
+            .map(|r| (plus[r] - minus[r]) / (2.0 * step))
+            .collect();
+        let scale = fd.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        for r in 0..dim {
+            let got = listed[r * dim + c];
+            assert!(
+                (got - fd[r]).abs() < 1e-7 * scale,
+                "∂F[{}]/∂y[{}] ({}): {got} against differences {} (listed: {})",
+                r,
+                c,
+                dae.component_name(c),
+                fd[r],
+                is_listed[r * dim + c]
+            );
+        }
+    }
+    // ∂F/∂y' is the identity on (q, v), zero on w.
+    assert!(jyp.iter().all(|&v| v == 1.0));
+    assert_eq!(sp.jyp.len(), 2 * dae.dims().0);
+}
+
+#[test]
+fn coloured_jacobian_matches_differences_of_the_residual() {
+    for (h, stab) in [
+        (0.3, Stabilisation::None),
+        (
+            0.0,
+            Stabilisation::Baumgarte {
+                alpha: 2.0,
+                beta: 3.0,
+            },
+        ),
+    ] {
+        let mut dae = ChetaevDae::new(train(5, h), stab).unwrap();
+        let y = values(dae.dim(), 11);
+        check_jacobian(&mut dae, &y);
+    }
+    let sleigh =
+        Sleigh::from_params(&Params::defaults(nonholo_scenes::sleigh::INFO.params)).unwrap();
+    let mut dae = ChetaevDae::new(sleigh, Stabilisation::None).unwrap();
+    let y = values(dae.dim(), 3);
+    check_jacobian(&mut dae, &y);
+}
+
+/// The colouring finds a number of groups that does not grow with the
+/// train: a Jacobian costs a fixed number of program passes.
+#[test]
+fn colours_do_not_grow_with_the_train() {
+    let colours: Vec<usize> = [4, 10, 40, 200]
+        .iter()
+        .map(|&n| {
+            ChetaevDae::new(train(n, 0.3), Stabilisation::None)
+                .unwrap()
+                .colours()
+        })
+        .collect();
+    eprintln!("colours for N = 4, 10, 40, 200: {colours:?}");
+    // Measured: 5 at every N (the (q, v) block has 6N columns).
+    assert!(colours.iter().all(|&c| c == colours[0]), "{colours:?}");
+    assert!(colours[0] <= 8, "{colours:?}");
+}
+
+/// Five sleighs over 2 s: Radau IIA on the DAE (sparse iteration
+/// matrices) against DOP853 on the ODE form at rtol 1e-12, positions and
+/// velocities at the end, and the multipliers of the DAE's state against
+/// the KKT solve at the ODE's final state.
+#[test]
+fn dae_motion_is_b_motion() {
+    let tr = train(5, 0.3);
+    let q = tr.default_q();
+    let mut qd = vec![0.0; q.len()];
+    tr.velocities_from(&q, &[1.0, 0.6], &mut qd);
+    let n = q.len();
+    let mut ode = Chetaev::new(tr.clone(), Params::defaults(nonholo_chetaev::OPTIONS)).unwrap();
+    let y0 = [q.clone(), qd.clone()].concat();
+    let tight = Options {
+        rtol: 1e-12,
+        atol: 1e-12,
+        ..Options::default()
+    };
+    let reference = solve(Method::Dop853, &mut ode, 0.0, &y0, 2.0, &tight).unwrap();
+    let mut dae = ChetaevDae::new(tr, Stabilisation::None).unwrap();
+    let (y, yp) = dae.initial(0.0, &q, &qd).unwrap();
+    let opts = Options {
+        rtol: 1e-9,
+        atol: 1e-9,
+        ..Options::default()
+    };
+    let run = solve_implicit(&mut dae, 0.0, &y, &yp, 2.0, &opts).unwrap();
+    let err = reference
+        .y_last
+        .iter()
+        .zip(&run.y_last[..2 * n])
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    let st = &run.stats;
+    eprintln!(
+        "DAE Radau: steps {} rejected {} F {} jac {} lu {}; error {err:e}",
+        st.steps, st.rejected_steps, st.rhs_evals, st.jacobian_evals, st.lu_decompositions
+    );
+    assert!(err < 1e-6, "DAE against ODE: {err:e}");
+    // w at the end is the KKT solution at the end state.
+    let (y_end, _) = dae
+        .initial(2.0, &run.y_last[..n], &run.y_last[n..2 * n])
+        .unwrap();
+    let w_err = y_end[2 * n..]
+        .iter()
+        .zip(&run.y_last[2 * n..])
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(w_err < 1e-6, "w against the KKT solution: {w_err:e}");
+}

@@ -1582,7 +1582,7 @@ fn scale_as_performance_md_states() {
     };
     for r in &rows {
         let line = format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r["N"],
             r["kkt_size"],
             r["kkt_nonzeros"],
@@ -1592,6 +1592,8 @@ fn scale_as_performance_md_states() {
             f(r, "kkt_dense_us", 1),
             f(r, "jacobian_ms", 3),
             f(r, "radau_ms_per_step", 3),
+            f(r, "dae_jacobian_ms", 3),
+            f(r, "dae_radau_ms_per_step", 3),
         );
         assert!(flat.contains(&line), "performance.md lacks `{line}`");
     }
@@ -1608,6 +1610,15 @@ fn scale_as_performance_md_states() {
     assert!(flat.contains(&said), "performance.md lacks `{said}`");
     assert!(fit("rhs") <= 1.2 && fit("kkt_sparse") <= 1.2);
     assert!(fit("jacobian") > 1.2 && fit("radau_step") > 1.2);
+    // The DAE form: the issue's ≤ 1.2 for the Jacobian and the Radau step.
+    let said = format!(
+        "{:.2} for a residual, {:.2} for the sparse Jacobian and {:.2} for a Radau IIA step",
+        fit("dae_residual"),
+        fit("dae_jacobian"),
+        fit("dae_radau_step"),
+    );
+    assert!(flat.contains(&said), "performance.md lacks `{said}`");
+    assert!(fit("dae_jacobian") <= 1.2 && fit("dae_radau_step") <= 1.2);
     let at = |n: &str| rows.iter().find(|r| r["N"] == n).unwrap();
     // Dense faster up to 16 rows, sparse from 22 (the threshold, 20, between).
     for r in &rows {
@@ -1659,6 +1670,52 @@ fn scale_as_performance_md_states() {
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
     assert!(flat.contains(&format!("takes {lo}–{hi} steps at every `N ≥ 5`")));
+    // The DAE form at N = 100 and 1000; its colours; its difference from DOP853.
+    let (r100, r1000) = (at("100"), at("1000"));
+    let said = format!(
+        "At `N = 100` a Jacobian costs {:.2} ms against {:.0} ms in the ODE form, and a Radau \
+         step {:.2} ms against {:.0} ms; at `N = 1000` a step costs {:.1} ms",
+        num(r100, "dae_jacobian_ms"),
+        num(r100, "jacobian_ms"),
+        num(r100, "dae_radau_ms_per_step"),
+        num(r100, "radau_ms_per_step"),
+        num(r1000, "dae_radau_ms_per_step"),
+    );
+    assert!(flat.contains(&said), "performance.md lacks `{said}`");
+    assert!(flat.contains(&format!(
+        "({} against {} at `N = 100`",
+        r100["dae_radau_steps"], r100["radau_steps"]
+    )));
+    let colours: Vec<&str> = rows
+        .iter()
+        .filter(|r| num(r, "N") >= 2.0)
+        .map(|r| r["dae_colours"].as_str())
+        .collect();
+    assert!(colours.iter().all(|c| *c == colours[0]), "{colours:?}");
+    assert!(flat.contains(&format!(
+        "The train needs {} groups at every `N`",
+        colours[0]
+    )));
+    for r in rows.iter().filter(|r| num(r, "N") >= 2.0) {
+        assert_eq!(
+            r["dae_radau_jacobians"], r["dae_radau_steps"],
+            "N = {}",
+            r["N"]
+        );
+    }
+    assert!(flat.contains("evaluates a Jacobian at every step from `N = 2` on"));
+    let (lo, hi) = rows
+        .iter()
+        .map(|r| num(r, "dae_vs_dop853"))
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    assert!(flat.contains(&format!(
+        "lies within {lo:.1e}–{hi:.1e} of the DOP853 run's"
+    )));
+    assert!(flat.contains(&format!(
+        "({:.3} s against {:.2} s for the whole run",
+        num(r100, "run_s"),
+        num(r100, "dae_radau_s")
+    )));
 }
 
 /// figures.md, wp-train (its claim): B's largest errors at rtol 1e-11 with

@@ -24,7 +24,14 @@
 //!   integrator's own arithmetic);
 //! * one Radau IIA run of B, same span and tolerances, up to `N = 100`:
 //!   steps, Jacobians, LU factorisations, wall time per step (its Newton
-//!   matrices are dense: the Jacobian of the chain's right-hand side is).
+//!   matrices are dense: the Jacobian of the chain's right-hand side is);
+//! * B as an index-1 DAE in `(q, q̇, q̈, μ)` ([`nonholo_chetaev::dae`]) at
+//!   every size: its colours (the `Dual64` passes of one Jacobian), one
+//!   residual, one sparse Jacobian, and one Radau IIA run with sparse
+//!   iteration matrices (faer, real and complex) over the same span and
+//!   tolerances, called directly (`solve_implicit`: no initial-data check,
+//!   no monitors), with the largest difference of its final `(q, q̇)` from
+//!   the DOP853 run's.
 //!
 //! The timings of one call are interleaved across the sizes, `R` rounds
 //! (default 3), medians reported; the compilation and the two runs are
@@ -40,8 +47,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nonholo_chetaev::Chetaev;
+use nonholo_chetaev::dae::ChetaevDae;
 use nonholo_core::compiled::Compiled;
-use nonholo_core::integrate::{Method, OdeSystem, Options};
+use nonholo_core::integrate::{ImplicitSystem, Method, OdeSystem, Options, solve_implicit};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::scene::Lagrangian;
 use nonholo_core::sparse::SparseKkt;
@@ -112,8 +120,19 @@ struct Size {
     dense_s: Vec<f64>,
     jacobian_s: Vec<f64>,
     run: Option<(usize, usize, f64)>,
+    /// `(q, q̇)` at the end of the DOP853 run.
+    run_end: Vec<f64>,
     /// Radau IIA: steps, Jacobians, LU factorisations, wall time.
     radau: Option<(usize, usize, usize, f64)>,
+    /// B as an index-1 DAE, its consistent `(y, y')` at the state.
+    dae: ChetaevDae<Train>,
+    dae_y: Vec<f64>,
+    dae_yp: Vec<f64>,
+    dae_residual_s: Vec<f64>,
+    dae_jacobian_s: Vec<f64>,
+    /// Radau IIA on the DAE: steps, Jacobians, LU factorisations, wall
+    /// time, largest difference of `(q, q̇)` from the DOP853 run at the end.
+    dae_radau: Option<(usize, usize, usize, f64, f64)>,
 }
 
 impl Size {
@@ -140,6 +159,10 @@ impl Size {
         let nonzeros = SparseKkt::new(program.pattern(), ti.n(), ti.s(), ti.k())
             .map(|s| s.nonzeros())
             .unwrap_or(0);
+        let dae = ChetaevDae::new(train.clone(), Stabilisation::None).map_err(|e| e.to_string())?;
+        let (dae_y, dae_yp) = dae
+            .initial(0.0, &y[..ti.n()], &y[ti.n()..])
+            .map_err(|e| e.to_string())?;
         Ok(Size {
             n_sleighs,
             train,
@@ -153,7 +176,14 @@ impl Size {
             dense_s: Vec::new(),
             jacobian_s: Vec::new(),
             run: None,
+            run_end: Vec::new(),
             radau: None,
+            dae,
+            dae_y,
+            dae_yp,
+            dae_residual_s: Vec::new(),
+            dae_jacobian_s: Vec::new(),
+            dae_radau: None,
         })
     }
 
@@ -210,9 +240,27 @@ impl Size {
                 ms,
             ));
         }
+        let dim = self.dae.dim();
+        let sp = self.dae.sparsity().expect("the DAE form is sparse");
+        let (mut jy, mut jyp) = (vec![0.0; sp.jy.len()], vec![0.0; sp.jyp.len()]);
+        let mut res = vec![0.0; dim];
+        let (dae, y, yp) = (&mut self.dae, &self.dae_y, &self.dae_yp);
+        self.dae_residual_s.push(per_call(
+            || {
+                let _ = std::hint::black_box(dae.residual(0.0, y, yp, &mut res));
+            },
+            ms,
+        ));
+        self.dae_jacobian_s.push(per_call(
+            || {
+                let _ = std::hint::black_box(dae.jacobians(0.0, y, yp, &mut jy, &mut jyp));
+            },
+            ms,
+        ));
         if self.run.is_none() {
             let (steps, rhs, _, _, wall) = self.simulate(Method::Dop853)?;
             self.run = Some((steps, rhs, wall));
+            self.dae_radau = Some(self.simulate_dae()?);
             if self.n_sleighs <= RADAU_UP_TO {
                 let (steps, _, jac, lu, wall) = self.simulate(Method::Radau5)?;
                 self.radau = Some((steps, jac, lu, wall));
@@ -223,10 +271,39 @@ impl Size {
 }
 
 impl Size {
+    /// Radau IIA on B's DAE form over `[0, 2] s` at `rtol = atol = 1e-8`:
+    /// steps, Jacobians, LU factorisations, wall time, and the largest
+    /// difference of its final `(q, q̇)` from the DOP853 run's.
+    fn simulate_dae(&mut self) -> Result<(usize, usize, usize, f64, f64), String> {
+        let opts = Options {
+            rtol: 1e-8,
+            atol: 1e-8,
+            output: vec![0.0, 2.0],
+            ..Options::default()
+        };
+        let start = Instant::now();
+        let r = solve_implicit(&mut self.dae, 0.0, &self.dae_y, &self.dae_yp, 2.0, &opts);
+        let wall = start.elapsed().as_secs_f64();
+        let r = r.map_err(|e| format!("N = {}, DAE Radau IIA: {e}", self.n_sleighs))?;
+        let diff = self
+            .run_end
+            .iter()
+            .zip(&r.y_last)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let st = &r.stats;
+        Ok((
+            st.steps,
+            st.jacobian_evals,
+            st.lu_decompositions,
+            wall,
+            diff,
+        ))
+    }
+
     /// One run of B over `[0, 2] s` at `rtol = atol = 1e-8`, the model
     /// built (its program compiled) before the clock starts: steps,
     /// right-hand sides, Jacobians, LU factorisations, wall time.
-    fn simulate(&self, method: Method) -> Result<(usize, usize, usize, usize, f64), String> {
+    fn simulate(&mut self, method: Method) -> Result<(usize, usize, usize, usize, f64), String> {
         let model = Chetaev::new(
             self.train.clone(),
             Params::defaults(nonholo_chetaev::OPTIONS),
@@ -260,6 +337,9 @@ impl Size {
         let r = r.map_err(|e| fail(e.to_string()))?;
         if let Some(f) = &r.failure {
             return Err(fail(f.to_string()));
+        }
+        if method == Method::Dop853 {
+            self.run_end = r.solution.y_last.clone();
         }
         let st = &r.solution.stats;
         Ok((
@@ -326,12 +406,21 @@ fn run() -> Result<(), String> {
         "radau_lu",
         "radau_s",
         "radau_ms_per_step",
+        "dae_colours",
+        "dae_residual_us",
+        "dae_jacobian_ms",
+        "dae_radau_steps",
+        "dae_radau_jacobians",
+        "dae_radau_lu",
+        "dae_radau_s",
+        "dae_radau_ms_per_step",
+        "dae_vs_dop853",
     ])
     .map_err(|e| e.to_string())?;
     println!(
-        "| N | n | KKT size | nonzeros | instructions | compile (s) | RHS (µs) | KKT sparse (µs) | KKT dense (µs) | Jacobian (ms) | DOP853: steps, RHS, s | DOP853, not RHS (s) | Radau: steps, Jacobians, LU | Radau (ms/step) |"
+        "| N | n | KKT size | nonzeros | instructions | compile (s) | RHS (µs) | KKT sparse (µs) | KKT dense (µs) | Jacobian (ms) | DOP853: steps, RHS, s | DOP853, not RHS (s) | Radau: steps, Jacobians, LU | Radau (ms/step) | DAE: colours, residual (µs), Jacobian (ms) | DAE Radau: steps, Jacobians, LU, ms/step | DAE − DOP853 |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let cols: Vec<[f64; 5]> = sizes
         .iter()
         .map(|s| {
@@ -350,6 +439,12 @@ fn run() -> Result<(), String> {
         let other = wall - rhs as f64 * c[1] * 1e-6;
         let (rs, rj, rl, rw) = s.radau.unwrap_or((0, 0, 0, f64::NAN));
         let per_step = rw / rs.max(1) as f64 * 1e3;
+        let (ds, dj, dl, dw, dd) = s.dae_radau.unwrap_or((0, 0, 0, f64::NAN, f64::NAN));
+        let dae_step = dw / ds.max(1) as f64 * 1e3;
+        let (dae_res, dae_jac) = (
+            median(&s.dae_residual_s) * 1e6,
+            median(&s.dae_jacobian_s) * 1e3,
+        );
         let fmt = |v: f64| {
             if v.is_finite() {
                 format!("{v:.4}")
@@ -377,10 +472,19 @@ fn run() -> Result<(), String> {
             rl.to_string(),
             fmt(rw),
             fmt(per_step),
+            s.dae.colours().to_string(),
+            fmt(dae_res),
+            fmt(dae_jac),
+            ds.to_string(),
+            dj.to_string(),
+            dl.to_string(),
+            fmt(dw),
+            fmt(dae_step),
+            format!("{dd:.3e}"),
         ])
         .map_err(|e| e.to_string())?;
         println!(
-            "| {} | {} | {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {steps}, {rhs}, {wall:.3} | {other:.3} | {rs}, {rj}, {rl} | {} |",
+            "| {} | {} | {} | {} | {} | {:.3} | {:.2} | {} | {} | {} | {steps}, {rhs}, {wall:.3} | {other:.3} | {rs}, {rj}, {rl} | {} | {}, {}, {} | {ds}, {dj}, {dl}, {} | {dd:.1e} |",
             s.n_sleighs,
             info.n(),
             info.n() + info.s() + info.k(),
@@ -392,11 +496,30 @@ fn run() -> Result<(), String> {
             fmt(c[3]),
             fmt(c[4]),
             fmt(per_step),
+            s.dae.colours(),
+            fmt(dae_res),
+            fmt(dae_jac),
+            fmt(dae_step),
         );
     }
     w.flush().map_err(|e| e.to_string())?;
     let ns: Vec<usize> = sizes.iter().map(|s| s.n_sleighs).collect();
     let col = |i: usize| -> Vec<f64> {
+        // The DAE form, in seconds: residual, Jacobian, Radau step.
+        match i {
+            6 => return sizes.iter().map(|s| median(&s.dae_residual_s)).collect(),
+            7 => return sizes.iter().map(|s| median(&s.dae_jacobian_s)).collect(),
+            8 => {
+                return sizes
+                    .iter()
+                    .map(|s| {
+                        s.dae_radau
+                            .map_or(f64::NAN, |(st, _, _, w, _)| w / st.max(1) as f64)
+                    })
+                    .collect();
+            }
+            _ => {}
+        }
         if i == 5 {
             // Radau's wall time per step.
             return sizes
@@ -416,6 +539,9 @@ fn run() -> Result<(), String> {
         ("kkt_dense", slope(&ns, &col(3))),
         ("jacobian", slope(&ns, &col(4))),
         ("radau_step", slope(&ns, &col(5))),
+        ("dae_residual", slope(&ns, &col(6))),
+        ("dae_jacobian", slope(&ns, &col(7))),
+        ("dae_radau_step", slope(&ns, &col(8))),
     ];
     println!();
     println!(
@@ -467,11 +593,17 @@ fn run() -> Result<(), String> {
             ),
             series("KKT solve, dense LU at every size", 3, 1e-6),
             series(
-                "Jacobian of the right-hand side (dense, 6N columns)",
+                "ODE form: Jacobian of the right-hand side (dense, 6N columns)",
                 4,
                 1e-3,
             ),
-            series("one Radau IIA step (dense Newton matrices)", 5, 1.0),
+            series(
+                "ODE form: one Radau IIA step (dense Newton matrices)",
+                5,
+                1.0,
+            ),
+            series("DAE form: sparse Jacobian (coloured passes)", 7, 1.0),
+            series("DAE form: one Radau IIA step (sparse, faer)", 8, 1.0),
             series("compiling L, g, f (once per scene)", 0, 1.0),
         ],
         ..LinePlot::default()

@@ -34,11 +34,14 @@
 use std::sync::Arc;
 
 use nonholo_core::compiled::{Compiled, Pieces, Workspace};
-use nonholo_core::integrate::{ImplicitSystem, Sparsity, SystemError};
+use nonholo_core::consistency::{InitProjection, check_or_project};
+use nonholo_core::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
 use nonholo_core::kkt::{Ideal, Kkt};
+use nonholo_core::model::{Description, Observation};
+use nonholo_core::monitor::Diagnostics;
 use nonholo_core::scene::{Lagrangian, Scalar};
-use nonholo_core::stab::Stabilisation;
-use nonholo_core::{Error, Scene};
+use nonholo_core::stab::{Stabilisation, StepHooks};
+use nonholo_core::{Error, Initial, Model, Params, Scene};
 use num_dual::Dual64;
 
 /// Where an entry of `K` takes its value from.
@@ -50,9 +53,16 @@ enum Source {
     F(usize),
 }
 
-/// B on `scene` as the index-1 system of the [module docs](self).
+/// B on `scene` as the index-1 system of the [module docs](self), and as a
+/// [`Model`] (B with `form = "dae"`): integrated by Radau IIA only; its
+/// multipliers are read from the state; the same per-step diagnostics and
+/// guard as B's ODE form.
 pub struct ChetaevDae<S: Scene> {
     scene: S,
+    options: Params,
+    hooks: StepHooks,
+    /// `y'(t0)` of the last [`Model::initial_state`].
+    yp0: Vec<f64>,
     program: Arc<Compiled>,
     /// Baumgarte gains `(α, β)` of the constraint rows.
     gains: (f64, f64),
@@ -83,6 +93,9 @@ impl<S: Scene + Clone> Clone for ChetaevDae<S> {
     fn clone(&self) -> Self {
         ChetaevDae {
             scene: self.scene.clone(),
+            options: self.options.clone(),
+            hooks: self.hooks.clone(),
+            yp0: self.yp0.clone(),
             program: self.program.clone(),
             gains: self.gains,
             stab: self.stab,
@@ -137,11 +150,13 @@ fn kkt_apply<T: Scalar>(
 }
 
 impl<S: Scene> ChetaevDae<S> {
-    /// B on `scene` with stabilisation `stab` (none or Baumgarte; a
-    /// projection has no place in this form). Compiles the scene's
-    /// program; a scene whose trace is refused (it branches on values) has
-    /// no DAE form.
-    pub fn new(scene: S, stab: Stabilisation) -> Result<Self, Error> {
+    /// B on `scene` with B's `options` ([`crate::OPTIONS`]; stabilisation
+    /// none or Baumgarte: a projection has no place in this form).
+    /// Compiles the scene's program; a scene whose trace is refused (it
+    /// branches on values) has no DAE form.
+    pub fn new(scene: S, options: Params) -> Result<Self, Error> {
+        let hooks = StepHooks::new(&scene, &options)?;
+        let stab = hooks.stab;
         let info = scene.info();
         let refuse = |reason: String| Error::NotApplicable {
             formulation: "chetaev (DAE form)".into(),
@@ -254,6 +269,9 @@ impl<S: Scene> ChetaevDae<S> {
             real: program.workspace(),
             dual: program.workspace(),
             scene,
+            options,
+            hooks,
+            yp0: Vec::new(),
             program: Arc::new(program),
             gains,
             stab,
@@ -421,6 +439,24 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         Some(self.sparsity.clone())
     }
 
+    /// B's diagnostics and guard on `(q, q̇)`; no projection (refused).
+    fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        let n = self.n;
+        let (q, rest) = y.split_at_mut(n);
+        self.hooks.after_step(&self.scene, t, q, &mut rest[..n])
+    }
+
+    fn guard(&mut self, t: f64, y: &[f64]) -> Option<f64> {
+        let n = self.n;
+        self.hooks.guard(&self.scene, t, &y[..n], &y[n..2 * n])
+    }
+
+    fn guard_reason(&mut self, t: f64, y: &[f64]) -> String {
+        let n = self.n;
+        self.hooks
+            .guard_reason(&self.scene, t, &y[..n], &y[n..2 * n])
+    }
+
     fn component_name(&self, i: usize) -> String {
         let (n, s) = (self.n, self.s);
         let name = |j: usize| self.scene.info().coordinates[j].name;
@@ -431,5 +467,65 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
             i if i < 3 * n + s => format!("μ_g[{}]", i - 3 * n),
             i => format!("μ_f[{}]", i - 3 * n - s),
         }
+    }
+}
+
+impl<S: Scene> Model for ChetaevDae<S> {
+    fn describe(&self) -> Description<'_> {
+        Description {
+            scene: self.scene.info(),
+            formulation: &crate::INFO,
+            params: self.scene.params(),
+            options: &self.options,
+        }
+    }
+
+    fn implicit(&mut self) -> Option<&mut dyn ImplicitSystem> {
+        Some(self)
+    }
+
+    /// Radau IIA only: the form has no explicit right-hand side.
+    fn accepts(&self, method: Method) -> Result<(), Error> {
+        if method.is_implicit() {
+            return Ok(());
+        }
+        Err(Error::NoExplicitForm {
+            formulation: "chetaev (form = \"dae\")",
+            method: method.name(),
+        })
+    }
+
+    fn make_consistent(
+        &mut self,
+        init: &mut Initial,
+        project: bool,
+    ) -> Result<Option<InitProjection>, Error> {
+        check_or_project(&self.scene, init, project)
+    }
+
+    fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
+        let (y, yp) = self.initial(init.t0, &init.q, &init.qd)?;
+        self.yp0 = yp;
+        self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
+        Ok(y)
+    }
+
+    fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
+        Ok(self.yp0.clone())
+    }
+
+    /// `(q, q̇)` and minus the state's multiplier part (`λ`, then `ν`).
+    fn observe(&mut self, _t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
+        let n = self.n;
+        obs.q.copy_from_slice(&y[..n]);
+        obs.qd.copy_from_slice(&y[n..2 * n]);
+        for (m, v) in obs.multipliers.iter_mut().zip(&y[3 * n..]) {
+            *m = -v;
+        }
+        Ok(())
+    }
+
+    fn diagnostics(&self) -> Diagnostics {
+        self.hooks.diagnostics().clone()
     }
 }

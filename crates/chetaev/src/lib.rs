@@ -26,13 +26,30 @@ use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};
 use nonholo_core::compiled::Programs;
 use nonholo_core::kkt::{Ideal, Kkt};
-use nonholo_core::model::FormulationInfo;
+use nonholo_core::model::{FormulationInfo, Model};
 use nonholo_core::param::{ParamSpec, Params};
 use nonholo_core::scene::{Lagrangian, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation};
 
+/// The form B is integrated in.
+pub const FORM: ParamSpec = ParamSpec::choice(
+    "form",
+    &["ode", "dae"],
+    "ode: q̈ from one KKT solve per right-hand side, state (q, q̇), any integrator; dae: the \
+     KKT unknowns (q̈, −λ, −ν) in the state, an index-1 DAE with sparse Jacobians, radau5 \
+     only (for large scenes, e.g. sleigh-train)",
+);
+
 /// Options of formulation B.
-pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL];
+pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, FORM];
+
+/// B bound to `scene` in the form its `options` choose ([`FORM`]).
+pub fn model<S: Scene>(scene: S, options: Params) -> Result<Box<dyn Model>, Error> {
+    Ok(match options.choice(FORM.name)? {
+        "dae" => Box::new(dae::ChetaevDae::new(scene, options)?),
+        _ => Box::new(Chetaev::new(scene, options)?),
+    })
+}
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "chetaev",

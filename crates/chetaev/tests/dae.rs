@@ -7,8 +7,7 @@
 use nonholo_chetaev::Chetaev;
 use nonholo_chetaev::dae::ChetaevDae;
 use nonholo_core::integrate::{ImplicitSystem, Method, Options, solve, solve_implicit};
-use nonholo_core::stab::Stabilisation;
-use nonholo_core::{Params, Scene};
+use nonholo_core::{Initial, Params, RunConfig, Scene, simulate};
 use nonholo_scenes::{Sleigh, Train};
 
 fn train(n: usize, h: f64) -> Train {
@@ -19,6 +18,15 @@ fn train(n: usize, h: f64) -> Train {
     ];
     let p = Params::resolve(nonholo_scenes::trailer::INFO.params, &given, "parameter").unwrap();
     Train::from_params(&p).unwrap()
+}
+
+/// B's options with these overrides.
+fn options(given: &[(&str, &str)]) -> Params {
+    let given: Vec<(String, String)> = given
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    Params::resolve(nonholo_chetaev::OPTIONS, &given, "option").unwrap()
 }
 
 /// Deterministic values in `[−1, 1]`.
@@ -85,13 +93,14 @@ fn check_jacobian<S: Scene>(dae: &mut ChetaevDae<S>, y: &[f64]) {
 #[test]
 fn coloured_jacobian_matches_differences_of_the_residual() {
     for (h, stab) in [
-        (0.3, Stabilisation::None),
+        (0.3, options(&[])),
         (
             0.0,
-            Stabilisation::Baumgarte {
-                alpha: 2.0,
-                beta: 3.0,
-            },
+            options(&[
+                ("stab", "baumgarte"),
+                ("baumgarte_alpha", "2"),
+                ("baumgarte_beta", "3"),
+            ]),
         ),
     ] {
         let mut dae = ChetaevDae::new(train(5, h), stab).unwrap();
@@ -100,7 +109,7 @@ fn coloured_jacobian_matches_differences_of_the_residual() {
     }
     let sleigh =
         Sleigh::from_params(&Params::defaults(nonholo_scenes::sleigh::INFO.params)).unwrap();
-    let mut dae = ChetaevDae::new(sleigh, Stabilisation::None).unwrap();
+    let mut dae = ChetaevDae::new(sleigh, options(&[])).unwrap();
     let y = values(dae.dim(), 3);
     check_jacobian(&mut dae, &y);
 }
@@ -112,7 +121,7 @@ fn colours_do_not_grow_with_the_train() {
     let colours: Vec<usize> = [4, 10, 40, 200]
         .iter()
         .map(|&n| {
-            ChetaevDae::new(train(n, 0.3), Stabilisation::None)
+            ChetaevDae::new(train(n, 0.3), options(&[]))
                 .unwrap()
                 .colours()
         })
@@ -142,7 +151,7 @@ fn dae_motion_is_b_motion() {
         ..Options::default()
     };
     let reference = solve(Method::Dop853, &mut ode, 0.0, &y0, 2.0, &tight).unwrap();
-    let mut dae = ChetaevDae::new(tr, Stabilisation::None).unwrap();
+    let mut dae = ChetaevDae::new(tr, options(&[])).unwrap();
     let (y, yp) = dae.initial(0.0, &q, &qd).unwrap();
     let opts = Options {
         rtol: 1e-9,
@@ -171,4 +180,75 @@ fn dae_motion_is_b_motion() {
         .zip(&run.y_last[2 * n..])
         .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(w_err < 1e-6, "w against the KKT solution: {w_err:e}");
+}
+
+/// A run as the lab makes it, `form = "dae"` against the ODE form: ten
+/// sleighs over 2 s with Radau IIA (DAE, rtol 1e-9) and DOP853 (ODE, rtol
+/// 1e-12), sampled at 0, 1, 2 s: positions, velocities and multipliers
+/// agree, the diagnostics are B's (constraint residual, energy drift at
+/// every accepted step), and an explicit integrator or a projection is
+/// refused with the reason.
+#[test]
+fn dae_form_runs_as_a_model() {
+    let tr = train(10, 0.3);
+    let q = tr.default_q();
+    let mut qd = vec![0.0; q.len()];
+    tr.velocities_from(&q, &[1.0, 0.6], &mut qd);
+    let initial = Initial {
+        t0: 0.0,
+        q,
+        qd,
+        extra: Vec::new(),
+    };
+    let config = |method, tol: f64| RunConfig {
+        method,
+        options: Options {
+            rtol: tol,
+            atol: tol,
+            output: vec![0.0, 1.0, 2.0],
+            ..Options::default()
+        },
+        t_end: 2.0,
+        project_init: false,
+    };
+    let ode = nonholo_chetaev::model(tr.clone(), options(&[])).unwrap();
+    let reference = simulate(ode, initial.clone(), config(Method::Dop853, 1e-12)).unwrap();
+    let dae = nonholo_chetaev::model(tr.clone(), options(&[("form", "dae")])).unwrap();
+    let run = simulate(dae, initial.clone(), config(Method::Radau5, 1e-9)).unwrap();
+    assert!(run.failure.is_none(), "{:?}", run.failure);
+    assert_eq!(run.samples.len(), 3);
+    let mut worst = (0.0f64, 0.0f64);
+    for (a, b) in reference.samples.iter().zip(&run.samples) {
+        let d = |u: &[f64], v: &[f64]| {
+            u.iter()
+                .zip(v)
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        };
+        worst.0 = worst.0.max(d(&a.q, &b.q)).max(d(&a.qd, &b.qd));
+        worst.1 = worst.1.max(d(&a.multipliers, &b.multipliers));
+    }
+    let diag = &run.diagnostics;
+    eprintln!(
+        "DAE model: (q, q̇) {:.1e}, multipliers {:.1e}; residual {:.1e}, energy drift {:.1e}, \
+         states {}",
+        worst.0, worst.1, diag.constraint_residual_max, diag.energy_drift_max, diag.states_checked
+    );
+    assert!(worst.0 < 1e-8 && worst.1 < 1e-6, "{worst:?}");
+    assert_eq!(diag.states_checked, run.solution.stats.steps + 1);
+    assert!(diag.constraint_residual_max < 1e-8, "{diag:?}");
+    // The train on an incline (α = 0.2) exchanges potential and kinetic
+    // energy; the total is conserved by the motion.
+    assert!(diag.energy_drift_max < 1e-7, "{diag:?}");
+    assert_eq!(run.model.multiplier_names().len(), 10 + 18);
+
+    let dae = nonholo_chetaev::model(tr.clone(), options(&[("form", "dae")])).unwrap();
+    let e = simulate(dae, initial, config(Method::Dop853, 1e-8))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("radau5") && e.contains("dae"), "{e}");
+    let e = nonholo_chetaev::model(tr, options(&[("form", "dae"), ("stab", "projection")]))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("projection"), "{e}");
 }

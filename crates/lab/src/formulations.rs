@@ -56,10 +56,7 @@ impl SceneVisitor for Build {
 
     fn visit<S: Scene>(self, scene: S) -> Self::Output {
         match self.formulation.name {
-            "chetaev" => Ok(Box::new(nonholo_chetaev::Chetaev::new(
-                scene,
-                self.options,
-            )?)),
+            "chetaev" => nonholo_chetaev::model(scene, self.options),
             "vakonomic" => Ok(Box::new(nonholo_vakonomic::Vakonomic::new(
                 scene,
                 self.options,

@@ -1718,6 +1718,72 @@ fn scale_as_performance_md_states() {
     )));
 }
 
+/// figures.md, wp-train-dae (its claim): Radau IIA on B's DAE form more
+/// accurate than on the ODE form at every tolerance (errors deterministic)
+/// and faster (median wall times of the committed run); DOP853's run at
+/// rtol 1e-10 faster than every Radau run below 1e-8 m.
+#[test]
+fn wp_train_dae_as_figures_md_states() {
+    let rows = table("wp-train-dae", "work_precision.csv");
+    let line = |label: &str| -> Vec<&HashMap<String, String>> {
+        let mut v: Vec<_> = rows.iter().filter(|r| r["label"] == label).collect();
+        v.sort_by(|a, b| num(b, "tolerance").total_cmp(&num(a, "tolerance")));
+        v
+    };
+    let (dae, ode, dop) = (line("B-dae-radau5"), line("B-radau5"), line("B-dop853"));
+    assert_eq!((dae.len(), ode.len(), dop.len()), (6, 6, 6));
+    for (d, o) in dae.iter().zip(&ode) {
+        assert_eq!(num(d, "tolerance"), num(o, "tolerance"));
+        assert!(
+            num(d, "err_max") < num(o, "err_max"),
+            "tol {}",
+            d["tolerance"]
+        );
+        assert!(
+            num(d, "wall_time_median_s") < num(o, "wall_time_median_s"),
+            "tol {}",
+            d["tolerance"]
+        );
+    }
+    let e = |r: &HashMap<String, String>| format!("{:.1e}", num(r, "err_max"));
+    let said = format!(
+        "(largest error {} to {} m against {} to {} m)",
+        e(dae[0]),
+        e(dae[5]),
+        e(ode[0]),
+        e(ode[5])
+    );
+    let best = dop[5];
+    assert_eq!(num(best, "tolerance"), 1e-10);
+    let fastest_radau_below = dae
+        .iter()
+        .chain(&ode)
+        .filter(|r| num(r, "err_max") < 1e-8)
+        .map(|r| num(r, "wall_time_median_s"))
+        .fold(f64::INFINITY, f64::min);
+    assert!(num(best, "wall_time_median_s") < fastest_radau_below);
+    let train = <nonholo_scenes::Train as nonholo_core::Scene>::from_params(
+        &nonholo_core::Params::resolve(
+            nonholo_scenes::trailer::INFO.params,
+            &[("N".into(), "30".into())],
+            "parameter",
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let colours = nonholo_chetaev::dae::ChetaevDae::new(
+        train,
+        nonholo_core::Params::defaults(nonholo_chetaev::OPTIONS),
+    )
+    .unwrap()
+    .colours();
+    figures_md_says(&[
+        &said,
+        &format!("its sparse Jacobian from {colours} coloured passes"),
+        &format!("its {} m at rtol 1e-10", e(best)),
+    ]);
+}
+
 /// figures.md, wp-train (its claim): B's largest errors at rtol 1e-11 with
 /// DOPRI5, DOP853 and Radau IIA; C 33–35 000 times B's error at the same
 /// tolerance and integrator; C's right-hand sides 2.5–3.3 times B's with

@@ -159,7 +159,8 @@ impl Size {
         let nonzeros = SparseKkt::new(program.pattern(), ti.n(), ti.s(), ti.k())
             .map(|s| s.nonzeros())
             .unwrap_or(0);
-        let dae = ChetaevDae::new(train.clone(), Stabilisation::None).map_err(|e| e.to_string())?;
+        let dae = ChetaevDae::new(train.clone(), Params::defaults(nonholo_chetaev::OPTIONS))
+            .map_err(|e| e.to_string())?;
         let (dae_y, dae_yp) = dae
             .initial(0.0, &y[..ti.n()], &y[ti.n()..])
             .map_err(|e| e.to_string())?;

@@ -34,7 +34,7 @@
 use std::sync::Arc;
 
 use nonholo_core::compiled::{Compiled, Pieces, Workspace};
-use nonholo_core::consistency::{InitProjection, check_or_project};
+use nonholo_core::consistency::{InitProjection, check_or_project_with};
 use nonholo_core::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::{Description, Observation};
@@ -500,7 +500,7 @@ impl<S: Scene> Model for ChetaevDae<S> {
         init: &mut Initial,
         project: bool,
     ) -> Result<Option<InitProjection>, Error> {
-        check_or_project(&self.scene, init, project)
+        check_or_project_with(&self.scene, init, project, Some(&self.program))
     }
 
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {

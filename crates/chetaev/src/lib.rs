@@ -24,7 +24,7 @@ pub mod dae;
 
 use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};
-use nonholo_core::compiled::Programs;
+use nonholo_core::compiled::{Compiled, Programs};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::{FormulationInfo, Model};
 use nonholo_core::param::{ParamSpec, Params};
@@ -102,6 +102,10 @@ impl Equations for ChetaevEquations {
     /// program ([`nonholo_core::compiled`]) where the trace holds.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
         Kkt::for_scene(scene.info()).compiled_for(&self.programs, &Lagrangian(scene), 0, scene)
+    }
+
+    fn program<'w>(&self, work: &'w Kkt<f64>) -> Option<&'w Compiled> {
+        work.compiled()
     }
 
     fn keeps_constraints(&self) -> bool {

@@ -24,7 +24,7 @@ use nonholo_integrate::{OdeSystem, RadauNewton, SystemError};
 use num_dual::{Dual2_64, Dual64};
 
 use crate::Error;
-use crate::consistency::{InitProjection, check_or_project, check_positions};
+use crate::consistency::{InitProjection, check_or_project_with, check_positions};
 use crate::init::{ExtraName, Initial};
 use crate::linalg::Singular;
 use crate::model::{
@@ -99,6 +99,13 @@ pub trait Equations: Sized + Send + 'static {
 
     /// A workspace over `T` for `scene`.
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Self::Work<T>;
+
+    /// The compiled program of `work`, if the equations compiled the scene
+    /// (the check of initial data then reads the constraints from it,
+    /// [`crate::consistency::check_or_project_with`]).
+    fn program<'w>(&self, _work: &'w Self::Work<f64>) -> Option<&'w crate::compiled::Compiled> {
+        None
+    }
 
     /// Length of the state `y`.
     fn dim(&self, info: &SceneInfo) -> usize;
@@ -596,7 +603,8 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
         if !project && !self.eq.needs_consistent_velocities() {
             return check_positions(&self.scene, init);
         }
-        check_or_project(&self.scene, init, project)
+        let program = self.eq.program(&self.work);
+        check_or_project_with(&self.scene, init, project, program)
     }
 
     /// The equations' initial state; the hooks start at `(q0, q̇)` with `q̇`

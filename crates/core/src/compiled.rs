@@ -242,6 +242,11 @@ impl Compiled {
         (self.n, self.s, self.k)
     }
 
+    /// Number of the field's parameters `p` ([`Compiled::eval`]).
+    pub fn parameters(&self) -> usize {
+        self.np
+    }
+
     /// The structural nonzeros of `M`, `G` and `F`.
     pub fn pattern(&self) -> &Pattern {
         &self.pattern

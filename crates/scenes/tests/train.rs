@@ -289,3 +289,66 @@ fn sparse_and_dense_dual_solves_agree_at_n_20() {
         }
     }
 }
+
+/// The check of initial data reads the same distances from the compiled
+/// program (sparse rows) as from the scalar passes (a dense Jacobian):
+/// consistent data pass both ways, data off a blade or off a hitch are
+/// refused both ways at the same level, with the same distance and
+/// residuals.
+#[test]
+fn compiled_check_of_initial_data_matches_the_dense_one() {
+    use nonholo_core::consistency::check_or_project_with;
+    use nonholo_core::{Initial, Level};
+    let t = train(&[("N", "5"), ("h", "0.3"), ("alpha", "0.2")]).unwrap();
+    let program = Compiled::new(&Lagrangian(&t), 0, &t).unwrap();
+    let q = t.default_q();
+    let mut qd = vec![0.0; q.len()];
+    t.velocities_from(&q, &[1.0, 0.4], &mut qd);
+    let base = Initial {
+        t0: 0.0,
+        q,
+        qd,
+        extra: Vec::new(),
+    };
+    let verdict = |init: &Initial, program: Option<&Compiled>| {
+        check_or_project_with(&t, &mut init.clone(), false, program)
+    };
+    assert!(verdict(&base, None).unwrap().is_none());
+    assert!(verdict(&base, Some(&program)).unwrap().is_none());
+    let mut off_blade = base.clone();
+    off_blade.qd[4] += 1e-5;
+    let mut off_hitch = base.clone();
+    off_hitch.q[7] += 1e-5;
+    for (init, level) in [
+        (off_blade, Level::Velocities),
+        (off_hitch, Level::Positions),
+    ] {
+        let dense = verdict(&init, None).unwrap_err();
+        let sparse = verdict(&init, Some(&program)).unwrap_err();
+        match (dense, sparse) {
+            (
+                Error::OffConstraints {
+                    level: a,
+                    residuals: ra,
+                    distance: da,
+                    ..
+                },
+                Error::OffConstraints {
+                    level: b,
+                    residuals: rb,
+                    distance: db,
+                    ..
+                },
+            ) => {
+                assert_eq!((a, b), (level, level));
+                assert!((da - db).abs() <= 1e-12 * da, "{da} against {db}");
+                assert_eq!(ra.len(), rb.len());
+                for ((na, va), (nb, vb)) in ra.iter().zip(&rb) {
+                    assert_eq!(na, nb);
+                    assert!((va - vb).abs() <= 1e-14, "{na}: {va} against {vb}");
+                }
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -25,7 +25,7 @@
 use nonholo_core::Error;
 use nonholo_core::Initial;
 use nonholo_core::binding::{Binding, Equations, EvalError};
-use nonholo_core::compiled::Programs;
+use nonholo_core::compiled::{Compiled, Programs};
 use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::FormulationInfo;
@@ -102,6 +102,10 @@ impl Equations for VakonomicEquations {
     fn work<S: Scene, T: Scalar>(&self, scene: &S) -> Kkt<T> {
         let s = scene.info().s();
         Kkt::for_scene(scene.info()).compiled_for(&self.programs, &Augmented(scene), s, scene)
+    }
+
+    fn program<'w>(&self, work: &'w Kkt<f64>) -> Option<&'w Compiled> {
+        work.compiled()
     }
 
     fn keeps_constraints(&self) -> bool {

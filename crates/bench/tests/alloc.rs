@@ -192,7 +192,7 @@ fn sparse_rhs_and_jacobian_of_the_train_allocate_nothing() {
     let mut b = train_case(20).unwrap();
     // 60 coordinates, 20 blades, 38 hitch rows: the sparse path.
     assert_eq!(b.dim(), 120);
-    assert!(118 >= nonholo_core::sparse::SPARSE_FROM);
+    const { assert!(118 >= nonholo_core::sparse::SPARSE_FROM) };
     assert_rhs_allocates_nothing(&mut b);
     let dim = b.dim();
     let mut jac = vec![0.0; dim * dim];

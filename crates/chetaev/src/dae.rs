@@ -528,4 +528,14 @@ impl<S: Scene> Model for ChetaevDae<S> {
     fn diagnostics(&self) -> Diagnostics {
         self.hooks.diagnostics().clone()
     }
+
+    fn no_state_chart(&self) -> Error {
+        Error::NotApplicable {
+            formulation: "chetaev (form = \"dae\")".into(),
+            scene: self.scene.info().name.into(),
+            reason: "linearisation reads (q, q̇) from B's ODE form; the DAE form adds the KKT \
+                     unknowns to the state: use form = \"ode\""
+                .into(),
+        }
+    }
 }

@@ -115,7 +115,8 @@ fn coloured_jacobian_matches_differences_of_the_residual() {
 }
 
 /// The colouring finds a number of groups that does not grow with the
-/// train: a Jacobian costs a fixed number of program passes.
+/// train: a Jacobian costs a fixed number of program passes (5 from two
+/// sleighs on, 8 with Baumgarte stabilisation).
 #[test]
 fn colours_do_not_grow_with_the_train() {
     let colours: Vec<usize> = [4, 10, 40, 200]
@@ -127,9 +128,16 @@ fn colours_do_not_grow_with_the_train() {
         })
         .collect();
     eprintln!("colours for N = 4, 10, 40, 200: {colours:?}");
-    // Measured: 5 at every N (the (q, v) block has 6N columns).
-    assert!(colours.iter().all(|&c| c == colours[0]), "{colours:?}");
-    assert!(colours[0] <= 8, "{colours:?}");
+    // 5 at every N ≥ 2 (the (q, v) block has 6N columns); 4 for one sleigh.
+    assert!(colours.iter().all(|&c| c == 5), "{colours:?}");
+    let one = ChetaevDae::new(train(1, 0.3), options(&[])).unwrap();
+    assert_eq!(one.colours(), 4);
+    // Baumgarte's terms (g, ḟ, f in the rows) couple more columns: 8.
+    let baumgarte = options(&[("stab", "baumgarte")]);
+    for n in [2, 10, 40] {
+        let dae = ChetaevDae::new(train(n, 0.3), baumgarte.clone()).unwrap();
+        assert_eq!(dae.colours(), 8, "N = {n}");
+    }
 }
 
 /// Five sleighs over 2 s: Radau IIA on the DAE (sparse iteration
@@ -242,10 +250,18 @@ fn dae_form_runs_as_a_model() {
     assert_eq!(run.model.multiplier_names().len(), 10 + 18);
 
     let dae = nonholo_chetaev::model(tr.clone(), options(&[("form", "dae")])).unwrap();
-    let e = simulate(dae, initial, config(Method::Dop853, 1e-8))
+    let e = simulate(dae, initial.clone(), config(Method::Dop853, 1e-8))
         .unwrap_err()
         .to_string();
     assert!(e.contains("radau5") && e.contains("dae"), "{e}");
+    let dae = nonholo_chetaev::model(tr.clone(), options(&[("form", "dae")])).unwrap();
+    let mut full = config(Method::Radau5, 1e-8);
+    full.options.radau5.newton = nonholo_core::integrate::RadauNewton::Full;
+    let e = simulate(dae, initial, full).unwrap_err().to_string();
+    assert!(
+        e.contains("radau_newton = full") && e.contains("sparse"),
+        "{e}"
+    );
     let e = nonholo_chetaev::model(tr, options(&[("form", "dae"), ("stab", "projection")]))
         .err()
         .unwrap()

@@ -144,6 +144,18 @@ pub fn simulate(
         config.options.radau5.newton = model.radau_newton();
     }
     model.accepts(config.method)?;
+    // Full Newton forms dense stage Jacobians: refused at once for an
+    // implicit form with sparse Jacobians (Radau IIA would refuse it at t0).
+    let full = config.method.is_implicit() && config.options.radau5.newton == RadauNewton::Full;
+    if full && model.implicit().is_some_and(|sys| sys.sparsity().is_some()) {
+        return Err(Error::NotApplicable {
+            formulation: formulation.into(),
+            scene: model.scene_info().name.into(),
+            reason: "radau_newton = full forms dense stage Jacobians, and this form gives its \
+                     Jacobians sparse: use the simplified Newton iteration"
+                .into(),
+        });
+    }
     let mut crossings = Vec::new();
     let mut switches = Vec::new();
     let result = if config.method.is_implicit() && model.implicit().is_some() {

@@ -1693,9 +1693,12 @@ fn scale_as_performance_md_states() {
         .collect();
     assert!(colours.iter().all(|c| *c == colours[0]), "{colours:?}");
     assert!(flat.contains(&format!(
-        "The train needs {} groups at every `N`",
+        "The train needs {} groups at every `N ≥ 2` (4 for one sleigh",
         colours[0]
     )));
+    assert_eq!(rows[0]["N"], "1");
+    assert_eq!(rows[0]["dae_colours"], "4");
+    assert!(!flat.contains("not yet from an experiment"));
     for r in rows.iter().filter(|r| num(r, "N") >= 2.0) {
         assert_eq!(
             r["dae_radau_jacobians"], r["dae_radau_steps"],

@@ -36,6 +36,9 @@ pub(super) struct SparseIteration {
     /// The right-hand side of a complex solve.
     complex_rhs: Vec<c64>,
     buffer: MemBuffer,
+    /// Whether `real` and `complex` hold factors of the last `factor`
+    /// (the solves read them unchecked).
+    factored: (bool, bool),
 }
 
 impl SparseIteration {
@@ -93,6 +96,7 @@ impl SparseIteration {
             buffer: MemBuffer::new(scratch(&lu)),
             lu,
             symbolic,
+            factored: (false, false),
         })
     }
 
@@ -107,6 +111,7 @@ impl SparseIteration {
         g: f64,
         complex: Option<(f64, f64)>,
     ) -> Result<(), usize> {
+        self.factored = (false, false);
         self.real_values.fill(0.0);
         for (&p, &v) in self.at_jy.iter().zip(jy) {
             self.real_values[p] += v;
@@ -127,6 +132,7 @@ impl SparseIteration {
                 Default::default(),
             )
             .map_err(|_| 0usize)?;
+        self.factored.0 = true;
         let Some((re, im)) = complex else {
             return Ok(());
         };
@@ -147,11 +153,13 @@ impl SparseIteration {
                 Default::default(),
             )
             .map_err(|_| 0usize)?;
+        self.factored.1 = true;
         Ok(())
     }
 
     /// Overwrites `b` with the solution of the real system.
     pub fn solve_real(&mut self, b: &mut [f64]) {
+        assert!(self.factored.0, "a solve with no real factorisation");
         // Called only after a successful `factor` (the core solves with
         // factors it has), so `real` holds the factors of `lu`'s pattern.
         let lu = LuRef::new_unchecked(&self.lu, &self.real);
@@ -166,6 +174,7 @@ impl SparseIteration {
     /// Overwrites `(br, bi)` with the solution of the complex system with
     /// right-hand side `br + i bi`.
     pub fn solve_complex(&mut self, br: &mut [f64], bi: &mut [f64]) {
+        assert!(self.factored.1, "a solve with no complex factorisation");
         for ((z, &r), &i) in self.complex_rhs.iter_mut().zip(br.iter()).zip(bi.iter()) {
             *z = c64::new(r, i);
         }

@@ -33,7 +33,7 @@
 
 use std::sync::Arc;
 
-use nonholo_core::compiled::{Compiled, Pieces, Workspace};
+use nonholo_core::compiled::{Compiled, KktSource, Pieces, Workspace};
 use nonholo_core::consistency::{InitProjection, check_or_project_with};
 use nonholo_core::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
 use nonholo_core::kkt::{Ideal, Kkt};
@@ -43,15 +43,6 @@ use nonholo_core::scene::{Lagrangian, Scalar};
 use nonholo_core::stab::{Stabilisation, StepHooks};
 use nonholo_core::{Error, Initial, Model, Params, Scene};
 use num_dual::Dual64;
-
-/// Where an entry of `K` takes its value from.
-#[derive(Debug, Clone, Copy)]
-enum Source {
-    /// Entry `i` of the upper triangle of `M`.
-    Mass(usize),
-    G(usize),
-    F(usize),
-}
 
 /// B on `scene` as the index-1 system of the [module docs](self), and as a
 /// [`Model`] (B with `form = "dae"`): integrated by Radau IIA only; its
@@ -71,7 +62,7 @@ pub struct ChetaevDae<S: Scene> {
     s: usize,
     k: usize,
     /// Entries `(row, column, source)` of `K`, both triangles.
-    kkt: Vec<(usize, usize, Source)>,
+    kkt: Vec<(u32, u32, KktSource)>,
     sparsity: Sparsity,
     /// Position in the `∂F/∂y` list where `K`'s entries start.
     kkt_at: usize,
@@ -120,7 +111,7 @@ impl<S: Scene + Clone> Clone for ChetaevDae<S> {
 #[allow(clippy::too_many_arguments)]
 fn kkt_apply<T: Scalar>(
     pc: &Pieces<'_, T>,
-    kkt: &[(usize, usize, Source)],
+    kkt: &[(u32, u32, KktSource)],
     (n, s): (usize, usize),
     (alpha, beta): (f64, f64),
     part: impl Fn(&T) -> f64,
@@ -140,12 +131,7 @@ fn kkt_apply<T: Scalar>(
             + beta * beta * part(&pc.f[i]);
     }
     for &(r, c, src) in kkt {
-        let v = match src {
-            Source::Mass(i) => &pc.mass_upper[i],
-            Source::G(i) => &pc.g_jac[i],
-            Source::F(i) => &pc.f_jac[i],
-        };
-        out[r] += part(v) * w[c];
+        out[r as usize] += part(pc.kkt_value(src)) * w[c as usize];
     }
 }
 
@@ -175,24 +161,7 @@ impl<S: Scene> ChetaevDae<S> {
         let (n, s, k) = (info.n(), info.s(), info.k());
         let gains = stab.gains();
         let p = program.pattern();
-        let mut kkt = Vec::new();
-        for (i, &(r, c)) in p.mass.iter().enumerate() {
-            let (r, c) = (r as usize, c as usize);
-            kkt.push((r, c, Source::Mass(i)));
-            if r != c {
-                kkt.push((c, r, Source::Mass(i)));
-            }
-        }
-        for (i, &(r, c)) in p.g_jac.iter().enumerate() {
-            let (r, c) = (n + r as usize, c as usize);
-            kkt.push((r, c, Source::G(i)));
-            kkt.push((c, r, Source::G(i)));
-        }
-        for (i, &(r, c)) in p.f_jac.iter().enumerate() {
-            let (r, c) = (n + s + r as usize, c as usize);
-            kkt.push((r, c, Source::F(i)));
-            kkt.push((c, r, Source::F(i)));
-        }
+        let kkt = p.kkt_entries(n, s);
 
         // The (q, v) columns each row of `Kw − b` depends on.
         let m = n + s + k;
@@ -218,12 +187,7 @@ impl<S: Scene> ChetaevDae<S> {
             }
         }
         for &(r, _, src) in &kkt {
-            let d = match src {
-                Source::Mass(i) => &deps.mass_upper[i],
-                Source::G(i) => &deps.g_jac[i],
-                Source::F(i) => &deps.f_jac[i],
-            };
-            add(r, d);
+            add(r as usize, deps.kkt_value(src));
         }
         // Inputs 1..=n are q, n+1..=2n are q̇: columns 0..2n of (q, v).
         let qv = |d: u32| (1..=2 * n as u32).contains(&d).then(|| d as usize - 1);
@@ -241,7 +205,10 @@ impl<S: Scene> ChetaevDae<S> {
         jy.extend((0..n).map(|i| (i, n + i)));
         jy.extend((0..n).map(|i| (n + i, 2 * n + i)));
         let kkt_at = jy.len();
-        jy.extend(kkt.iter().map(|&(r, c, _)| (2 * n + r, 2 * n + c)));
+        jy.extend(
+            kkt.iter()
+                .map(|&(r, c, _)| (2 * n + r as usize, 2 * n + c as usize)),
+        );
         let mut cols: Vec<Vec<(usize, usize)>> = vec![Vec::new(); 2 * n];
         for (r, row) in rows.iter().enumerate() {
             for &c in row {
@@ -393,15 +360,14 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         let (v, w) = rest.split_at(n);
         jyp.fill(1.0);
         jy[..2 * n].fill(-1.0);
-        // K at (q, v).
-        self.program.eval(&mut self.real, t, q, v, &[]);
-        let pc = self.real.pieces(&self.program);
-        for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
-            *x = match src {
-                Source::Mass(i) => pc.mass_upper[i],
-                Source::G(i) => pc.g_jac[i],
-                Source::F(i) => pc.f_jac[i],
-            };
+        // K at (q, v): from the first seeded pass's values, or from a
+        // pass of its own when no (q, v) column has an entry.
+        if self.groups.is_empty() {
+            self.program.eval(&mut self.real, t, q, v, &[]);
+            let pc = self.real.pieces(&self.program);
+            for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
+                *x = *pc.kkt_value(src);
+            }
         }
         // One seeded pass per colour.
         for (colour, group) in self.groups.iter().enumerate() {
@@ -418,6 +384,11 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
             self.program
                 .eval(&mut self.dual, Dual64::from(t), qs, vs, &[]);
             let pc = self.dual.pieces(&self.program);
+            if colour == 0 {
+                for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
+                    *x = pc.kkt_value(src).re;
+                }
+            }
             let (s, gains) = (self.s, self.gains);
             kkt_apply(
                 &pc,

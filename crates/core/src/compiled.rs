@@ -62,6 +62,46 @@ pub struct Pattern {
     pub f_jac: Vec<(u32, u32)>,
 }
 
+/// Where an entry of the KKT matrix `K = [M Gᵀ Fᵀ; G 0 0; F 0 0]` takes
+/// its value from: an index into one of the [`Pieces`]' matrix values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KktSource {
+    /// Entry `i` of the upper triangle of `M` ([`Pieces::mass_upper`]).
+    Mass(u32),
+    /// Entry `i` of `G` ([`Pieces::g_jac`]).
+    G(u32),
+    /// Entry `i` of `F` ([`Pieces::f_jac`]).
+    F(u32),
+}
+
+impl Pattern {
+    /// The structural nonzeros of `K` for `n` coordinates and `s` velocity
+    /// constraints, both triangles, as `(row, column, source)`: `M`
+    /// (mirrored off its diagonal), then `G` at rows `n..n + s` with `Gᵀ`,
+    /// then `F` at rows `n + s..` with `Fᵀ`, each in pattern order.
+    pub fn kkt_entries(&self, n: usize, s: usize) -> Vec<(u32, u32, KktSource)> {
+        let mut entries =
+            Vec::with_capacity(2 * (self.mass.len() + self.g_jac.len() + self.f_jac.len()));
+        for (i, &(r, c)) in self.mass.iter().enumerate() {
+            entries.push((r, c, KktSource::Mass(i as u32)));
+            if r != c {
+                entries.push((c, r, KktSource::Mass(i as u32)));
+            }
+        }
+        for (rows, offset, source) in [
+            (&self.g_jac, n, KktSource::G as fn(u32) -> KktSource),
+            (&self.f_jac, n + s, KktSource::F as fn(u32) -> KktSource),
+        ] {
+            for (i, &(r, c)) in rows.iter().enumerate() {
+                let r = r + offset as u32;
+                entries.push((r, c, source(i as u32)));
+                entries.push((c, r, source(i as u32)));
+            }
+        }
+        entries
+    }
+}
+
 /// Why a field was not compiled.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Refused(pub String);
@@ -314,6 +354,17 @@ pub struct Pieces<'a, T> {
     pub f_jac: &'a [T],
     pub f_rate: &'a [T],
     pub f_accel0: &'a [T],
+}
+
+impl<T> Pieces<'_, T> {
+    /// The value of a KKT entry ([`Pattern::kkt_entries`]).
+    pub fn kkt_value(&self, source: KktSource) -> &T {
+        match source {
+            KktSource::Mass(i) => &self.mass_upper[i as usize],
+            KktSource::G(i) => &self.g_jac[i as usize],
+            KktSource::F(i) => &self.f_jac[i as usize],
+        }
+    }
 }
 
 impl<T: Scalar> Pieces<'_, T> {

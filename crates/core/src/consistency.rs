@@ -105,14 +105,7 @@ impl Residuals {
     fn dense<S: Scene>(scene: &S, init: &Initial, mut p: Projector) -> Residuals {
         p.residuals(scene, init.t0, &init.q, &init.qd);
         let cs = &p.cs;
-        let norms = (0..cs.s + cs.k)
-            .map(|r| {
-                (0..cs.jac.ncols())
-                    .map(|j| cs.jac[(r, j)].powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .collect();
+        let norms = (0..cs.s + cs.k).map(|r| cs.row_norm(r)).collect();
         Residuals {
             g: cs.g.clone(),
             f: cs.f.clone(),

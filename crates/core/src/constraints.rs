@@ -123,7 +123,7 @@ impl<T: Scalar> ConstraintState<T> {
     }
 
     /// Euclidean norm of row `r` of `[G; F]` (real parts).
-    fn row_norm(&self, r: usize) -> f64 {
+    pub(crate) fn row_norm(&self, r: usize) -> f64 {
         (0..self.jac.ncols())
             .map(|j| self.jac[(r, j)].re().powi(2))
             .sum::<f64>()

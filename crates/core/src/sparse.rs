@@ -18,7 +18,7 @@ use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par};
 
-use crate::compiled::{Pattern, Pieces};
+use crate::compiled::{KktSource, Pattern, Pieces};
 use crate::linalg::Singular;
 use crate::scene::Scalar;
 
@@ -29,17 +29,6 @@ use crate::scene::Scalar;
 /// the sparse one at 22 and beyond.
 pub const SPARSE_FROM: usize = 20;
 
-/// Where a stored entry's value comes from.
-#[derive(Debug, Clone, Copy)]
-enum Source {
-    /// Entry `i` of the program's upper triangle of `M`.
-    Mass(u32),
-    /// Entry `i` of `G`.
-    G(u32),
-    /// Entry `i` of `F`.
-    F(u32),
-}
-
 /// The sparse KKT system of one compiled program, with its factorisation
 /// workspace.
 pub struct SparseKkt {
@@ -47,7 +36,7 @@ pub struct SparseKkt {
     dim: usize,
     symbolic: SymbolicSparseColMat<usize>,
     /// Row, column and source of every stored entry, in storage order.
-    entries: Vec<(u32, u32, Source)>,
+    entries: Vec<(u32, u32, KktSource)>,
     values: Vec<f64>,
     lu_symbolic: SymbolicLu<usize>,
     numeric: NumericLu<usize, f64>,
@@ -101,23 +90,7 @@ impl SparseKkt {
     /// refused it (a structurally singular system).
     pub fn new(pattern: &Pattern, n: usize, s: usize, k: usize) -> Result<SparseKkt, String> {
         let dim = n + s + k;
-        let mut entries: Vec<(u32, u32, Source)> = Vec::new();
-        for (i, &(r, c)) in pattern.mass.iter().enumerate() {
-            entries.push((r, c, Source::Mass(i as u32)));
-            if r != c {
-                entries.push((c, r, Source::Mass(i as u32)));
-            }
-        }
-        for (rows, offset, source) in [
-            (&pattern.g_jac, n, Source::G as fn(u32) -> Source),
-            (&pattern.f_jac, n + s, Source::F as fn(u32) -> Source),
-        ] {
-            for (i, &(r, c)) in rows.iter().enumerate() {
-                let r = r + offset as u32;
-                entries.push((r, c, source(i as u32)));
-                entries.push((c, r, source(i as u32)));
-            }
-        }
+        let mut entries = pattern.kkt_entries(n, s);
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
         let mut col_ptr = vec![0usize; dim + 1];
         for &(_, c, _) in &entries {
@@ -186,13 +159,8 @@ impl SparseKkt {
         self.rhs.clear();
         self.rhs.extend(sol.iter().map(|x| x.re()));
         let rhs = &mut self.rhs[..];
-        let value = |src: Source| match src {
-            Source::Mass(i) => pieces.mass_upper[i as usize],
-            Source::G(i) => pieces.g_jac[i as usize],
-            Source::F(i) => pieces.f_jac[i as usize],
-        };
         for (v, &(_, _, src)) in self.values.iter_mut().zip(&self.entries) {
-            *v = value(src).re();
+            *v = pieces.kkt_value(src).re();
         }
         // Equilibration, as `linalg::equilibrate`.
         let d = &mut self.scale;
@@ -249,7 +217,7 @@ impl SparseKkt {
             t.extend(sol.iter().zip(&self.scale).map(|(x, s)| x.tangent() * s));
             for &(r, c, src) in &self.entries {
                 let (r, c) = (r as usize, c as usize);
-                t[r] -= value(src).tangent() * self.scale[r] * self.scale[c] * rhs[c];
+                t[r] -= pieces.kkt_value(src).tangent() * self.scale[r] * self.scale[c] * rhs[c];
             }
             let stack = MemStack::new(&mut self.buffer);
             lu.solve_in_place_with_conj(

@@ -238,3 +238,86 @@ fn sparse_jacobians_refuse_full_newton_and_bad_entries() {
         other => panic!("{other:?}"),
     }
 }
+
+/// `y₀' = 1`, `0 = y₀ y₁`: at `y = 0` the algebraic row of `∂F/∂y` is
+/// zero, so both iteration matrices have an exactly zero pivot while their
+/// pattern is structurally regular.
+struct Pinch {
+    sparse: bool,
+}
+
+impl ImplicitSystem for Pinch {
+    fn dim(&self) -> usize {
+        2
+    }
+
+    fn residual(
+        &mut self,
+        _t: f64,
+        y: &[f64],
+        yp: &[f64],
+        res: &mut [f64],
+    ) -> Result<(), SystemError> {
+        res[0] = yp[0] - 1.0;
+        res[1] = y[0] * y[1];
+        Ok(())
+    }
+
+    fn jacobians(
+        &mut self,
+        _t: f64,
+        y: &[f64],
+        _yp: &[f64],
+        jy: &mut [f64],
+        jyp: &mut [f64],
+    ) -> Result<(), SystemError> {
+        // Entries (1, 0), (1, 1) of ∂F/∂y and (0, 0) of ∂F/∂y'.
+        let (a, b) = (y[1], y[0]);
+        if self.sparse {
+            jy.copy_from_slice(&[a, b]);
+            jyp.copy_from_slice(&[1.0]);
+        } else {
+            jy.copy_from_slice(&[0.0, 0.0, a, b]);
+            jyp.copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
+        }
+        Ok(())
+    }
+
+    fn sparsity(&self) -> Option<Sparsity> {
+        self.sparse.then(|| Sparsity {
+            jy: vec![(1, 0), (1, 1)],
+            jyp: vec![(0, 0)],
+        })
+    }
+}
+
+#[test]
+fn a_numerically_singular_sparse_matrix_is_reported_as_the_dense_one_is() {
+    let mut messages = Vec::new();
+    for sparse in [false, true] {
+        let e = solve_implicit(
+            &mut Pinch { sparse },
+            0.0,
+            &[0.0, 0.0],
+            &[1.0, 0.0],
+            1.0,
+            &Options::default(),
+        )
+        .unwrap_err();
+        match e.error {
+            IntegrateError::System { t, source } => {
+                assert_eq!(t, 0.0);
+                messages.push(source.to_string());
+            }
+            other => panic!("sparse = {sparse}: {other:?}"),
+        }
+    }
+    let first = messages[0].split(" (h = ").next().unwrap().to_string();
+    assert!(first.contains("singular"), "{first}");
+    for m in &messages {
+        assert!(
+            m.starts_with(&first) && m.contains("5 time(s) in a row"),
+            "{m}"
+        );
+    }
+}

@@ -715,10 +715,15 @@ impl RadauCore {
             }
             Newton::Singular => {
                 self.nsing += 1;
+                self.h_lu = f64::NAN;
                 if self.nsing >= 5 || self.fixed {
+                    let matrix = if self.full {
+                        "the full Newton matrix ∂G/∂Z of the stage equations"
+                    } else {
+                        "the iteration matrix γ/h·∂F/∂y' + ∂F/∂y"
+                    };
                     let source = SystemError::new(format!(
-                        "Radau5: the full Newton matrix ∂G/∂Z of the stage equations is \
-                         singular (h = {h:e}, {} time(s) in a row)",
+                        "Radau5: {matrix} is singular (h = {h:e}, {} time(s) in a row)",
                         self.nsing
                     ));
                     return fail(IntegrateError::System { t, source });

@@ -35,7 +35,9 @@ pub(super) enum Newton {
     /// A residual or a Newton correction is not finite (full Newton: also
     /// a stage Jacobian).
     NonFinite,
-    /// Full Newton: the `3n × 3n` matrix is singular.
+    /// The matrix of the iteration is singular: full Newton's `3n × 3n`
+    /// one, or (simplified) an iteration matrix whose solve turned finite
+    /// right-hand sides into a non-finite solution.
     Singular,
 }
 
@@ -195,7 +197,9 @@ impl Work {
                 d1[i] = -(ti[1][0] * g1 + ti[1][1] * g2 + ti[1][2] * g3);
                 d2[i] = -(ti[2][0] * g1 + ti[2][1] * g2 + ti[2][2] * g3);
             }
-            self.solve_stages();
+            if !self.solve_stages() {
+                return Newton::Singular;
+            }
             m.newt += 1;
             stats.newton_iterations += 1;
             let dyno = self.correction_norm();

@@ -7,9 +7,11 @@
 //! are computed once, and both matrices share them (the complex matrix has
 //! the real one's pattern). Every factorisation scatters the values of `J`
 //! and `J'` into the stored entries and refactors numerically in reused
-//! workspaces. faer refuses only a structurally singular matrix; a
-//! numerically singular one gives a non-finite or huge Newton correction,
-//! which the Newton monitor rejects as divergence.
+//! workspaces. faer refuses only a structurally singular matrix; a zero
+//! pivot of a numerically singular one turns into a non-finite solution,
+//! which the Newton iteration reports as a singular matrix, as the dense LU
+//! does (a nearly singular one gives a huge correction, rejected as
+//! divergence by both).
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::lu::{LuRef, NumericLu, SymbolicLu, factorize_symbolic_lu};

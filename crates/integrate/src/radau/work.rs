@@ -7,6 +7,7 @@ use super::linalg::{ComplexLu, RealLu};
 use super::problem::Problem;
 use super::sparse::SparseIteration;
 use super::tableau::Tableau;
+use crate::explicit::control::all_finite;
 
 /// Workspaces of the full Newton iteration (`RadauNewton::Full`).
 pub(super) struct FullNewton {
@@ -163,8 +164,14 @@ impl Work {
     }
 
     /// The two linear systems of a simplified Newton iteration: `d0` with
-    /// the real matrix, `d1 + i d2` with the complex one, in place.
-    pub(super) fn solve_stages(&mut self) {
+    /// the real matrix, `d1 + i d2` with the complex one, in place. `false`
+    /// when finite right-hand sides gave a non-finite solution: a
+    /// numerically singular matrix (faer's sparse LU refuses only a
+    /// structurally singular one; a zero pivot becomes an infinite
+    /// reciprocal), reported as singular as the dense LU reports it.
+    pub(super) fn solve_stages(&mut self) -> bool {
+        let finite = |dw: &[Vec<f64>; 3]| dw.iter().all(|d| all_finite(d));
+        let rhs_finite = finite(&self.dw);
         let [d0, d1, d2] = &mut self.dw;
         match &mut self.sparse {
             Some(sp) => {
@@ -176,6 +183,7 @@ impl Work {
                 self.e2.solve(d1, d2);
             }
         }
+        !rhs_finite || finite(&self.dw)
     }
 
     /// Error scale of a step of size `h` from the base scale `sk`.

@@ -23,7 +23,7 @@ use std::sync::Arc;
 use nalgebra::DMatrix;
 
 use crate::ad::Jet;
-use crate::compiled::{Compiled, Pieces, Programs, Refused, Workspace};
+use crate::compiled::{Compiled, KktSource, Pieces, Programs, Refused, Workspace};
 use crate::constraints::ConstraintState;
 use crate::linalg::{Lu, Singular, solve_saddle};
 use crate::scene::{Scalar, ScalarField, Scene, SceneInfo};
@@ -113,9 +113,10 @@ pub struct Kkt<T: Scalar = f64> {
     n: usize,
     pub jet: Jet<T>,
     /// Constraint values and rates of the last evaluation. Its dense
-    /// Jacobian `cs.jac` is filled by [`Kkt::assemble`] and by dense solves
-    /// only: after a sparse solve ([`Kkt::is_sparse`]) it is unallocated or
-    /// stale, and the Jacobian lives in the sparse system.
+    /// Jacobian `cs.jac` is filled by [`Kkt::assemble`] and by the solves
+    /// that assemble (the scalar passes, or rows other than [`Ideal`]):
+    /// after a solve with ideal rows from a compiled program it is
+    /// unallocated or stale, and `G`, `F` live in the system's matrix.
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
@@ -127,6 +128,10 @@ pub struct Kkt<T: Scalar = f64> {
     /// ([`Kkt::compile`]), with its buffers; `None`: the scalar passes of
     /// [`Jet`].
     compiled: Option<(Arc<Compiled>, Workspace<T>)>,
+    /// The program's entries of the KKT matrix
+    /// ([`crate::compiled::Pattern::kkt_entries`]), scattered straight into
+    /// the dense matrix by a solve with ideal rows.
+    entries: Vec<(u32, u32, KktSource)>,
     /// The system stored sparse ([`crate::sparse`]): systems of at least
     /// [`SPARSE_FROM`] rows with a compiled program, over `f64` or `Dual64`
     /// (Jacobian columns).
@@ -145,6 +150,7 @@ impl<T: Scalar> Kkt<T> {
             scale: vec![1.0; dim],
             sol: vec![T::from(0.0); dim],
             compiled: None,
+            entries: Vec::new(),
             sparse: None,
         };
         // Large systems get their dense storage when a dense path first
@@ -218,6 +224,7 @@ impl<T: Scalar> Kkt<T> {
             // where the matrix is singular).
             self.sparse = SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k).ok();
         }
+        self.entries = c.pattern().kkt_entries(self.n, self.cs.s);
         self.compiled = Some((c, w));
     }
 
@@ -362,10 +369,45 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) -> Result<(), Singular> {
-        if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.sparse) {
-            return self.solve_sparse(p, rows, alpha, t, q, qd);
+        if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
+            if self.sparse.is_some() {
+                return self.solve_sparse(p, rows, alpha, t, q, qd);
+            }
+            return self.solve_ideal_dense(p, rows, alpha, t, q, qd);
         }
         self.assemble(ell, p, scene, rows, t, q, qd);
+        self.solve_assembled()
+    }
+
+    /// [`Kkt::solve`] with ideal rows from the compiled program, dense: the
+    /// program's entries scattered straight into the matrix (the same
+    /// matrix and right-hand side as [`Kkt::assemble`], without the dense
+    /// constraint Jacobian in between), then [`Kkt::solve_assembled`].
+    fn solve_ideal_dense<R: GRows>(
+        &mut self,
+        p: &[T],
+        rows: &R,
+        alpha: f64,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) -> Result<(), Singular> {
+        self.dense();
+        let (n, s) = (self.n, self.cs.s);
+        let Some((c, w)) = &mut self.compiled else {
+            unreachable!("the compiled path needs a program");
+        };
+        c.eval(w, t, q, qd, p);
+        let pc = w.pieces(c);
+        self.matrix.fill(T::from(0.0));
+        for &(r, col, src) in &self.entries {
+            self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
+        }
+        load(&pc, &mut self.cs, &mut self.sol[..n]);
+        for i in 0..s {
+            self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
+        }
+        self.holonomic_rhs(rows);
         self.solve_assembled()
     }
 

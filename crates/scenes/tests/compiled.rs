@@ -1,7 +1,9 @@
 //! Every scene's KKT system (B's `L` and C's `L + λᵀg`) from the compiled
 //! program ([`nonholo_core::compiled`]) against the scalar dual passes of
 //! [`nonholo_core::ad`], entry by entry, over `f64` and over `Dual64` (a
-//! Jacobian column), at states spread over each scene's coordinates.
+//! Jacobian column), at states spread over each scene's coordinates; and
+//! the solve that scatters the program's entries straight into the matrix
+//! (ideal rows) against assembling first, bit for bit.
 
 use nonholo_core::compiled::Programs;
 use nonholo_core::kkt::{Ideal, Kkt};
@@ -50,6 +52,8 @@ fn compare<T: Scalar, F: ScalarField, S: Scene>(
     compiled
         .compile(ell, np, scene)
         .unwrap_or_else(|e| panic!("{}: {e}", info.name));
+    let mut direct: Kkt<T> = Kkt::for_scene(info);
+    direct.compile(ell, np, scene).unwrap();
     let mut worst = 0.0f64;
     for (k, (t, q, qd, p)) in states(info.n(), np, 24).into_iter().enumerate() {
         let l = |v: &[f64], off: usize| -> Vec<T> {
@@ -77,6 +81,27 @@ fn compare<T: Scalar, F: ScalarField, S: Scene>(
             for (u, v) in parts(x).into_iter().zip(parts(y)) {
                 worst = worst.max((u - v).abs() / scale);
             }
+        }
+        // Solving straight from the program is assembling and solving.
+        let assembled = compiled.solve_assembled().map(|()| compiled.sol.clone());
+        let solved = direct
+            .solve(ell, &p, scene, &rows, t, &q, &qd)
+            .map(|()| direct.sol.clone());
+        match (assembled, solved) {
+            (Ok(x), Ok(y)) => {
+                let (x, y): (Vec<f64>, Vec<f64>) = (
+                    x.iter().flat_map(&parts).collect(),
+                    y.iter().flat_map(&parts).collect(),
+                );
+                assert_eq!(x, y, "{}: state {k}", info.name);
+            }
+            (Err(a), Err(b)) => assert_eq!(a.column, b.column, "{}: state {k}", info.name),
+            (a, b) => panic!(
+                "{}: state {k}: {:?} against {:?}",
+                info.name,
+                a.err(),
+                b.err()
+            ),
         }
     }
     worst

@@ -513,11 +513,15 @@ impl<S: Scene> ScalarField for Lagrangian<'_, S> {
 }
 
 /// `L + λᵀg`, the Lagrangian augmented by the nonholonomic constraints with
-/// multipliers `λ = p` (spec, section C). Needs a workspace for `g`, so it
-/// is evaluated through a closure-free buffer of at most [`MAX_CONSTRAINTS`] rows.
+/// multipliers `λ = p` (spec, section C). Needs a workspace for `g`: a
+/// buffer on the stack for up to [`MAX_CONSTRAINTS`] rows, one on the heap
+/// beyond (where B and C evaluate a compiled program, traced once, and
+/// this field is evaluated only by the trace and by the scalar passes).
 pub struct Augmented<'a, S>(pub &'a S);
 
-/// Largest number of nonholonomic constraints [`Augmented`] supports.
+/// Largest number of nonholonomic constraints [`Augmented`] evaluates
+/// without allocating, and that the realisations and `friction`, which keep
+/// such buffers per evaluation, support.
 pub const MAX_CONSTRAINTS: usize = 16;
 
 impl<S: Scene> ScalarField for Augmented<'_, S> {
@@ -527,13 +531,19 @@ impl<S: Scene> ScalarField for Augmented<'_, S> {
     #[inline]
     fn eval<D: Scalar>(&self, t: D, q: &[D], qd: &[D], p: &[D]) -> D {
         let s = self.0.info().s();
-        let mut g = [D::from(0.0); MAX_CONSTRAINTS];
-        self.0.nonholonomic(t, q, qd, &mut g[..s]);
-        let mut l = self.0.lagrangian(t, q, qd);
-        for i in 0..s {
-            l += p[i] * g[i];
+        let augmented = |g: &mut [D]| {
+            self.0.nonholonomic(t, q, qd, g);
+            let mut l = self.0.lagrangian(t, q, qd);
+            for (pi, gi) in p.iter().zip(g.iter()) {
+                l += *pi * *gi;
+            }
+            l
+        };
+        if s <= MAX_CONSTRAINTS {
+            augmented(&mut [D::from(0.0); MAX_CONSTRAINTS][..s])
+        } else {
+            augmented(&mut vec![D::from(0.0); s])
         }
-        l
     }
 }
 

@@ -93,8 +93,17 @@ fn compare<T: Scalar, F: ScalarField, S: Scene>(
                     x.iter().flat_map(&parts).collect(),
                     y.iter().flat_map(&parts).collect(),
                 );
-                assert_eq!(x, y, "{}: state {k}", info.name);
+                if direct.is_sparse() {
+                    // Another factorisation: equal to round-off.
+                    let size = x.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+                    for (u, v) in x.iter().zip(&y) {
+                        assert!((u - v).abs() < 1e-9 * size, "{}: state {k}", info.name);
+                    }
+                } else {
+                    assert_eq!(x, y, "{}: state {k}", info.name);
+                }
             }
+            (Err(_), Err(_)) if direct.is_sparse() => {}
             (Err(a), Err(b)) => assert_eq!(a.column, b.column, "{}: state {k}", info.name),
             (a, b) => panic!(
                 "{}: state {k}: {:?} against {:?}",
@@ -144,6 +153,20 @@ fn compiled_systems_equal_the_passes_for_every_scene() {
                 info.name
             );
         }
+    }
+}
+
+/// The train of 20 sleighs: more nonholonomic constraints (20) than `L + λᵀg`
+/// keeps on the stack, so the passes evaluate it with a buffer on the heap;
+/// its systems (a sparse KKT solve, B and C) equal the passes' as on every
+/// scene.
+#[test]
+fn a_train_longer_than_the_stack_buffer_compiles_for_b_and_c() {
+    let scene = build("sleigh-train", &[("N".into(), "20".into())]).unwrap();
+    let (info, r) = scene.visit(Check);
+    assert!(info.s() > nonholo_core::scene::MAX_CONSTRAINTS);
+    for (what, e) in ["B", "C", "B dual", "C dual"].iter().zip(r) {
+        assert!(e < 1e-12, "{what}: compiled and passes differ by {e:e}");
     }
 }
 

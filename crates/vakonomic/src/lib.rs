@@ -30,7 +30,7 @@ use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::FormulationInfo;
 use nonholo_core::param::{ParamSpec, Params};
-use nonholo_core::scene::{Augmented, MAX_CONSTRAINTS, Scalar, Scene, SceneInfo};
+use nonholo_core::scene::{Augmented, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation};
 
 /// Options of formulation C.
@@ -53,12 +53,6 @@ fn applicable(scene: &SceneInfo) -> Result<(), String> {
                     is the same motion as B"
                 .into(),
         );
-    }
-    if scene.s() > MAX_CONSTRAINTS {
-        return Err(format!(
-            "the scene has {} nonholonomic constraints; L + λᵀg supports at most {MAX_CONSTRAINTS}",
-            scene.s()
-        ));
     }
     Ok(())
 }

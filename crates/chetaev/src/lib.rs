@@ -16,37 +16,33 @@
 //! projection stabilisation moves the state back onto the constraints after
 //! every accepted step instead. State `y = (q, q̇)`.
 //!
-//! [`dae::ChetaevDae`] writes the same equations as an index-1
-//! differential-algebraic system in `(q, q̇, q̈, −λ, −ν)` with sparse
-//! Jacobians, for Radau IIA on large scenes.
-
-pub mod dae;
+//! [`dae`] writes the same equations as an index-1 differential-algebraic
+//! system in `(q, q̇, q̈, −λ, −ν)` with sparse Jacobians, for Radau IIA on
+//! large scenes ([`nonholo_core::dae`]).
 
 use nonholo_core::Error;
 use nonholo_core::binding::{Binding, Equations, EvalError};
 use nonholo_core::compiled::{Compiled, Programs};
+use nonholo_core::dae::{FORM, Field, KktDae};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::model::{FormulationInfo, Model};
 use nonholo_core::param::{ParamSpec, Params};
 use nonholo_core::scene::{Lagrangian, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation};
 
-/// The form B is integrated in.
-pub const FORM: ParamSpec = ParamSpec::choice(
-    "form",
-    &["ode", "dae"],
-    "ode: q̈ from one KKT solve per right-hand side, state (q, q̇), any integrator; dae: the \
-     KKT unknowns (q̈, −λ, −ν) in the state, an index-1 DAE with sparse Jacobians, radau5 \
-     only (for large scenes, e.g. sleigh-train)",
-);
-
 /// Options of formulation B.
 pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, FORM];
+
+/// B on `scene` as an index-1 DAE with sparse Jacobians
+/// ([`nonholo_core::dae`]; `form = "dae"`), with B's `options`.
+pub fn dae<S: Scene>(scene: S, options: Params) -> Result<KktDae<S>, Error> {
+    KktDae::new(scene, options, &INFO, Field::Lagrangian)
+}
 
 /// B bound to `scene` in the form its `options` choose ([`FORM`]).
 pub fn model<S: Scene>(scene: S, options: Params) -> Result<Box<dyn Model>, Error> {
     Ok(match options.choice(FORM.name)? {
-        "dae" => Box::new(dae::ChetaevDae::new(scene, options)?),
+        "dae" => Box::new(dae(scene, options)?),
         _ => Box::new(Chetaev::new(scene, options)?),
     })
 }

@@ -24,6 +24,7 @@ pub mod compiled;
 pub mod complex;
 pub mod consistency;
 pub mod constraints;
+pub mod dae;
 mod error;
 pub mod graph;
 pub mod guard;

@@ -57,10 +57,7 @@ impl SceneVisitor for Build {
     fn visit<S: Scene>(self, scene: S) -> Self::Output {
         match self.formulation.name {
             "chetaev" => nonholo_chetaev::model(scene, self.options),
-            "vakonomic" => Ok(Box::new(nonholo_vakonomic::Vakonomic::new(
-                scene,
-                self.options,
-            )?)),
+            "vakonomic" => nonholo_vakonomic::model(scene, self.options),
             "embedding" => Ok(Box::new(nonholo_embedding::Embedding::new(
                 scene,
                 self.options,

@@ -1774,7 +1774,7 @@ fn wp_train_dae_as_figures_md_states() {
         .unwrap(),
     )
     .unwrap();
-    let colours = nonholo_chetaev::dae::ChetaevDae::new(
+    let colours = nonholo_chetaev::dae(
         train,
         nonholo_core::Params::defaults(nonholo_chetaev::OPTIONS),
     )

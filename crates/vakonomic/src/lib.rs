@@ -26,15 +26,31 @@ use nonholo_core::Error;
 use nonholo_core::Initial;
 use nonholo_core::binding::{Binding, Equations, EvalError};
 use nonholo_core::compiled::{Compiled, Programs};
+use nonholo_core::dae::{FORM, Field, KktDae};
 use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::kkt::{Ideal, Kkt};
-use nonholo_core::model::FormulationInfo;
+use nonholo_core::model::{FormulationInfo, Model};
 use nonholo_core::param::{ParamSpec, Params};
 use nonholo_core::scene::{Augmented, Scalar, Scene, SceneInfo};
 use nonholo_core::stab::{BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, STAB, Stabilisation};
 
 /// Options of formulation C.
-pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL];
+pub const OPTIONS: &[ParamSpec] = &[STAB, BAUMGARTE_ALPHA, BAUMGARTE_BETA, SINGULAR_TOL, FORM];
+
+/// C on `scene` as an index-1 DAE with sparse Jacobians
+/// ([`nonholo_core::dae`]; `form = "dae"`): `y = (q, q̇, λ, q̈, λ̇, −ν)`,
+/// with C's `options`.
+pub fn dae<S: Scene>(scene: S, options: Params) -> Result<KktDae<S>, Error> {
+    KktDae::new(scene, options, &INFO, Field::Augmented)
+}
+
+/// C bound to `scene` in the form its `options` choose ([`FORM`]).
+pub fn model<S: Scene>(scene: S, options: Params) -> Result<Box<dyn Model>, Error> {
+    Ok(match options.choice(FORM.name)? {
+        "dae" => Box::new(dae(scene, options)?),
+        _ => Box::new(Vakonomic::new(scene, options)?),
+    })
+}
 
 pub const INFO: FormulationInfo = FormulationInfo {
     name: "vakonomic",

@@ -47,8 +47,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use nonholo_chetaev::Chetaev;
-use nonholo_chetaev::dae::ChetaevDae;
 use nonholo_core::compiled::Compiled;
+use nonholo_core::dae::KktDae;
 use nonholo_core::integrate::{ImplicitSystem, Method, OdeSystem, Options, solve_implicit};
 use nonholo_core::kkt::{Ideal, Kkt};
 use nonholo_core::scene::Lagrangian;
@@ -125,7 +125,7 @@ struct Size {
     /// Radau IIA: steps, Jacobians, LU factorisations, wall time.
     radau: Option<(usize, usize, usize, f64)>,
     /// B as an index-1 DAE, its consistent `(y, y')` at the state.
-    dae: ChetaevDae<Train>,
+    dae: KktDae<Train>,
     dae_y: Vec<f64>,
     dae_yp: Vec<f64>,
     dae_residual_s: Vec<f64>,
@@ -159,10 +159,10 @@ impl Size {
         let nonzeros = SparseKkt::new(program.pattern(), ti.n(), ti.s(), ti.k())
             .map(|s| s.nonzeros())
             .unwrap_or(0);
-        let dae = ChetaevDae::new(train.clone(), Params::defaults(nonholo_chetaev::OPTIONS))
+        let dae = nonholo_chetaev::dae(train.clone(), Params::defaults(nonholo_chetaev::OPTIONS))
             .map_err(|e| e.to_string())?;
         let (dae_y, dae_yp) = dae
-            .initial(0.0, &y[..ti.n()], &y[ti.n()..])
+            .initial(0.0, &y[..ti.n()], &y[ti.n()..], &[])
             .map_err(|e| e.to_string())?;
         Ok(Size {
             n_sleighs,

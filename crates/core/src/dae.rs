@@ -1,6 +1,6 @@
-//! B as an index-1 differential-algebraic system with sparse Jacobians,
-//! for Radau IIA on scenes whose size makes the ODE form's dense Jacobian
-//! the cost of a step.
+//! B and C as index-1 differential-algebraic systems with sparse
+//! Jacobians, for Radau IIA on scenes whose size makes the ODE form's dense
+//! Jacobian the cost of a step.
 //!
 //! The ODE form `q̈ = a(q, q̇)` solves the KKT system inside every
 //! right-hand side, so `∂a/∂(q, q̇)` couples every coordinate with every
@@ -17,10 +17,13 @@
 //!                                  b = (Q, −ġ₀ − 2αg, −f̈₀ − 2αḟ − β²f)
 //! ```
 //!
-//! (`α`, `β` the Baumgarte gains, zero without stabilisation), whose
-//! algebraic part is solvable for `w` wherever `K` is regular: index 1, and
-//! the same motion as B's ODE form. Every entry of its Jacobian is local:
-//! `∂(Kw − b)/∂w = K` is the KKT pattern, and `∂(Kw − b)/∂(q, v)` has the
+//! (`α`, `β` the Baumgarte gains, zero without stabilisation). For C the
+//! field is `L + λᵀg` and its multipliers are state too, `y = (q, v, λ, w)`
+//! with `λ' − μ_g = 0` (C's ODE form takes `λ̇ = μ_g` from the same solve),
+//! and `K`, `b` depend on `λ` as well. Either system has an algebraic part
+//! solvable for `w` wherever `K` is regular: index 1, and the same motion
+//! as the formulation's ODE form. Every entry of its Jacobian is local:
+//! `∂(Kw − b)/∂w = K` is the KKT pattern, and `∂(Kw − b)/∂(q, v, λ)` has the
 //! entries that the compiled program's dependencies allow
 //! ([`Compiled::dependencies`]). That block is computed by forward
 //! differentiation along a few seeded directions: columns are grouped so
@@ -33,24 +36,50 @@
 
 use std::sync::Arc;
 
-use nonholo_core::compiled::{Compiled, KktSource, Pieces, Workspace};
-use nonholo_core::consistency::{InitProjection, check_or_project_with};
-use nonholo_core::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
-use nonholo_core::kkt::{Ideal, Kkt};
-use nonholo_core::model::{Description, Observation};
-use nonholo_core::monitor::Diagnostics;
-use nonholo_core::scene::{Lagrangian, Scalar};
-use nonholo_core::stab::{Stabilisation, StepHooks};
-use nonholo_core::{Error, Initial, Model, Params, Scene};
 use num_dual::Dual64;
 
-/// B on `scene` as the index-1 system of the [module docs](self), and as a
-/// [`Model`] (B with `form = "dae"`): integrated by Radau IIA only; its
+use crate::compiled::{Compiled, KktSource, Pieces, Workspace};
+use crate::consistency::{InitProjection, check_or_project_with};
+use crate::init::lambda0;
+use crate::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
+use crate::kkt::{Ideal, Kkt};
+use crate::model::{Description, FormulationInfo, Observation};
+use crate::monitor::Diagnostics;
+use crate::param::ParamSpec;
+use crate::scene::{Augmented, Lagrangian, Scalar};
+use crate::stab::{Stabilisation, StepHooks};
+use crate::{Error, Initial, Model, Params, Scene};
+
+/// The form B and C are integrated in (option `form`).
+pub const FORM: ParamSpec = ParamSpec::choice(
+    "form",
+    &["ode", "dae"],
+    "ode: q̈ (and C's λ̇) from one KKT solve per right-hand side, any integrator; dae: the \
+     KKT unknowns (q̈ and the multipliers' part of the solve) in the state, an index-1 DAE \
+     with sparse Jacobians, radau5 only (for large scenes, e.g. sleigh-train)",
+);
+
+/// The field of the KKT system, and with it where the multipliers of `g`
+/// live.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    /// B: `L`; the multipliers are KKT unknowns (`μ_g = −λ`).
+    Lagrangian,
+    /// C: `L + λᵀg`, with `λ` in the state (`λ̇ = μ_g`).
+    Augmented,
+}
+
+/// B or C on `scene` as the index-1 system of the [module docs](self), and
+/// as a [`Model`] (`form = "dae"`): integrated by Radau IIA only; its
 /// multipliers are read from the state; the same per-step diagnostics and
-/// guard as B's ODE form.
-pub struct ChetaevDae<S: Scene> {
+/// guard as the ODE form.
+pub struct KktDae<S: Scene> {
     scene: S,
     options: Params,
+    formulation: &'static FormulationInfo,
+    field: Field,
+    /// Multipliers in the state: `s` for C, 0 for B.
+    np: usize,
     hooks: StepHooks,
     /// `y'(t0)` of the last [`Model::initial_state`].
     yp0: Vec<f64>,
@@ -66,25 +95,28 @@ pub struct ChetaevDae<S: Scene> {
     sparsity: Sparsity,
     /// Position in the `∂F/∂y` list where `K`'s entries start.
     kkt_at: usize,
-    /// The `(q, v)` columns of the algebraic rows, grouped by colour:
+    /// The `(q, v, λ)` columns of the algebraic rows, grouped by colour:
     /// `(position in the ∂F/∂y list, row of K)` for every entry of a
     /// column of that colour.
     groups: Vec<Vec<(usize, usize)>>,
-    /// Colour of every `(q, v)` column (`u32::MAX`: no entry).
+    /// Colour of every `(q, v, λ)` column (`u32::MAX`: no entry).
     colour: Vec<u32>,
     real: Workspace<f64>,
     dual: Workspace<Dual64>,
-    /// `(q, v)` over `Dual64` for a seeded pass.
+    /// `(q, v, λ)` over `Dual64` for a seeded pass.
     seeded: Vec<Dual64>,
     /// `∂(Kw − b)` along one seed.
     tangent: Vec<f64>,
 }
 
-impl<S: Scene + Clone> Clone for ChetaevDae<S> {
+impl<S: Scene + Clone> Clone for KktDae<S> {
     fn clone(&self) -> Self {
-        ChetaevDae {
+        KktDae {
             scene: self.scene.clone(),
             options: self.options.clone(),
+            formulation: self.formulation,
+            field: self.field,
+            np: self.np,
             hooks: self.hooks.clone(),
             yp0: self.yp0.clone(),
             program: self.program.clone(),
@@ -135,17 +167,23 @@ fn kkt_apply<T: Scalar>(
     }
 }
 
-impl<S: Scene> ChetaevDae<S> {
-    /// B on `scene` with B's `options` ([`crate::OPTIONS`]; stabilisation
-    /// none or Baumgarte: a projection has no place in this form).
-    /// Compiles the scene's program; a scene whose trace is refused (it
-    /// branches on values) has no DAE form.
-    pub fn new(scene: S, options: Params) -> Result<Self, Error> {
+impl<S: Scene> KktDae<S> {
+    /// The `formulation` (B's or C's info; its `options`, stabilisation
+    /// none or Baumgarte: a projection has no place in this form) on
+    /// `scene` with the KKT system of `field`. Compiles the scene's
+    /// program; a scene whose trace is refused (it branches on values) has
+    /// no DAE form.
+    pub fn new(
+        scene: S,
+        options: Params,
+        formulation: &'static FormulationInfo,
+        field: Field,
+    ) -> Result<Self, Error> {
         let hooks = StepHooks::new(&scene, &options)?;
         let stab = hooks.stab;
         let info = scene.info();
         let refuse = |reason: String| Error::NotApplicable {
-            formulation: "chetaev (DAE form)".into(),
+            formulation: format!("{} (DAE form)", formulation.name),
             scene: info.name.into(),
             reason,
         };
@@ -156,14 +194,21 @@ impl<S: Scene> ChetaevDae<S> {
                     .into(),
             ));
         }
-        let program = Compiled::new(&Lagrangian(&scene), 0, &scene)
-            .map_err(|e| refuse(format!("it needs the scene compiled into one program: {e}")))?;
         let (n, s, k) = (info.n(), info.s(), info.k());
+        let np = match field {
+            Field::Lagrangian => 0,
+            Field::Augmented => s,
+        };
+        let program = match field {
+            Field::Lagrangian => Compiled::new(&Lagrangian(&scene), 0, &scene),
+            Field::Augmented => Compiled::new(&Augmented(&scene), s, &scene),
+        }
+        .map_err(|e| refuse(format!("it needs the scene compiled into one program: {e}")))?;
         let gains = stab.gains();
         let p = program.pattern();
         let kkt = p.kkt_entries(n, s);
 
-        // The (q, v) columns each row of `Kw − b` depends on.
+        // The (q, v, λ) columns each row of `Kw − b` depends on.
         let m = n + s + k;
         let deps = program.dependencies();
         let mut rows: Vec<Vec<u32>> = vec![Vec::new(); m];
@@ -189,8 +234,10 @@ impl<S: Scene> ChetaevDae<S> {
         for &(r, _, src) in &kkt {
             add(r as usize, deps.kkt_value(src));
         }
-        // Inputs 1..=n are q, n+1..=2n are q̇: columns 0..2n of (q, v).
-        let qv = |d: u32| (1..=2 * n as u32).contains(&d).then(|| d as usize - 1);
+        // Inputs 1..=n are q, n+1..=2n are q̇, 2n+1..=2n+np the field's
+        // parameters λ: columns 0..2n+np of (q, v, λ).
+        let d = 2 * n + np;
+        let qv = |i: u32| (1..=d as u32).contains(&i).then(|| i as usize - 1);
         let rows: Vec<Vec<usize>> = rows
             .into_iter()
             .map(|mut r| {
@@ -200,20 +247,22 @@ impl<S: Scene> ChetaevDae<S> {
             })
             .collect();
 
-        // ∂F/∂y: ∂(q' − v)/∂v, ∂(v' − q̈)/∂q̈, K, then the (q, v) block.
+        // ∂F/∂y: ∂(q' − v)/∂v, ∂(v' − q̈)/∂q̈, ∂(λ' − μ_g)/∂μ_g, K, then
+        // the (q, v, λ) block; `w` starts at `d`.
         let mut jy: Vec<(usize, usize)> = Vec::new();
         jy.extend((0..n).map(|i| (i, n + i)));
-        jy.extend((0..n).map(|i| (n + i, 2 * n + i)));
+        jy.extend((0..n).map(|i| (n + i, d + i)));
+        jy.extend((0..np).map(|j| (2 * n + j, d + n + j)));
         let kkt_at = jy.len();
         jy.extend(
             kkt.iter()
-                .map(|&(r, c, _)| (2 * n + r as usize, 2 * n + c as usize)),
+                .map(|&(r, c, _)| (d + r as usize, d + c as usize)),
         );
-        let mut cols: Vec<Vec<(usize, usize)>> = vec![Vec::new(); 2 * n];
+        let mut cols: Vec<Vec<(usize, usize)>> = vec![Vec::new(); d];
         for (r, row) in rows.iter().enumerate() {
             for &c in row {
                 cols[c].push((jy.len(), r));
-                jy.push((2 * n + r, c));
+                jy.push((d + r, c));
             }
         }
         let colour = colour_columns(&cols, &rows);
@@ -230,13 +279,16 @@ impl<S: Scene> ChetaevDae<S> {
         }
         let sparsity = Sparsity {
             jy,
-            jyp: (0..2 * n).map(|i| (i, i)).collect(),
+            jyp: (0..d).map(|i| (i, i)).collect(),
         };
-        Ok(ChetaevDae {
+        Ok(KktDae {
             real: program.workspace(),
             dual: program.workspace(),
             scene,
             options,
+            formulation,
+            field,
+            np,
             hooks,
             yp0: Vec::new(),
             program: Arc::new(program),
@@ -250,7 +302,7 @@ impl<S: Scene> ChetaevDae<S> {
             kkt_at,
             groups,
             colour,
-            seeded: vec![Dual64::from(0.0); 2 * n],
+            seeded: vec![Dual64::from(0.0); d],
             tangent: vec![0.0; m],
         })
     }
@@ -265,28 +317,44 @@ impl<S: Scene> ChetaevDae<S> {
         self.groups.len()
     }
 
-    /// Consistent initial data from positions and velocities: `w` from one
-    /// KKT solve, `y = (q, q̇, w)`, `y' = (q̇, q̈, 0)` (the algebraic
-    /// components' derivatives are not part of the equations).
-    pub fn initial(&self, t: f64, q: &[f64], qd: &[f64]) -> Result<(Vec<f64>, Vec<f64>), Error> {
-        let n = self.n;
+    /// Consistent initial data from positions, velocities and (C) the
+    /// multipliers `λ` (empty for B): `w` from one KKT solve,
+    /// `y = (q, q̇, λ, w)`, `y' = (q̇, q̈, μ_g, 0)` (C's `λ̇ = μ_g`; the
+    /// algebraic components' derivatives are not part of the equations).
+    pub fn initial(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lambda: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>), Error> {
+        let (n, np) = (self.n, self.np);
+        assert_eq!(
+            lambda.len(),
+            np,
+            "one multiplier per row of g for C, none for B"
+        );
         let mut kkt: Kkt<f64> = Kkt::for_scene(self.scene.info());
         kkt.use_program(self.program.clone());
-        let ell = Lagrangian(&self.scene);
-        kkt.solve(&ell, &[], &self.scene, &Ideal(self.stab), t, q, qd)
-            .map_err(|e| Error::InconsistentInit {
-                formulation: "chetaev",
-                reason: format!("the KKT system at t = {t} is singular: {e}"),
-            })?;
-        let y = [q, qd, &kkt.sol].concat();
+        let (scene, rows) = (&self.scene, Ideal(self.stab));
+        match self.field {
+            Field::Lagrangian => kkt.solve(&Lagrangian(scene), &[], scene, &rows, t, q, qd),
+            Field::Augmented => kkt.solve(&Augmented(scene), lambda, scene, &rows, t, q, qd),
+        }
+        .map_err(|e| Error::InconsistentInit {
+            formulation: self.formulation.name,
+            reason: format!("the KKT system at t = {t} is singular: {e}"),
+        })?;
+        let y = [q, qd, lambda, &kkt.sol].concat();
         let mut yp = vec![0.0; y.len()];
         yp[..n].copy_from_slice(qd);
         yp[n..2 * n].copy_from_slice(&kkt.sol[..n]);
+        yp[2 * n..2 * n + np].copy_from_slice(&kkt.sol[n..n + np]);
         Ok((y, yp))
     }
 }
 
-/// Greedy colouring of the `(q, v)` columns: no two columns of one colour
+/// Greedy colouring of the `(q, v, λ)` columns: no two columns of one colour
 /// share a row. `cols[c]` lists `(_, row)` of column `c`, `rows[r]` the
 /// columns of row `r`; columns without entries get `u32::MAX`.
 fn colour_columns(cols: &[Vec<(usize, usize)>], rows: &[Vec<usize>]) -> Vec<u32> {
@@ -314,9 +382,9 @@ fn colour_columns(cols: &[Vec<(usize, usize)>], rows: &[Vec<usize>]) -> Vec<u32>
     colour
 }
 
-impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
+impl<S: Scene> ImplicitSystem for KktDae<S> {
     fn dim(&self) -> usize {
-        2 * self.n + self.n + self.s + self.k
+        2 * self.n + self.np + self.n + self.s + self.k
     }
 
     fn residual(
@@ -326,14 +394,18 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         yp: &[f64],
         res: &mut [f64],
     ) -> Result<(), SystemError> {
-        let n = self.n;
+        let (n, np) = (self.n, self.np);
         let (q, rest) = y.split_at(n);
-        let (v, w) = rest.split_at(n);
+        let (v, rest) = rest.split_at(n);
+        let (lambda, w) = rest.split_at(np);
         for i in 0..n {
             res[i] = yp[i] - v[i];
             res[n + i] = yp[n + i] - w[i];
         }
-        self.program.eval(&mut self.real, t, q, v, &[]);
+        for j in 0..np {
+            res[2 * n + j] = yp[2 * n + j] - w[n + j];
+        }
+        self.program.eval(&mut self.real, t, q, v, lambda);
         let pc = self.real.pieces(&self.program);
         kkt_apply(
             &pc,
@@ -342,7 +414,7 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
             self.gains,
             |x| *x,
             w,
-            &mut res[2 * n..],
+            &mut res[2 * n + np..],
         );
         Ok(())
     }
@@ -355,15 +427,16 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         jy: &mut [f64],
         jyp: &mut [f64],
     ) -> Result<(), SystemError> {
-        let n = self.n;
+        let (n, np) = (self.n, self.np);
         let (q, rest) = y.split_at(n);
-        let (v, w) = rest.split_at(n);
+        let (v, rest) = rest.split_at(n);
+        let (lambda, w) = rest.split_at(np);
         jyp.fill(1.0);
-        jy[..2 * n].fill(-1.0);
-        // K at (q, v): from the first seeded pass's values, or from a
-        // pass of its own when no (q, v) column has an entry.
+        jy[..2 * n + np].fill(-1.0);
+        // K at (q, v, λ): from the first seeded pass's values, or from a
+        // pass of its own when no (q, v, λ) column has an entry.
         if self.groups.is_empty() {
-            self.program.eval(&mut self.real, t, q, v, &[]);
+            self.program.eval(&mut self.real, t, q, v, lambda);
             let pc = self.real.pieces(&self.program);
             for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
                 *x = *pc.kkt_value(src);
@@ -372,7 +445,11 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         // One seeded pass per colour.
         for (colour, group) in self.groups.iter().enumerate() {
             for (j, x) in self.seeded.iter_mut().enumerate() {
-                let value = if j < n { q[j] } else { v[j - n] };
+                let value = match j {
+                    j if j < n => q[j],
+                    j if j < 2 * n => v[j - n],
+                    j => lambda[j - 2 * n],
+                };
                 let seed = if self.colour[j] == colour as u32 {
                     1.0
                 } else {
@@ -380,9 +457,10 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
                 };
                 *x = Dual64::new(value, seed);
             }
-            let (qs, vs) = self.seeded.split_at(n);
+            let (qs, rest) = self.seeded.split_at(n);
+            let (vs, ls) = rest.split_at(n);
             self.program
-                .eval(&mut self.dual, Dual64::from(t), qs, vs, &[]);
+                .eval(&mut self.dual, Dual64::from(t), qs, vs, ls);
             let pc = self.dual.pieces(&self.program);
             if colour == 0 {
                 for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
@@ -410,7 +488,8 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
         Some(self.sparsity.clone())
     }
 
-    /// B's diagnostics and guard on `(q, q̇)`; no projection (refused).
+    /// The formulation's diagnostics and guard on `(q, q̇)`; no projection
+    /// (refused).
     fn after_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
         let n = self.n;
         let (q, rest) = y.split_at_mut(n);
@@ -429,23 +508,34 @@ impl<S: Scene> ImplicitSystem for ChetaevDae<S> {
     }
 
     fn component_name(&self, i: usize) -> String {
-        let (n, s) = (self.n, self.s);
+        let (n, s, d) = (self.n, self.s, 2 * self.n + self.np);
         let name = |j: usize| self.scene.info().coordinates[j].name;
         match i {
             i if i < n => name(i).to_string(),
             i if i < 2 * n => format!("d{}/dt", name(i - n)),
-            i if i < 3 * n => format!("d²{}/dt²", name(i - 2 * n)),
-            i if i < 3 * n + s => format!("μ_g[{}]", i - 3 * n),
-            i => format!("μ_f[{}]", i - 3 * n - s),
+            i if i < d => format!("λ[{}]", i - 2 * n),
+            i if i < d + n => format!("d²{}/dt²", name(i - d)),
+            i if i < d + n + s => format!("μ_g[{}]", i - d - n),
+            i => format!("μ_f[{}]", i - d - n - s),
         }
     }
 }
 
-impl<S: Scene> Model for ChetaevDae<S> {
+impl<S: Scene> KktDae<S> {
+    /// The formulation's name with the form, for messages.
+    fn form_name(&self) -> &'static str {
+        match self.field {
+            Field::Lagrangian => "chetaev (form = \"dae\")",
+            Field::Augmented => "vakonomic (form = \"dae\")",
+        }
+    }
+}
+
+impl<S: Scene> Model for KktDae<S> {
     fn describe(&self) -> Description<'_> {
         Description {
             scene: self.scene.info(),
-            formulation: &crate::INFO,
+            formulation: self.formulation,
             params: self.scene.params(),
             options: &self.options,
         }
@@ -461,7 +551,7 @@ impl<S: Scene> Model for ChetaevDae<S> {
             return Ok(());
         }
         Err(Error::NoExplicitForm {
-            formulation: "chetaev (form = \"dae\")",
+            formulation: self.form_name(),
             method: method.name(),
         })
     }
@@ -475,7 +565,11 @@ impl<S: Scene> Model for ChetaevDae<S> {
     }
 
     fn initial_state(&mut self, init: &Initial) -> Result<Vec<f64>, Error> {
-        let (y, yp) = self.initial(init.t0, &init.q, &init.qd)?;
+        let lambda = match self.field {
+            Field::Lagrangian => Vec::new(),
+            Field::Augmented => lambda0(init, self.s),
+        };
+        let (y, yp) = self.initial(init.t0, &init.q, &init.qd, &lambda)?;
         self.yp0 = yp;
         self.hooks.start(&self.scene, init.t0, &init.q, &init.qd);
         Ok(y)
@@ -485,12 +579,16 @@ impl<S: Scene> Model for ChetaevDae<S> {
         Ok(self.yp0.clone())
     }
 
-    /// `(q, q̇)` and minus the state's multiplier part (`λ`, then `ν`).
+    /// `(q, q̇)` and the multipliers as the ODE form reports them: B's
+    /// `λ = −μ_g`, C's `λ` from the state; then `ν = −μ_f`.
     fn observe(&mut self, _t: f64, y: &[f64], obs: &mut Observation) -> Result<(), SystemError> {
-        let n = self.n;
+        let (n, np) = (self.n, self.np);
+        let d = 2 * n + np;
         obs.q.copy_from_slice(&y[..n]);
         obs.qd.copy_from_slice(&y[n..2 * n]);
-        for (m, v) in obs.multipliers.iter_mut().zip(&y[3 * n..]) {
+        let (state, solved) = obs.multipliers.split_at_mut(np);
+        state.copy_from_slice(&y[2 * n..d]);
+        for (m, v) in solved.iter_mut().zip(&y[d + n + np..]) {
             *m = -v;
         }
         Ok(())
@@ -502,10 +600,10 @@ impl<S: Scene> Model for ChetaevDae<S> {
 
     fn no_state_chart(&self) -> Error {
         Error::NotApplicable {
-            formulation: "chetaev (form = \"dae\")".into(),
+            formulation: self.form_name().into(),
             scene: self.scene.info().name.into(),
-            reason: "linearisation reads (q, q̇) from B's ODE form; the DAE form adds the KKT \
-                     unknowns to the state: use form = \"ode\""
+            reason: "linearisation reads the state of the ODE form; the DAE form adds the KKT \
+                     unknowns to it: use form = \"ode\""
                 .into(),
         }
     }

@@ -370,20 +370,18 @@ impl<T: Scalar> Kkt<T> {
         qd: &[T],
     ) -> Result<(), Singular> {
         if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
-            if self.sparse.is_some() {
-                return self.solve_sparse(p, rows, alpha, t, q, qd);
-            }
-            return self.solve_ideal_dense(p, rows, alpha, t, q, qd);
+            return self.solve_ideal(p, rows, alpha, t, q, qd);
         }
         self.assemble(ell, p, scene, rows, t, q, qd);
         self.solve_assembled()
     }
 
-    /// [`Kkt::solve`] with ideal rows from the compiled program, dense: the
-    /// program's entries scattered straight into the matrix (the same
-    /// matrix and right-hand side as [`Kkt::assemble`], without the dense
-    /// constraint Jacobian in between), then [`Kkt::solve_assembled`].
-    fn solve_ideal_dense<R: GRows>(
+    /// [`Kkt::solve`] with ideal rows from the compiled program: its pieces
+    /// into the right-hand side, then its entries into the sparse system
+    /// (one sparse LU) or straight into the dense matrix (the same matrix
+    /// as [`Kkt::assemble`], without the dense constraint Jacobian in
+    /// between) and [`Kkt::solve_assembled`].
+    fn solve_ideal<R: GRows>(
         &mut self,
         p: &[T],
         rows: &R,
@@ -392,40 +390,12 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) -> Result<(), Singular> {
-        self.dense();
+        if self.sparse.is_none() {
+            self.dense();
+        }
         let (n, s) = (self.n, self.cs.s);
         let Some((c, w)) = &mut self.compiled else {
             unreachable!("the compiled path needs a program");
-        };
-        c.eval(w, t, q, qd, p);
-        let pc = w.pieces(c);
-        self.matrix.fill(T::from(0.0));
-        for &(r, col, src) in &self.entries {
-            self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
-        }
-        load(&pc, &mut self.cs, &mut self.sol[..n]);
-        for i in 0..s {
-            self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
-        }
-        self.holonomic_rhs(rows);
-        self.solve_assembled()
-    }
-
-    /// [`Kkt::solve`] on the sparse path: the compiled program's pieces
-    /// into the right-hand side and the stored entries, one sparse LU.
-    fn solve_sparse<R: GRows>(
-        &mut self,
-        p: &[T],
-        rows: &R,
-        alpha: f64,
-        t: T,
-        q: &[T],
-        qd: &[T],
-    ) -> Result<(), Singular> {
-        let n = self.n;
-        let s = self.cs.s;
-        let Some((c, w)) = &mut self.compiled else {
-            unreachable!("the sparse path needs a program");
         };
         c.eval(w, t, q, qd, p);
         load(&w.pieces(c), &mut self.cs, &mut self.sol[..n]);
@@ -433,10 +403,18 @@ impl<T: Scalar> Kkt<T> {
             self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
         }
         self.holonomic_rhs(rows);
-        let (Some((c, w)), Some(sparse)) = (&self.compiled, &mut self.sparse) else {
-            unreachable!("the sparse path needs a program");
+        let Some((c, w)) = &self.compiled else {
+            unreachable!("the compiled path needs a program");
         };
-        sparse.solve(&w.pieces(c), &mut self.sol)
+        let pc = w.pieces(c);
+        if let Some(sparse) = &mut self.sparse {
+            return sparse.solve(&pc, &mut self.sol);
+        }
+        self.matrix.fill(T::from(0.0));
+        for &(r, col, src) in &self.entries {
+            self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
+        }
+        self.solve_assembled()
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.

@@ -40,7 +40,7 @@ use num_dual::Dual64;
 
 use crate::compiled::{Compiled, KktSource, Pieces, Workspace};
 use crate::consistency::{InitProjection, check_or_project_with};
-use crate::init::lambda0;
+use crate::init::{ExtraName, lambda_names, lambda0};
 use crate::integrate::{ImplicitSystem, Method, Sparsity, SystemError};
 use crate::kkt::{Ideal, Kkt};
 use crate::model::{Description, FormulationInfo, Observation};
@@ -577,6 +577,14 @@ impl<S: Scene> Model for KktDae<S> {
 
     fn initial_slope(&mut self) -> Result<Vec<f64>, Error> {
         Ok(self.yp0.clone())
+    }
+
+    /// C's `λ(0)` (`lambda`, or `lambda1`, …), as its ODE form takes them.
+    fn extra_init_names(&self) -> Vec<ExtraName> {
+        match self.field {
+            Field::Lagrangian => Vec::new(),
+            Field::Augmented => lambda_names(self.s, "initial multiplier λ(0) of L + λᵀg"),
+        }
     }
 
     /// `(q, q̇)` and the multipliers as the ODE form reports them: B's

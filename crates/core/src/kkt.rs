@@ -113,10 +113,10 @@ pub struct Kkt<T: Scalar = f64> {
     n: usize,
     pub jet: Jet<T>,
     /// Constraint values and rates of the last evaluation. Its dense
-    /// Jacobian `cs.jac` is filled by [`Kkt::assemble`] and by the solves
-    /// that assemble (the scalar passes, or rows other than [`Ideal`]):
-    /// after a solve with ideal rows from a compiled program it is
-    /// unallocated or stale, and `G`, `F` live in the system's matrix.
+    /// Jacobian `cs.jac` is filled where the rows need it (the scalar
+    /// passes, or rows other than [`Ideal`]): with ideal rows from a
+    /// compiled program it is unallocated or stale, and `G`, `F` live in
+    /// the system's matrix.
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
@@ -130,7 +130,8 @@ pub struct Kkt<T: Scalar = f64> {
     compiled: Option<(Arc<Compiled>, Workspace<T>)>,
     /// The program's entries of the KKT matrix
     /// ([`crate::compiled::Pattern::kkt_entries`]), scattered straight into
-    /// the dense matrix by a solve with ideal rows.
+    /// the dense matrix with ideal rows; made with the dense storage (a
+    /// sparse system keeps its own list).
     entries: Vec<(u32, u32, KktSource)>,
     /// The system stored sparse ([`crate::sparse`]): systems of at least
     /// [`SPARSE_FROM`] rows with a compiled program, over `f64` or `Dual64`
@@ -161,7 +162,8 @@ impl<T: Scalar> Kkt<T> {
         kkt
     }
 
-    /// The dense matrix and constraint Jacobian, allocated if not yet.
+    /// The dense matrix, constraint Jacobian and the program's entries,
+    /// made if not yet.
     fn dense(&mut self) {
         let dim = self.sol.len();
         if self.matrix.nrows() != dim {
@@ -169,6 +171,9 @@ impl<T: Scalar> Kkt<T> {
         }
         if self.cs.jac.ncols() != self.n {
             self.cs.jac = DMatrix::from_element(self.cs.s + self.cs.k, self.n, T::from(0.0));
+        }
+        if let (true, Some((c, _))) = (self.entries.is_empty(), &self.compiled) {
+            self.entries = c.pattern().kkt_entries(self.n, self.cs.s);
         }
     }
 
@@ -224,7 +229,7 @@ impl<T: Scalar> Kkt<T> {
             // where the matrix is singular).
             self.sparse = SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k).ok();
         }
-        self.entries = c.pattern().kkt_entries(self.n, self.cs.s);
+        self.entries.clear();
         self.compiled = Some((c, w));
     }
 
@@ -281,7 +286,9 @@ impl<T: Scalar> Kkt<T> {
     /// Assembles the system at `(t, q, q̇)` for the field `ell` with
     /// parameters `p`, the rows of `g` entering as `rows` says, without
     /// solving it: [`Kkt::system`] then reads it (Gauss's principle hands
-    /// it to a conic solver), [`Kkt::solve`] assembles and solves.
+    /// it to a conic solver), [`Kkt::solve`] assembles and solves. Ideal
+    /// rows from a compiled program scatter its entries straight into the
+    /// matrix; other rows write theirs from `G` in [`Kkt::cs`].
     #[allow(clippy::too_many_arguments)]
     pub fn assemble<F: ScalarField, S: Scene, R: GRows>(
         &mut self,
@@ -297,6 +304,17 @@ impl<T: Scalar> Kkt<T> {
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
         self.matrix.fill(T::from(0.0));
+        if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
+            self.eval_ideal::<F, R>(p, rows, alpha, t, q, qd);
+            let Some((c, w)) = &self.compiled else {
+                unreachable!("the ideal path needs a program");
+            };
+            let pc = w.pieces(c);
+            for &(r, col, src) in &self.entries {
+                self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
+            }
+            return;
+        }
         if let Some((c, w)) = &mut self.compiled {
             debug_assert_eq!(
                 c.field,
@@ -357,7 +375,9 @@ impl<T: Scalar> Kkt<T> {
     }
 
     /// Assembles and solves the system at `(t, q, q̇)` for the field `ell`
-    /// with parameters `p`, the rows of `g` entering as `rows` says.
+    /// with parameters `p`, the rows of `g` entering as `rows` says: one
+    /// sparse LU where the system is sparse (ideal rows from a compiled
+    /// program), [`Kkt::assemble`] and [`Kkt::solve_assembled`] otherwise.
     #[allow(clippy::too_many_arguments)]
     pub fn solve<F: ScalarField, S: Scene, R: GRows>(
         &mut self,
@@ -369,19 +389,22 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) -> Result<(), Singular> {
-        if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
-            return self.solve_ideal(p, rows, alpha, t, q, qd);
+        if let (Some(alpha), true) = (rows.ideal_gain(), self.sparse.is_some()) {
+            self.eval_ideal::<F, R>(p, rows, alpha, t, q, qd);
+            let (Some((c, w)), Some(sparse)) = (&self.compiled, &mut self.sparse) else {
+                unreachable!("a sparse system has a program");
+            };
+            return sparse.solve(&w.pieces(c), &mut self.sol);
         }
         self.assemble(ell, p, scene, rows, t, q, qd);
         self.solve_assembled()
     }
 
-    /// [`Kkt::solve`] with ideal rows from the compiled program: its pieces
-    /// into the right-hand side, then its entries into the sparse system
-    /// (one sparse LU) or straight into the dense matrix (the same matrix
-    /// as [`Kkt::assemble`], without the dense constraint Jacobian in
-    /// between) and [`Kkt::solve_assembled`].
-    fn solve_ideal<R: GRows>(
+    /// Ideal rows from the compiled program: evaluates it at `(t, q, q̇)`,
+    /// loads its values into [`Kkt::cs`] and writes the right-hand side;
+    /// its entries ([`crate::compiled::Pattern::kkt_entries`]) make the
+    /// matrix.
+    fn eval_ideal<F: ScalarField, R: GRows>(
         &mut self,
         p: &[T],
         rows: &R,
@@ -389,32 +412,22 @@ impl<T: Scalar> Kkt<T> {
         t: T,
         q: &[T],
         qd: &[T],
-    ) -> Result<(), Singular> {
-        if self.sparse.is_none() {
-            self.dense();
-        }
+    ) {
         let (n, s) = (self.n, self.cs.s);
         let Some((c, w)) = &mut self.compiled else {
-            unreachable!("the compiled path needs a program");
+            unreachable!("the ideal path needs a program");
         };
+        debug_assert_eq!(
+            c.field,
+            std::any::type_name::<F>(),
+            "compiled for another field"
+        );
         c.eval(w, t, q, qd, p);
         load(&w.pieces(c), &mut self.cs, &mut self.sol[..n]);
         for i in 0..s {
             self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
         }
         self.holonomic_rhs(rows);
-        let Some((c, w)) = &self.compiled else {
-            unreachable!("the compiled path needs a program");
-        };
-        let pc = w.pieces(c);
-        if let Some(sparse) = &mut self.sparse {
-            return sparse.solve(&pc, &mut self.sol);
-        }
-        self.matrix.fill(T::from(0.0));
-        for &(r, col, src) in &self.entries {
-            self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
-        }
-        self.solve_assembled()
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.

@@ -159,8 +159,9 @@ fn coloured_jacobian_matches_differences_of_the_residual() {
 }
 
 /// The colouring finds a number of groups that does not grow with the
-/// train: a Jacobian costs a fixed number of program passes (5 from two
-/// sleighs on, 8 with Baumgarte stabilisation).
+/// train, at the lengths tried (2 to 200): a Jacobian costs a fixed number
+/// of program passes (5 from two sleighs on, 8 with Baumgarte
+/// stabilisation).
 #[test]
 fn colours_do_not_grow_with_the_train() {
     let colours: Vec<usize> = [4, 10, 40, 200]
@@ -172,12 +173,12 @@ fn colours_do_not_grow_with_the_train() {
         })
         .collect();
     eprintln!("colours for N = 4, 10, 40, 200: {colours:?}");
-    // 5 at every N ≥ 2 (the (q, v) block has 6N columns); 4 for one sleigh.
+    // 5 at each N tried (the (q, v) block has 6N columns); 4 for one sleigh.
     assert!(colours.iter().all(|&c| c == 5), "{colours:?}");
     let one = nonholo_chetaev::dae(train(1, 0.3), options(&[])).unwrap();
     assert_eq!(one.colours(), 4);
     // C's rows also depend on λ (its field L + λᵀg): its λ columns fit
-    // into B's 5 groups, at every length.
+    // into B's 5 groups, at each length tried.
     let c: Vec<usize> = [2, 10, 40, 200]
         .iter()
         .map(|&n| C.dae(train(n, 0.3), options_of(C, &[])).unwrap().colours())

@@ -40,6 +40,8 @@ pub struct Compiled {
     /// The inputs every output depends on (sorted; input numbering of
     /// [`Compiled::dependencies`]), parallel to the outputs.
     deps: Vec<Vec<u32>>,
+    /// Where each piece starts among the outputs ([`Pattern::layout`]).
+    layout: Layout,
     n: usize,
     s: usize,
     k: usize,
@@ -63,39 +65,63 @@ pub struct Pattern {
 }
 
 /// Where an entry of the KKT matrix `K = [M Gᵀ Fᵀ; G 0 0; F 0 0]` takes
-/// its value from: an index into one of the [`Pieces`]' matrix values.
+/// its value from: the index of that value among the program's outputs
+/// ([`Pieces::kkt_value`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum KktSource {
-    /// Entry `i` of the upper triangle of `M` ([`Pieces::mass_upper`]).
-    Mass(u32),
-    /// Entry `i` of `G` ([`Pieces::g_jac`]).
-    G(u32),
-    /// Entry `i` of `F` ([`Pieces::f_jac`]).
-    F(u32),
-}
+pub struct KktSource(pub u32);
+
+/// The program's outputs in order, one per [`Pieces`] field: the upper
+/// triangle of `M`, `Q`, `g`, `G`, `ġ₀`, `f`, `F`, `ḟ`, `f̈₀`.
+const PIECES: usize = 9;
+
+/// Where each of the [`PIECES`] starts among the outputs, and (last) the
+/// number of outputs.
+pub(crate) type Layout = [usize; PIECES + 1];
 
 impl Pattern {
-    /// The structural nonzeros of `K` for `n` coordinates and `s` velocity
-    /// constraints, both triangles, as `(row, column, source)`: `M`
-    /// (mirrored off its diagonal), then `G` at rows `n..n + s` with `Gᵀ`,
-    /// then `F` at rows `n + s..` with `Fᵀ`, each in pattern order.
-    pub fn kkt_entries(&self, n: usize, s: usize) -> Vec<(u32, u32, KktSource)> {
+    /// Where each piece starts among the outputs of a program for `n`
+    /// coordinates, `s` velocity and `k` position constraints, and (last)
+    /// the number of outputs.
+    pub(crate) fn layout(&self, n: usize, s: usize, k: usize) -> Layout {
+        let lens = [
+            self.mass.len(),
+            n,
+            s,
+            self.g_jac.len(),
+            s,
+            k,
+            self.f_jac.len(),
+            k,
+            k,
+        ];
+        let mut at = [0; PIECES + 1];
+        for (i, len) in lens.into_iter().enumerate() {
+            at[i + 1] = at[i] + len;
+        }
+        at
+    }
+
+    /// The structural nonzeros of `K` for `n` coordinates, `s` velocity and
+    /// `k` position constraints, both triangles, as `(row, column,
+    /// source)`: `M` (mirrored off its diagonal), then `G` at rows
+    /// `n..n + s` with `Gᵀ`, then `F` at rows `n + s..` with `Fᵀ`, each in
+    /// pattern order.
+    pub fn kkt_entries(&self, n: usize, s: usize, k: usize) -> Vec<(u32, u32, KktSource)> {
+        let at = self.layout(n, s, k);
         let mut entries =
             Vec::with_capacity(2 * (self.mass.len() + self.g_jac.len() + self.f_jac.len()));
         for (i, &(r, c)) in self.mass.iter().enumerate() {
-            entries.push((r, c, KktSource::Mass(i as u32)));
+            let src = KktSource((at[0] + i) as u32);
+            entries.push((r, c, src));
             if r != c {
-                entries.push((c, r, KktSource::Mass(i as u32)));
+                entries.push((c, r, src));
             }
         }
-        for (rows, offset, source) in [
-            (&self.g_jac, n, KktSource::G as fn(u32) -> KktSource),
-            (&self.f_jac, n + s, KktSource::F as fn(u32) -> KktSource),
-        ] {
+        for (rows, row0, start) in [(&self.g_jac, n, at[3]), (&self.f_jac, n + s, at[6])] {
             for (i, &(r, c)) in rows.iter().enumerate() {
-                let r = r + offset as u32;
-                entries.push((r, c, source(i as u32)));
-                entries.push((c, r, source(i as u32)));
+                let (r, src) = (r + row0 as u32, KktSource((start + i) as u32));
+                entries.push((r, c, src));
+                entries.push((c, r, src));
             }
         }
         entries
@@ -234,6 +260,7 @@ impl Compiled {
         let deps = outputs.iter().map(|&o| g.deps(o).to_vec()).collect();
         Ok(Compiled {
             program: Program::new(&g, &outputs, inputs),
+            layout: pattern.layout(n, s, k),
             pattern,
             deps,
             n,
@@ -342,6 +369,8 @@ pub struct Workspace<T> {
 /// the matrices hold the values of their [`Pattern`]'s entries.
 pub struct Pieces<'a, T> {
     pub pattern: &'a Pattern,
+    /// All outputs, the pieces below in order.
+    pub outputs: &'a [T],
     /// Upper triangle of `M`, at [`Pattern::mass`].
     pub mass_upper: &'a [T],
     pub force: &'a [T],
@@ -359,11 +388,7 @@ pub struct Pieces<'a, T> {
 impl<T> Pieces<'_, T> {
     /// The value of a KKT entry ([`Pattern::kkt_entries`]).
     pub fn kkt_value(&self, source: KktSource) -> &T {
-        match source {
-            KktSource::Mass(i) => &self.mass_upper[i as usize],
-            KktSource::G(i) => &self.g_jac[i as usize],
-            KktSource::F(i) => &self.f_jac[i as usize],
-        }
+        &self.outputs[source.0 as usize]
     }
 }
 
@@ -413,30 +438,37 @@ impl<T> Workspace<T> {
     pub fn pieces<'a>(&'a self, c: &'a Compiled) -> Pieces<'a, T> {
         split(c, &self.out)
     }
+
+    /// The value of a KKT entry of the last evaluation (as
+    /// [`Pieces::kkt_value`], without splitting the outputs).
+    pub fn kkt_value(&self, source: KktSource) -> &T {
+        &self.out[source.0 as usize]
+    }
 }
 
 /// Outputs of `c` (values, or anything kept per output) split into the pieces.
 fn split<'a, T>(c: &'a Compiled, out: &'a [T]) -> Pieces<'a, T> {
-    {
-        let (n, s, k) = (c.n, c.s, c.k);
-        let p = &c.pattern;
-        let mut rest: &[T] = out;
-        let mut take = |len: usize| {
-            let (a, b) = rest.split_at(len);
-            rest = b;
-            a
-        };
+    Pieces::new(&c.pattern, &c.layout, out)
+}
+
+impl<'a, T> Pieces<'a, T> {
+    /// The outputs `out` of a program with `pattern` and `layout`
+    /// ([`Pattern::layout`]), split into the pieces.
+    pub(crate) fn new(pattern: &'a Pattern, at: &Layout, out: &'a [T]) -> Self {
+        debug_assert_eq!(out.len(), at[PIECES]);
+        let piece = |i: usize| &out[at[i]..at[i + 1]];
         Pieces {
-            pattern: p,
-            mass_upper: take(p.mass.len()),
-            force: take(n),
-            g: take(s),
-            g_jac: take(p.g_jac.len()),
-            g_rate0: take(s),
-            f: take(k),
-            f_jac: take(p.f_jac.len()),
-            f_rate: take(k),
-            f_accel0: take(k),
+            pattern,
+            outputs: out,
+            mass_upper: piece(0),
+            force: piece(1),
+            g: piece(2),
+            g_jac: piece(3),
+            g_rate0: piece(4),
+            f: piece(5),
+            f_jac: piece(6),
+            f_rate: piece(7),
+            f_accel0: piece(8),
         }
     }
 }

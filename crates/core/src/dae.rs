@@ -206,7 +206,7 @@ impl<S: Scene> KktDae<S> {
         .map_err(|e| refuse(format!("it needs the scene compiled into one program: {e}")))?;
         let gains = stab.gains();
         let p = program.pattern();
-        let kkt = p.kkt_entries(n, s);
+        let kkt = p.kkt_entries(n, s, k);
 
         // The (q, v, λ) columns each row of `Kw − b` depends on.
         let m = n + s + k;

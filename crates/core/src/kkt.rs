@@ -173,7 +173,7 @@ impl<T: Scalar> Kkt<T> {
             self.cs.jac = DMatrix::from_element(self.cs.s + self.cs.k, self.n, T::from(0.0));
         }
         if let (true, Some((c, _))) = (self.entries.is_empty(), &self.compiled) {
-            self.entries = c.pattern().kkt_entries(self.n, self.cs.s);
+            self.entries = c.pattern().kkt_entries(self.n, self.cs.s, self.cs.k);
         }
     }
 
@@ -303,15 +303,14 @@ impl<T: Scalar> Kkt<T> {
         self.dense();
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
-        self.matrix.fill(T::from(0.0));
+        self.matrix.as_mut_slice().fill(T::from(0.0));
         if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
             self.eval_ideal::<F, R>(p, rows, alpha, t, q, qd);
-            let Some((c, w)) = &self.compiled else {
+            let Some((_, w)) = &self.compiled else {
                 unreachable!("the ideal path needs a program");
             };
-            let pc = w.pieces(c);
             for &(r, col, src) in &self.entries {
-                self.matrix[(r as usize, col as usize)] = *pc.kkt_value(src);
+                self.matrix[(r as usize, col as usize)] = *w.kkt_value(src);
             }
             return;
         }

@@ -91,6 +91,9 @@ use sized;
 /// [`Lu::factor`] on column-major storage: entry (i, j) at `i + j n`.
 #[inline(always)]
 fn factor_core<T: Scalar>(a: &mut [T], piv: &mut [usize], n: usize) -> Result<(), Singular> {
+    // Slices of the exact lengths: with `n` a constant the index checks
+    // below fold away.
+    let (a, piv) = (&mut a[..n * n], &mut piv[..n]);
     // Column maxima first: `n` independent chains instead of one of `n²`
     // dependent comparisons (the same maximum).
     let scale = a
@@ -143,6 +146,7 @@ fn factor_core<T: Scalar>(a: &mut [T], piv: &mut [usize], n: usize) -> Result<()
 /// [`Lu::solve`] on column-major factors.
 #[inline(always)]
 fn solve_core<T: Scalar>(lu: &[T], piv: &[usize], b: &mut [T], n: usize) {
+    let (lu, piv, b) = (&lu[..n * n], &piv[..n], &mut b[..n]);
     for k in 0..n {
         b.swap(k, piv[k]);
     }
@@ -181,6 +185,7 @@ pub fn equilibrate<T: Scalar>(a: &mut DMatrix<T>, n: usize, d: &mut [f64]) {
 /// [`equilibrate`] on column-major storage of a `size × size` matrix.
 #[inline(always)]
 fn equilibrate_core<T: Scalar>(a: &mut [T], n: usize, d: &mut [f64], size: usize) {
+    let (a, d) = (&mut a[..size * size], &mut d[..size]);
     let diag_max = (0..n).fold(0.0f64, |m, i| m.max(a[i + i * size].re().abs()));
     let floor = (f64::EPSILON * diag_max).max(f64::MIN_POSITIVE);
     for i in 0..n {

@@ -90,7 +90,7 @@ impl SparseKkt {
     /// refused it (a structurally singular system).
     pub fn new(pattern: &Pattern, n: usize, s: usize, k: usize) -> Result<SparseKkt, String> {
         let dim = n + s + k;
-        let mut entries = pattern.kkt_entries(n, s);
+        let mut entries = pattern.kkt_entries(n, s, k);
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
         let mut col_ptr = vec![0usize; dim + 1];
         for &(_, c, _) in &entries {
@@ -289,18 +289,22 @@ mod tests {
         let mut sparse = SparseKkt::new(&pattern, 2, 2, 0).unwrap();
         for (delta, regular) in [(0.5, true), (4.0 * f64::EPSILON, false)] {
             let g_jac = [1.0, 1.0, 1.0, 1.0 + delta];
-            let pieces = Pieces {
-                pattern: &pattern,
-                mass_upper: &[1.0, 1.0],
-                force: &[0.3, -0.2],
-                g: &[0.0, 0.0],
-                g_jac: &g_jac,
-                g_rate0: &[0.0, 0.0],
-                f: &[],
-                f_jac: &[],
-                f_rate: &[],
-                f_accel0: &[],
-            };
+            // M, Q, g, G, ġ₀ (no position constraint).
+            let outputs = [
+                1.0,
+                1.0,
+                0.3,
+                -0.2,
+                0.0,
+                0.0,
+                1.0,
+                1.0,
+                1.0,
+                1.0 + delta,
+                0.0,
+                0.0,
+            ];
+            let pieces = Pieces::new(&pattern, &pattern.layout(2, 2, 0), &outputs);
             let rhs = [0.3, -0.2, 0.1, 0.7];
             let mut x = rhs;
             let got = sparse.solve(&pieces, &mut x);

@@ -11,8 +11,13 @@
 //! no dense output is read); the reference is the reduced B by DOP853 at
 //! 3e-14, and its own error is bounded by its distance to the same at
 //! 1e-13 (printed). Each pair of runs is timed in alternating repeats
-//! (medians). At matched error the time of each side is interpolated
-//! as a power law (linearly in log time against log error) between the two rungs that bracket it.
+//! (medians). At matched error each side's tolerance for the target error
+//! is interpolated as a power law between the two rungs that bracket it
+//! (errors are deterministic), and the two sides run again at those
+//! tolerances in alternating repeats (three times the rungs' repeats): the
+//! ratio is the median of the paired ratios, so a machine whose speed
+//! drifts between rungs does not enter it. The errors reached there are
+//! printed and written beside it.
 //!
 //! With `--scipy PYTHON`, each rung also runs `crates/bench/scipy/sleigh_b.py`
 //! under that interpreter (it needs NumPy and SciPy): the same problem as a
@@ -153,6 +158,13 @@ fn time_at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
     at_error(&points, e)
 }
 
+/// Tolerance of `side` for error `e` ([`at_error`] over the rungs: the
+/// tolerance interpolated as a power law of the error).
+fn tol_at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
+    let points: Vec<(f64, f64)> = rungs.iter().map(|r| (r.error[side], r.tol)).collect();
+    at_error(&points, e)
+}
+
 fn report() -> Result<(), String> {
     let (repeats, target, scipy) = args()?;
     let sleigh = generic_sleigh().map_err(|e| e.to_string())?;
@@ -231,28 +243,43 @@ fn report() -> Result<(), String> {
         ladder.push_str(&format!("{}\n", cells.join(",")));
         rungs.push(r);
     }
-    let matched = match (
-        time_at_error(&rungs, 0, target),
-        time_at_error(&rungs, 1, target),
-    ) {
-        (Some(a), Some(h)) => {
-            println!(
-                "\nAt matched error {target:.0e} m: B {a:.3} ms, hand-written {h:.4} ms: {:.1}×",
-                a / h
-            );
-            format!("{target:e},{a:.4},{h:.4},{:.3},{ref_error:.2e}\n", a / h)
-        }
-        _ => {
-            return Err(format!(
-                "error {target:.0e} m is not bracketed by both ladders"
-            ));
-        }
+    let (Some(tol_b), Some(tol_h)) = (
+        tol_at_error(&rungs, 0, target),
+        tol_at_error(&rungs, 1, target),
+    ) else {
+        return Err(format!(
+            "error {target:.0e} m is not bracketed by both ladders"
+        ));
     };
+    // Both sides at their matched tolerances, paired.
+    let (mut tb, mut th, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut pb, mut ph) = ([0.0; 3], [0.0; 3]);
+    for _ in 0..3 * repeats {
+        let (p, _, a) = run(&mut b, &y_b, tol_b)?;
+        let (q, _, h) = run(&mut hand, &y_h, tol_h)?;
+        (pb, ph) = (p, q);
+        tb.push(a);
+        th.push(h);
+        ratios.push(a / h);
+    }
+    let (a, h, ratio) = (median(&mut tb), median(&mut th), median(&mut ratios));
+    let (err_b, err_h) = (dist(pb), dist(ph));
+    println!(
+        "\nAt matched error {target:.0e} m (B at tol {tol_b:.2e}: {err_b:.2e} m; hand-written at \
+         {tol_h:.2e}: {err_h:.2e} m; {} paired repeats): B {a:.3} ms, hand-written {h:.4} ms, \
+         paired ratio {ratio:.1}×",
+        3 * repeats
+    );
+    let matched = format!(
+        "{target:e},{a:.4},{h:.4},{ratio:.3},{ref_error:.2e},{tol_b:.3e},{tol_h:.3e},{err_b:.3e},{err_h:.3e}\n"
+    );
     let mut files = vec![
         ("ladder.csv", ladder),
         (
             "matched.csv",
-            format!("error,ms_b,ms_hand,time_ratio,reference_error\n{matched}"),
+            format!(
+                "error,ms_b,ms_hand,time_ratio,reference_error,tol_b,tol_hand,error_b,error_hand\n{matched}"
+            ),
         ),
     ];
     if scipy.is_some() {

@@ -1413,6 +1413,23 @@ fn sleigh_floor_as_performance_md_states() {
         flat.contains(&said),
         "docs/performance.md does not say `{said}`"
     );
+    // The paired run: each side's tolerance, and the error it reached
+    // there, within 20 % of the target (the errors are matched).
+    for (side, who) in [("b", "B"), ("hand", "the hand-written equations")] {
+        let (tol, e) = (
+            num(m, &format!("tol_{side}")),
+            num(m, &format!("error_{side}")),
+        );
+        assert!(
+            (e / num(m, "error") - 1.0).abs() < 0.2,
+            "{who} reached {e:e} at tol {tol:e}"
+        );
+        let said = format!("{who} at {tol:.1e}, reaching {e:.1e} m");
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
     let ratios: Vec<f64> = ladder.iter().map(|r| num(r, "time_ratio")).collect();
     let extra: Vec<f64> = ladder
         .iter()

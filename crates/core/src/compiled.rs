@@ -272,6 +272,16 @@ impl Compiled {
         })
     }
 
+    /// Checks (in debug builds) that the program was compiled for the field
+    /// type `F`.
+    pub(crate) fn check_field<F>(&self) {
+        debug_assert_eq!(
+            self.field,
+            std::any::type_name::<F>(),
+            "compiled for another field"
+        );
+    }
+
     /// Instructions per evaluation, of them transcendental calls, and the
     /// size of the graph they were taken from.
     pub fn size(&self) -> (usize, usize, usize) {

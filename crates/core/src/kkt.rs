@@ -59,8 +59,10 @@ pub trait GRows {
         rhs: &mut [T],
     );
 
-    /// `Some(α)` if the rows are the ideal constraint `G q̈ = −ġ₀ − 2α g`
-    /// (the sparse path of [`Kkt::solve`] writes only those).
+    /// `Some(α)` if the rows are the ideal constraint `G q̈ = −ġ₀ − 2α g`:
+    /// with a compiled program, [`Kkt::assemble`] then takes `G` from the
+    /// program's entries (not from [`GRows::write`]) and [`Kkt::solve`]
+    /// may go sparse.
     fn ideal_gain(&self) -> Option<f64> {
         None
     }
@@ -315,11 +317,7 @@ impl<T: Scalar> Kkt<T> {
             return;
         }
         if let Some((c, w)) = &mut self.compiled {
-            debug_assert_eq!(
-                c.field,
-                std::any::type_name::<F>(),
-                "compiled for another field"
-            );
+            c.check_field::<F>();
             c.eval(w, t, q, qd, p);
             let pc = w.pieces(c);
             pc.mass_into(&mut self.matrix, n);
@@ -416,11 +414,7 @@ impl<T: Scalar> Kkt<T> {
         let Some((c, w)) = &mut self.compiled else {
             unreachable!("the ideal path needs a program");
         };
-        debug_assert_eq!(
-            c.field,
-            std::any::type_name::<F>(),
-            "compiled for another field"
-        );
+        c.check_field::<F>();
         c.eval(w, t, q, qd, p);
         load(&w.pieces(c), &mut self.cs, &mut self.sol[..n]);
         for i in 0..s {

@@ -288,22 +288,10 @@ mod tests {
         };
         let mut sparse = SparseKkt::new(&pattern, 2, 2, 0).unwrap();
         for (delta, regular) in [(0.5, true), (4.0 * f64::EPSILON, false)] {
-            let g_jac = [1.0, 1.0, 1.0, 1.0 + delta];
+            let g11 = 1.0 + delta;
             // M, Q, g, G, ġ₀ (no position constraint).
-            let outputs = [
-                1.0,
-                1.0,
-                0.3,
-                -0.2,
-                0.0,
-                0.0,
-                1.0,
-                1.0,
-                1.0,
-                1.0 + delta,
-                0.0,
-                0.0,
-            ];
+            #[rustfmt::skip]
+            let outputs = [1.0, 1.0, 0.3, -0.2, 0.0, 0.0, 1.0, 1.0, 1.0, g11, 0.0, 0.0];
             let pieces = Pieces::new(&pattern, &pattern.layout(2, 2, 0), &outputs);
             let rhs = [0.3, -0.2, 0.1, 0.7];
             let mut x = rhs;
@@ -313,9 +301,9 @@ mod tests {
                 4,
                 &[
                     1.0, 0.0, 1.0, 1.0, //
-                    0.0, 1.0, 1.0, g_jac[3], //
+                    0.0, 1.0, 1.0, g11, //
                     1.0, 1.0, 0.0, 0.0, //
-                    1.0, g_jac[3], 0.0, 0.0,
+                    1.0, g11, 0.0, 0.0,
                 ],
             );
             let mut y = rhs;

@@ -1414,7 +1414,10 @@ fn sleigh_floor_as_performance_md_states() {
         "docs/performance.md does not say `{said}`"
     );
     // The paired run: each side's tolerance, and the error it reached
-    // there, within 20 % of the target (the errors are matched).
+    // there, within 20 % of the target (the errors are matched). Along the
+    // ladder B's evaluations grow like error^-0.125 (957 at tolerance 1e-6,
+    // 7209 at 1e-13), so 20 % in error is under 3 % in work, well inside
+    // the run-to-run spread the prose states.
     for (side, who) in [("b", "B"), ("hand", "the hand-written equations")] {
         let (tol, e) = (
             num(m, &format!("tol_{side}")),

@@ -66,9 +66,18 @@ pub struct Pattern {
 
 /// Where an entry of the KKT matrix `K = [M Gᵀ Fᵀ; G 0 0; F 0 0]` takes
 /// its value from: the index of that value among the program's outputs
-/// ([`Pieces::kkt_value`]).
+/// ([`KktSource::value`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct KktSource(pub u32);
+
+impl KktSource {
+    /// The entry's value among `outputs` (all outputs of one evaluation, as
+    /// [`Workspace::outputs`] or [`Pieces::outputs`]).
+    #[inline]
+    pub fn value<T>(self, outputs: &[T]) -> &T {
+        &outputs[self.0 as usize]
+    }
+}
 
 /// The program's outputs in order, one per [`Pieces`] field: the upper
 /// triangle of `M`, `Q`, `g`, `G`, `ġ₀`, `f`, `F`, `ḟ`, `f̈₀`.
@@ -329,6 +338,12 @@ impl Compiled {
         &self.pattern
     }
 
+    /// The structural nonzeros of this program's KKT matrix
+    /// ([`Pattern::kkt_entries`] at its own dimensions).
+    pub fn kkt_entries(&self) -> Vec<(u32, u32, KktSource)> {
+        self.pattern.kkt_entries(self.n, self.s, self.k)
+    }
+
     /// For every piece's value, the inputs it structurally depends on, in
     /// increasing order: `0` is `t`, `1 + j` is `q_j`, `1 + n + j` is `q̇_j`,
     /// `1 + 2n + j` is parameter `j`. A value whose list lacks an input has
@@ -395,13 +410,6 @@ pub struct Pieces<'a, T> {
     pub f_accel0: &'a [T],
 }
 
-impl<T> Pieces<'_, T> {
-    /// The value of a KKT entry ([`Pattern::kkt_entries`]).
-    pub fn kkt_value(&self, source: KktSource) -> &T {
-        &self.outputs[source.0 as usize]
-    }
-}
-
 impl<T: Scalar> Pieces<'_, T> {
     /// `M` (both triangles) into the `n × n` block at the top left of `m`,
     /// zeros included.
@@ -449,10 +457,9 @@ impl<T> Workspace<T> {
         split(c, &self.out)
     }
 
-    /// The value of a KKT entry of the last evaluation (as
-    /// [`Pieces::kkt_value`], without splitting the outputs).
-    pub fn kkt_value(&self, source: KktSource) -> &T {
-        &self.out[source.0 as usize]
+    /// All outputs of the last evaluation, in the order of [`Pieces`].
+    pub fn outputs(&self) -> &[T] {
+        &self.out
     }
 }
 

@@ -163,7 +163,7 @@ fn kkt_apply<T: Scalar>(
             + beta * beta * part(&pc.f[i]);
     }
     for &(r, c, src) in kkt {
-        out[r as usize] += part(pc.kkt_value(src)) * w[c as usize];
+        out[r as usize] += part(src.value(pc.outputs)) * w[c as usize];
     }
 }
 
@@ -205,8 +205,7 @@ impl<S: Scene> KktDae<S> {
         }
         .map_err(|e| refuse(format!("it needs the scene compiled into one program: {e}")))?;
         let gains = stab.gains();
-        let p = program.pattern();
-        let kkt = p.kkt_entries(n, s, k);
+        let kkt = program.kkt_entries();
 
         // The (q, v, λ) columns each row of `Kw − b` depends on.
         let m = n + s + k;
@@ -232,7 +231,7 @@ impl<S: Scene> KktDae<S> {
             }
         }
         for &(r, _, src) in &kkt {
-            add(r as usize, deps.kkt_value(src));
+            add(r as usize, src.value::<Vec<u32>>(deps.outputs));
         }
         // Inputs 1..=n are q, n+1..=2n are q̇, 2n+1..=2n+np the field's
         // parameters λ: columns 0..2n+np of (q, v, λ).
@@ -439,7 +438,7 @@ impl<S: Scene> ImplicitSystem for KktDae<S> {
             self.program.eval(&mut self.real, t, q, v, lambda);
             let pc = self.real.pieces(&self.program);
             for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
-                *x = *pc.kkt_value(src);
+                *x = *src.value(pc.outputs);
             }
         }
         // One seeded pass per colour.
@@ -464,7 +463,7 @@ impl<S: Scene> ImplicitSystem for KktDae<S> {
             let pc = self.dual.pieces(&self.program);
             if colour == 0 {
                 for (x, &(_, _, src)) in jy[self.kkt_at..].iter_mut().zip(&self.kkt) {
-                    *x = pc.kkt_value(src).re;
+                    *x = src.value(pc.outputs).re;
                 }
             }
             let (s, gains) = (self.s, self.gains);

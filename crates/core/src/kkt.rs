@@ -175,7 +175,7 @@ impl<T: Scalar> Kkt<T> {
             self.cs.jac = DMatrix::from_element(self.cs.s + self.cs.k, self.n, T::from(0.0));
         }
         if let (true, Some((c, _))) = (self.entries.is_empty(), &self.compiled) {
-            self.entries = c.pattern().kkt_entries(self.n, self.cs.s, self.cs.k);
+            self.entries = c.kkt_entries();
         }
     }
 
@@ -202,7 +202,7 @@ impl<T: Scalar> Kkt<T> {
                 "the sparse path is real or first-order dual; higher duals solve dense".into(),
             );
         }
-        self.sparse = Some(SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k)?);
+        self.sparse = Some(SparseKkt::new(c.kkt_entries(), self.n, self.sol.len())?);
         Ok(())
     }
 
@@ -229,7 +229,7 @@ impl<T: Scalar> Kkt<T> {
         if (T::REAL || T::FIRST_ORDER) && self.sol.len() >= SPARSE_FROM {
             // A pattern faer refuses stays dense (and its solve then says
             // where the matrix is singular).
-            self.sparse = SparseKkt::new(c.pattern(), self.n, self.cs.s, self.cs.k).ok();
+            self.sparse = SparseKkt::new(c.kkt_entries(), self.n, self.sol.len()).ok();
         }
         self.entries.clear();
         self.compiled = Some((c, w));
@@ -312,7 +312,7 @@ impl<T: Scalar> Kkt<T> {
                 unreachable!("the ideal path needs a program");
             };
             for &(r, col, src) in &self.entries {
-                self.matrix[(r as usize, col as usize)] = *w.kkt_value(src);
+                self.matrix[(r as usize, col as usize)] = *src.value(w.outputs());
             }
             return;
         }

@@ -18,7 +18,7 @@ use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par};
 
-use crate::compiled::{KktSource, Pattern, Pieces};
+use crate::compiled::{KktSource, Pieces};
 use crate::linalg::Singular;
 use crate::scene::Scalar;
 
@@ -85,12 +85,16 @@ fn scratch(lu: &SymbolicLu<usize>) -> faer::dyn_stack::StackReq {
 }
 
 impl SparseKkt {
-    /// The pattern of the system of `(n, s, k)` with the structural
-    /// nonzeros of `pattern`, ordered and analysed once. `Err` says why faer
-    /// refused it (a structurally singular system).
-    pub fn new(pattern: &Pattern, n: usize, s: usize, k: usize) -> Result<SparseKkt, String> {
-        let dim = n + s + k;
-        let mut entries = pattern.kkt_entries(n, s, k);
+    /// The pattern of a system of dimension `dim`, with `n` coordinates and
+    /// the structural nonzeros `entries`
+    /// ([`crate::compiled::Pattern::kkt_entries`],
+    /// [`crate::compiled::Compiled::kkt_entries`]), ordered and analysed once. `Err` says why
+    /// faer refused it (a structurally singular system).
+    pub fn new(
+        mut entries: Vec<(u32, u32, KktSource)>,
+        n: usize,
+        dim: usize,
+    ) -> Result<SparseKkt, String> {
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
         let mut col_ptr = vec![0usize; dim + 1];
         for &(_, c, _) in &entries {
@@ -160,7 +164,7 @@ impl SparseKkt {
         self.rhs.extend(sol.iter().map(|x| x.re()));
         let rhs = &mut self.rhs[..];
         for (v, &(_, _, src)) in self.values.iter_mut().zip(&self.entries) {
-            *v = pieces.kkt_value(src).re();
+            *v = src.value(pieces.outputs).re();
         }
         // Equilibration, as `linalg::equilibrate`.
         let d = &mut self.scale;
@@ -217,7 +221,8 @@ impl SparseKkt {
             t.extend(sol.iter().zip(&self.scale).map(|(x, s)| x.tangent() * s));
             for &(r, c, src) in &self.entries {
                 let (r, c) = (r as usize, c as usize);
-                t[r] -= pieces.kkt_value(src).tangent() * self.scale[r] * self.scale[c] * rhs[c];
+                t[r] -=
+                    src.value(pieces.outputs).tangent() * self.scale[r] * self.scale[c] * rhs[c];
             }
             let stack = MemStack::new(&mut self.buffer);
             lu.solve_in_place_with_conj(
@@ -273,6 +278,7 @@ impl SparseKkt {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::compiled::Pattern;
     use crate::linalg::{Lu, solve_saddle};
 
     /// `M = I₂` and two constraint rows that are equal up to `δ` in one
@@ -286,7 +292,7 @@ mod tests {
             g_jac: vec![(0, 0), (0, 1), (1, 0), (1, 1)],
             f_jac: vec![],
         };
-        let mut sparse = SparseKkt::new(&pattern, 2, 2, 0).unwrap();
+        let mut sparse = SparseKkt::new(pattern.kkt_entries(2, 2, 0), 2, 4).unwrap();
         for (delta, regular) in [(0.5, true), (4.0 * f64::EPSILON, false)] {
             let g11 = 1.0 + delta;
             // M, Q, g, G, ġ₀ (no position constraint).

@@ -156,7 +156,7 @@ impl Size {
             Arc::new(Compiled::new(&Lagrangian(&train), 0, &train).map_err(|e| e.to_string())?);
         let compile = start.elapsed().as_secs_f64();
         let ti = train.info();
-        let nonzeros = SparseKkt::new(program.pattern(), ti.n(), ti.s(), ti.k())
+        let nonzeros = SparseKkt::new(program.kkt_entries(), ti.n(), ti.n() + ti.s() + ti.k())
             .map(|s| s.nonzeros())
             .unwrap_or(0);
         let dae = nonholo_chetaev::dae(train.clone(), Params::defaults(nonholo_chetaev::OPTIONS))

@@ -5,6 +5,10 @@
 //! value and allocates a permutation for dynamic sizes; here the matrix and
 //! the pivot vector live in the caller's workspace and are reused.
 //!
+//! [`solve_saddle`] solves the small saddle-point systems of the
+//! formulations by block elimination where that is clearly safe, and by
+//! the equilibrated LU otherwise.
+//!
 //! The entries may be dual numbers: pivots are chosen on the real parts, and
 //! the derivative parts then follow the same elimination, which is exactly
 //! forward-mode differentiation of the solve.
@@ -202,9 +206,17 @@ fn equilibrate_core<T: Scalar>(a: &mut [T], n: usize, d: &mut [f64], size: usize
     }
 }
 
-/// Solves the saddle-point system `a x = b` (primal block of size `n`)
-/// equilibrated as by [`equilibrate`]: `b` in `rhs`, `x` out. Leaves `a`
-/// holding the LU factors of the scaled matrix and `d` the scaling.
+/// Solves the saddle-point system `a x = b` (primal block of size `n`):
+/// `b` in `rhs`, `x` out.
+///
+/// Up to [`BLOCK_MAX`] unknowns, and where the primal block `M` is clearly
+/// positive definite and the constraint block clearly regular, by block
+/// elimination (`block_core`: `M`'s columns without exchanges, then the
+/// Schur complement with them), leaving `a` and `d` as they were.
+/// Otherwise — and for every system where that test fails, so that a
+/// singular system is reported by one rule — equilibrated as by
+/// [`equilibrate`] and factorised by [`Lu::factor`], leaving `a` holding the
+/// LU factors of the scaled matrix and `d` the scaling.
 pub fn solve_saddle<T: Scalar>(
     a: &mut DMatrix<T>,
     n: usize,
@@ -212,6 +224,10 @@ pub fn solve_saddle<T: Scalar>(
     d: &mut [f64],
     rhs: &mut [T],
 ) -> Result<(), Singular> {
+    let size = a.nrows();
+    if size <= BLOCK_MAX && n <= size && sized!(size, block_core(a.as_slice(), n, rhs)) {
+        return Ok(());
+    }
     equilibrate(a, n, d);
     for (x, s) in rhs.iter_mut().zip(d.iter()) {
         *x *= *s;
@@ -222,6 +238,159 @@ pub fn solve_saddle<T: Scalar>(
         *x *= *s;
     }
     Ok(())
+}
+
+/// Largest system [`solve_saddle`] solves by block elimination (its scratch
+/// lives on the stack).
+pub const BLOCK_MAX: usize = 8;
+
+/// Smallest pivot of `M`'s elimination in [`block_core`], as a fraction of
+/// the diagonal entry of `M` it came from (the pivot of `M` scaled to unit
+/// diagonal: 1 for a diagonal `M`, in `(0, 1]` when `M` is positive
+/// definite). Below it — `M` nearly singular, indefinite, or a NaN — the
+/// pivoted LU solves instead: block elimination would lose up to the
+/// inverse of this fraction in accuracy where the LU loses nothing.
+const PRIMAL_PIVOT: f64 = 1e-2;
+
+/// Largest componentwise backward error of a solution [`block_core`]
+/// accepts: the residual of every row against the size of its terms
+/// (`|b_i − Σ a_ij x_j| ≤ BACKWARD (|b_i| + Σ |a_ij x_j|)`), a few hundred
+/// units of round-off.
+const BACKWARD: f64 = 1e-13;
+
+/// [`block_core`] refuses a Schur complement pivot below this many times
+/// the threshold at which [`Lu::factor`] calls a matrix singular, so that
+/// whether a system is singular is decided by the LU alone.
+const SCHUR_MARGIN: f64 = 1e3;
+
+/// The fast path of [`solve_saddle`] on the column-major `size × size`
+/// matrix `a` with primal block `n`; `false` (with `rhs` as it was) where
+/// it declines.
+///
+/// Gaussian elimination of `M`'s `n` columns in order, without exchanges,
+/// leaves the Schur complement `S = D − C M⁻¹ B` of `a = [M B; C D]` in the
+/// trailing block; `S` is factorised with row exchanges. It divides
+/// `n + s + k` times and needs no scaling: on the sleigh's 4 × 4 systems
+/// (B and C, a sweep of 20 random states' runs) `solve_saddle` took 567
+/// instructions per solve this way against 996 equilibrated and pivoted
+/// (callgrind, residual check included).
+#[inline(always)]
+fn block_core<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool {
+    let zero = T::from(0.0);
+    let mut scratch = [zero; BLOCK_MAX * BLOCK_MAX];
+    let mut inverse = [zero; BLOCK_MAX];
+    let mut piv = [0usize; BLOCK_MAX];
+    let (a, w) = (&a[..size * size], &mut scratch[..size * size]);
+    w.copy_from_slice(a);
+    // M's columns, with the pivot test relative to M's own diagonal.
+    for k in 0..n {
+        let (pivot, diagonal) = (w[k + k * size].re(), a[k + k * size].re());
+        if !(diagonal > 0.0 && pivot > PRIMAL_PIVOT * diagonal) {
+            return false;
+        }
+        let r = T::from(1.0) / w[k + k * size];
+        inverse[k] = r;
+        let (left, right) = w.split_at_mut((k + 1) * size);
+        let lcol = &mut left[k * size..];
+        for x in &mut lcol[k + 1..] {
+            *x *= r;
+        }
+        for col in right.chunks_exact_mut(size) {
+            let u = col[k];
+            for i in k + 1..size {
+                col[i] -= lcol[i] * u;
+            }
+        }
+    }
+    // The Schur complement in rows and columns n.., with row exchanges
+    // inside it (its columns only: the multipliers of M's columns apply to
+    // the right-hand side before the exchanges).
+    let scale = (n..size).fold(0.0f64, |m, j| {
+        w[n + j * size..(j + 1) * size]
+            .iter()
+            .fold(m, |m, v| m.max(v.re().abs()))
+    });
+    let tiny = SCHUR_MARGIN * ((size - n).max(1) as f64) * f64::EPSILON * scale;
+    for k in n..size {
+        let mut p = k;
+        let mut best = w[k + k * size].re().abs();
+        for i in k + 1..size {
+            let v = w[i + k * size].re().abs();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if best.is_nan() || best <= tiny {
+            return false;
+        }
+        piv[k] = p;
+        if p != k {
+            for j in n..size {
+                w.swap(k + j * size, p + j * size);
+            }
+        }
+        let r = T::from(1.0) / w[k + k * size];
+        inverse[k] = r;
+        let (left, right) = w.split_at_mut((k + 1) * size);
+        let lcol = &mut left[k * size..];
+        for x in &mut lcol[k + 1..] {
+            *x *= r;
+        }
+        for col in right.chunks_exact_mut(size) {
+            let u = col[k];
+            for i in k + 1..size {
+                col[i] -= lcol[i] * u;
+            }
+        }
+    }
+    // Forward: M's multipliers, then the exchanges and multipliers of S.
+    let rhs = &mut rhs[..size];
+    let mut b = [zero; BLOCK_MAX];
+    b[..size].copy_from_slice(rhs);
+    for k in 0..size {
+        if k >= n {
+            rhs.swap(k, piv[k]);
+        }
+        let x = rhs[k];
+        let col = &w[k * size..(k + 1) * size];
+        for i in k + 1..size {
+            rhs[i] -= col[i] * x;
+        }
+    }
+    // Back substitution through the whole upper triangle.
+    for j in (0..size).rev() {
+        let x = rhs[j] * inverse[j];
+        rhs[j] = x;
+        let col = &w[j * size..(j + 1) * size];
+        for i in 0..j {
+            rhs[i] -= col[i] * x;
+        }
+    }
+    // Accepted only with a componentwise backward error (Oettli–Prager)
+    // below BACKWARD in every row: block elimination squares the
+    // conditioning of the constraints, and a Schur complement that lost
+    // its digits shows here, not in its pivots.
+    let (x, b) = (&*rhs, &b[..size]);
+    let mut residual = [0.0f64; BLOCK_MAX];
+    let mut size_of = [0.0f64; BLOCK_MAX];
+    for i in 0..size {
+        residual[i] = -b[i].re();
+        size_of[i] = b[i].re().abs();
+    }
+    for (col, xj) in a.chunks_exact(size).zip(x) {
+        let xj = xj.re();
+        for i in 0..size {
+            let v = col[i].re() * xj;
+            residual[i] += v;
+            size_of[i] += v.abs();
+        }
+    }
+    if (0..size).all(|i| residual[i].abs() <= BACKWARD * size_of[i]) {
+        return true;
+    }
+    rhs.copy_from_slice(b);
+    false
 }
 
 #[cfg(test)]
@@ -301,5 +470,202 @@ mod tests {
         assert_eq!(e.column, 1);
         let mut z = DMatrix::<f64>::zeros(2, 2);
         assert!(Lu::new(2).factor(&mut z).is_err());
+    }
+
+    /// A saddle system `[M Cᵀ; C 0]` with a right-hand side `b`, in units
+    /// spread over decades: `M = D M₀ D` and `C = E C₀ D` with
+    /// `M₀ = 0.3 R Rᵀ + I` and `C₀`, `R` and `b₀` uniform in `[-1, 1]`;
+    /// `D` (the coordinates' units) over 12 decades and `E` (the
+    /// constraints') over 4, and `b = (D b₀, E b₀)`. Returns the system,
+    /// `b` and the scaling `(D, 1/E)` that takes the solution back to
+    /// `M₀`'s units (where it is of order one).
+    fn saddle(
+        rng: &mut rand::rngs::StdRng,
+        n: usize,
+        m: usize,
+    ) -> (DMatrix<f64>, Vec<f64>, Vec<f64>) {
+        let r = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+        let mut units: Vec<f64> = (0..n)
+            .map(|_| 10f64.powf(rng.random_range(-6.0..6.0)))
+            .collect();
+        units.extend((0..m).map(|_| 10f64.powf(rng.random_range(-2.0..2.0))));
+        let m0 = &r * r.transpose() * 0.3 + DMatrix::identity(n, n);
+        let mut a = DMatrix::zeros(n + m, n + m);
+        for i in 0..n {
+            for j in 0..n {
+                a[(i, j)] = m0[(i, j)] * units[i] * units[j];
+            }
+            for k in n..n + m {
+                let c = rng.random_range(-1.0..1.0) * units[k] * units[i];
+                a[(k, i)] = c;
+                a[(i, k)] = c;
+            }
+        }
+        let b = units
+            .iter()
+            .map(|u| u * rng.random_range(-1.0..1.0))
+            .collect();
+        let back = (0..n + m)
+            .map(|i| if i < n { units[i] } else { 1.0 / units[i] })
+            .collect();
+        (a, b, back)
+    }
+
+    /// Equilibrated LU (the path block elimination stands in for).
+    fn by_lu(a: &DMatrix<f64>, n: usize, b: &[f64]) -> Result<Vec<f64>, Singular> {
+        let (mut f, size) = (a.clone(), a.nrows());
+        let mut d = vec![0.0; size];
+        equilibrate(&mut f, n, &mut d);
+        let mut x: Vec<f64> = b.iter().zip(&d).map(|(v, s)| v * s).collect();
+        let mut lu = Lu::new(size);
+        lu.factor(&mut f)?;
+        lu.solve(&f, &mut x);
+        Ok(x.iter().zip(&d).map(|(v, s)| v * s).collect())
+    }
+
+    /// Block elimination solves random saddle systems up to `BLOCK_MAX`
+    /// unknowns (20 per shape, units spread as in `saddle`) with a residual
+    /// of a few hundred `ε` (row by row, relative to the row's size; 1.4e-14
+    /// measured) and the equilibrated LU's solution within `100 κ ε ‖x‖`
+    /// (in units where it is of order one; 20 measured); it takes every
+    /// system with at most two constraints (of those with three it took 39
+    /// of 60, with four 3 of 20), and where it declines `solve_saddle` gives
+    /// the LU's solution.
+    #[test]
+    fn block_elimination_solves_saddle_systems_like_the_lu() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let mut worst = [0.0f64; 2];
+        let mut taken = [[0; BLOCK_MAX + 1]; 2];
+        for n in 1..=BLOCK_MAX {
+            for m in 0..=(BLOCK_MAX - n).min(n) {
+                for _ in 0..20 {
+                    let (a, b, back) = saddle(&mut rng, n, m);
+                    let lu = by_lu(&a, n, &b).unwrap();
+                    let mut x = b.clone();
+                    let took = block_core(a.as_slice(), n, &mut x, n + m);
+                    taken[usize::from(took)][m] += 1;
+                    if !took {
+                        assert_eq!(x, b);
+                        let mut k = a.clone();
+                        let mut d = vec![0.0; n + m];
+                        solve_saddle(&mut k, n, &mut Lu::new(n + m), &mut d, &mut x).unwrap();
+                        assert_eq!(x, lu);
+                        continue;
+                    }
+                    for i in 0..n + m {
+                        let (mut r, mut size) = (-b[i], b[i].abs());
+                        for j in 0..n + m {
+                            r += a[(i, j)] * x[j];
+                            size += (a[(i, j)] * x[j]).abs();
+                        }
+                        worst[0] = worst[0].max(r.abs() / size);
+                    }
+                    // In M₀'s units, against the LU's own error bound.
+                    let unit_free = DMatrix::from_fn(n + m, n + m, |i, j| {
+                        let row = if i < n { 1.0 / back[i] } else { back[i] };
+                        row * a[(i, j)] / back[j]
+                    });
+                    let sv = unit_free.singular_values();
+                    let cond = sv.max() / sv.min();
+                    let size = lu
+                        .iter()
+                        .zip(&back)
+                        .fold(0.0f64, |s, (v, d)| s.max((v * d).abs()));
+                    for ((u, v), d) in x.iter().zip(&lu).zip(&back) {
+                        worst[1] = worst[1].max((u - v).abs() * d / (cond * f64::EPSILON * size));
+                    }
+                }
+            }
+        }
+        assert!(
+            taken[0][..=2].iter().all(|&c| c == 0),
+            "declined: {taken:?}"
+        );
+        // Two backward-stable solutions lie within about `N κ ε ‖x‖` of the
+        // exact one each (κ the condition number in M₀'s units).
+        assert!(worst[0] <= BACKWARD && worst[1] < 100.0, "{worst:?}");
+    }
+
+    /// Where `M` is nearly singular (the sleigh with `J = a² + 1e-6`),
+    /// indefinite, or the constraints are dependent, block elimination
+    /// declines and `solve_saddle` answers as the equilibrated LU does: the
+    /// same solution, or the same `Singular`.
+    #[test]
+    fn block_elimination_declines_where_the_lu_decides() {
+        let (a, phi) = (0.4, 0.7f64);
+        let (s, c) = phi.sin_cos();
+        let sleigh = |j: f64, second_row: f64| {
+            #[rustfmt::skip]
+            let k = DMatrix::from_row_slice(5, 5, &[
+                1.0, 0.0, -a * s, -s, -s,
+                0.0, 1.0, a * c, c, c,
+                -a * s, a * c, j, 0.0, second_row,
+                -s, c, 0.0, 0.0, 0.0,
+                -s, c, second_row, 0.0, 0.0,
+            ]);
+            k
+        };
+        let b = [0.3, -0.2, 0.5, 0.1, -0.4];
+        // Nearly singular M: declined, solved by the LU.
+        let near = sleigh(a * a + 1e-6, 1.0);
+        let mut x = b;
+        assert!(!block_core(near.as_slice(), 3, &mut x, 5));
+        assert_eq!(x, b, "a declined system leaves the right-hand side");
+        let mut k = near.clone();
+        solve_saddle(&mut k, 3, &mut Lu::new(5), &mut [0.0; 5], &mut x).unwrap();
+        assert_eq!(x.to_vec(), by_lu(&near, 3, &b).unwrap());
+        // The same with J = 1 is taken.
+        let regular = sleigh(1.0, 1.0);
+        assert!(block_core(regular.as_slice(), 3, &mut b.clone(), 5));
+        // Indefinite M: declined.
+        let mut indefinite = regular.clone();
+        indefinite[(2, 2)] = -1.0;
+        assert!(!block_core(indefinite.as_slice(), 3, &mut b.clone(), 5));
+        // Dependent constraints (two equal rows): declined, and the error
+        // is the LU's.
+        let dependent = sleigh(1.0, 0.0);
+        assert!(!block_core(dependent.as_slice(), 3, &mut b.clone(), 5));
+        let mut k = dependent.clone();
+        let e = solve_saddle(&mut k, 3, &mut Lu::new(5), &mut [0.0; 5], &mut b.clone());
+        assert_eq!(e, by_lu(&dependent, 3, &b).map(|_| ()));
+        assert!(e.is_err());
+        // A NaN anywhere: declined.
+        let mut nan = regular;
+        nan[(4, 1)] = f64::NAN;
+        assert!(!block_core(nan.as_slice(), 3, &mut b.clone(), 5));
+    }
+
+    /// The derivative parts of dual numbers follow the elimination: a
+    /// directional derivative of the solution by block elimination equals
+    /// the LU's.
+    #[test]
+    fn block_elimination_differentiates_like_the_lu() {
+        use num_dual::Dual64;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let (n, m) = (4, 2);
+        let (a, _, _) = saddle(&mut rng, n, m);
+        let da = DMatrix::from_fn(n + m, n + m, |_, _| rng.random_range(-1.0..1.0));
+        let dual = DMatrix::from_fn(n + m, n + m, |i, j| Dual64::new(a[(i, j)], da[(i, j)]));
+        let b: Vec<Dual64> = (0..n + m)
+            .map(|_| Dual64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+            .collect();
+        let mut x = b.clone();
+        assert!(block_core(dual.as_slice(), n, &mut x, n + m));
+        let (mut f, mut y, mut d) = (dual.clone(), b.clone(), vec![0.0; n + m]);
+        equilibrate(&mut f, n, &mut d);
+        for (v, s) in y.iter_mut().zip(&d) {
+            *v *= *s;
+        }
+        let mut lu = Lu::new(n + m);
+        lu.factor(&mut f).unwrap();
+        lu.solve(&f, &mut y);
+        for ((u, v), s) in x.iter().zip(&y).zip(&d) {
+            let v = *v * *s;
+            assert!((u.re - v.re).abs() < 1e-12 * (1.0 + v.re.abs()), "{u} {v}");
+            assert!(
+                (u.eps - v.eps).abs() < 1e-10 * (1.0 + v.eps.abs()),
+                "{u} {v}"
+            );
+        }
     }
 }

@@ -224,8 +224,7 @@ pub fn solve_saddle<T: Scalar>(
     d: &mut [f64],
     rhs: &mut [T],
 ) -> Result<(), Singular> {
-    let size = a.nrows();
-    if size <= BLOCK_MAX && n <= size && sized!(size, block_core(a.as_slice(), n, rhs)) {
+    if block(a.as_slice(), n, rhs, a.nrows()) {
         return Ok(());
     }
     equilibrate(a, n, d);
@@ -263,6 +262,23 @@ const BACKWARD: f64 = 1e-13;
 /// whether a system is singular is decided by the LU alone.
 const SCHUR_MARGIN: f64 = 1e3;
 
+/// [`block_core`] with the size a constant, up to [`BLOCK_MAX`]; `false`
+/// beyond.
+fn block<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool {
+    n <= size
+        && match size {
+            1 => block_core::<T, 1, 1>(a, n, rhs),
+            2 => block_core::<T, 2, 4>(a, n, rhs),
+            3 => block_core::<T, 3, 9>(a, n, rhs),
+            4 => block_core::<T, 4, 16>(a, n, rhs),
+            5 => block_core::<T, 5, 25>(a, n, rhs),
+            6 => block_core::<T, 6, 36>(a, n, rhs),
+            7 => block_core::<T, 7, 49>(a, n, rhs),
+            8 => block_core::<T, 8, 64>(a, n, rhs),
+            _ => false,
+        }
+}
+
 /// The fast path of [`solve_saddle`] on the column-major `size × size`
 /// matrix `a` with primal block `n`; `false` (with `rhs` as it was) where
 /// it declines.
@@ -274,13 +290,21 @@ const SCHUR_MARGIN: f64 = 1e3;
 /// (B and C, a sweep of 20 random states' runs) `solve_saddle` took 567
 /// instructions per solve this way against 996 equilibrated and pivoted
 /// (callgrind, residual check included).
+///
+/// `SIZE` is `size`, and `AREA` its square (the scratch on the stack holds
+/// exactly the matrix).
 #[inline(always)]
-fn block_core<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool {
+fn block_core<T: Scalar, const SIZE: usize, const AREA: usize>(
+    a: &[T],
+    n: usize,
+    rhs: &mut [T],
+) -> bool {
+    let size = SIZE;
     let zero = T::from(0.0);
-    let mut scratch = [zero; BLOCK_MAX * BLOCK_MAX];
-    let mut inverse = [zero; BLOCK_MAX];
-    let mut piv = [0usize; BLOCK_MAX];
-    let (a, w) = (&a[..size * size], &mut scratch[..size * size]);
+    let mut w = [zero; AREA];
+    let mut inverse = [zero; SIZE];
+    let mut piv = [0usize; SIZE];
+    let a = &a[..AREA];
     w.copy_from_slice(a);
     // M's columns, with the pivot test relative to M's own diagonal.
     for k in 0..n {
@@ -346,8 +370,8 @@ fn block_core<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool 
     }
     // Forward: M's multipliers, then the exchanges and multipliers of S.
     let rhs = &mut rhs[..size];
-    let mut b = [zero; BLOCK_MAX];
-    b[..size].copy_from_slice(rhs);
+    let mut b = [zero; SIZE];
+    b.copy_from_slice(rhs);
     for k in 0..size {
         if k >= n {
             rhs.swap(k, piv[k]);
@@ -371,9 +395,9 @@ fn block_core<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool 
     // below BACKWARD in every row: block elimination squares the
     // conditioning of the constraints, and a Schur complement that lost
     // its digits shows here, not in its pivots.
-    let (x, b) = (&*rhs, &b[..size]);
-    let mut residual = [0.0f64; BLOCK_MAX];
-    let mut size_of = [0.0f64; BLOCK_MAX];
+    let x = &*rhs;
+    let mut residual = [0.0f64; SIZE];
+    let mut size_of = [0.0f64; SIZE];
     for i in 0..size {
         residual[i] = -b[i].re();
         size_of[i] = b[i].re().abs();
@@ -389,7 +413,7 @@ fn block_core<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool 
     if (0..size).all(|i| residual[i].abs() <= BACKWARD * size_of[i]) {
         return true;
     }
-    rhs.copy_from_slice(b);
+    rhs.copy_from_slice(&b);
     false
 }
 
@@ -542,7 +566,7 @@ mod tests {
                     let (a, b, back) = saddle(&mut rng, n, m);
                     let lu = by_lu(&a, n, &b).unwrap();
                     let mut x = b.clone();
-                    let took = block_core(a.as_slice(), n, &mut x, n + m);
+                    let took = block(a.as_slice(), n, &mut x, n + m);
                     taken[usize::from(took)][m] += 1;
                     if !took {
                         assert_eq!(x, b);
@@ -609,22 +633,22 @@ mod tests {
         // Nearly singular M: declined, solved by the LU.
         let near = sleigh(a * a + 1e-6, 1.0);
         let mut x = b;
-        assert!(!block_core(near.as_slice(), 3, &mut x, 5));
+        assert!(!block(near.as_slice(), 3, &mut x, 5));
         assert_eq!(x, b, "a declined system leaves the right-hand side");
         let mut k = near.clone();
         solve_saddle(&mut k, 3, &mut Lu::new(5), &mut [0.0; 5], &mut x).unwrap();
         assert_eq!(x.to_vec(), by_lu(&near, 3, &b).unwrap());
         // The same with J = 1 is taken.
         let regular = sleigh(1.0, 1.0);
-        assert!(block_core(regular.as_slice(), 3, &mut b.clone(), 5));
+        assert!(block(regular.as_slice(), 3, &mut b.clone(), 5));
         // Indefinite M: declined.
         let mut indefinite = regular.clone();
         indefinite[(2, 2)] = -1.0;
-        assert!(!block_core(indefinite.as_slice(), 3, &mut b.clone(), 5));
+        assert!(!block(indefinite.as_slice(), 3, &mut b.clone(), 5));
         // Dependent constraints (two equal rows): declined, and the error
         // is the LU's.
         let dependent = sleigh(1.0, 0.0);
-        assert!(!block_core(dependent.as_slice(), 3, &mut b.clone(), 5));
+        assert!(!block(dependent.as_slice(), 3, &mut b.clone(), 5));
         let mut k = dependent.clone();
         let e = solve_saddle(&mut k, 3, &mut Lu::new(5), &mut [0.0; 5], &mut b.clone());
         assert_eq!(e, by_lu(&dependent, 3, &b).map(|_| ()));
@@ -632,7 +656,7 @@ mod tests {
         // A NaN anywhere: declined.
         let mut nan = regular;
         nan[(4, 1)] = f64::NAN;
-        assert!(!block_core(nan.as_slice(), 3, &mut b.clone(), 5));
+        assert!(!block(nan.as_slice(), 3, &mut b.clone(), 5));
     }
 
     /// The derivative parts of dual numbers follow the elimination: a
@@ -650,7 +674,7 @@ mod tests {
             .map(|_| Dual64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
             .collect();
         let mut x = b.clone();
-        assert!(block_core(dual.as_slice(), n, &mut x, n + m));
+        assert!(block(dual.as_slice(), n, &mut x, n + m));
         let (mut f, mut y, mut d) = (dual.clone(), b.clone(), vec![0.0; n + m]);
         equilibrate(&mut f, n, &mut d);
         for (v, s) in y.iter_mut().zip(&d) {

@@ -12,9 +12,12 @@
 //! B reads `μ = (−λ, −ν)`; C reads `μ_g = λ̇` and `μ_f = −ν`. The gains are
 //! those of Baumgarte stabilisation, zero otherwise; how the rows of `g`
 //! enter is a [`GRows`] (the ideal constraint here, other kinds in the
-//! realisations). The matrix is
-//! equilibrated (so that singularity is judged independently of units), then
-//! factorised by LU with partial pivoting, in a reused workspace; over
+//! realisations). The matrix is solved by
+//! [`crate::linalg::solve_saddle`]: by block elimination where `M` is
+//! clearly positive definite and the solution's backward error small,
+//! otherwise equilibrated (so that singularity is judged independently of
+//! units) and factorised by LU with partial pivoting, in a reused
+//! workspace; over
 //! `T = Dual64` the same solve yields directional derivatives (Jacobian
 //! columns, time derivatives).
 
@@ -122,7 +125,8 @@ pub struct Kkt<T: Scalar = f64> {
     pub cs: ConstraintState<T>,
     matrix: DMatrix<T>,
     lu: Lu,
-    /// Equilibration of the last solve (see [`crate::linalg::equilibrate`]).
+    /// Equilibration of the last solve that went through the LU (see
+    /// [`crate::linalg::solve_saddle`]; stale after block elimination).
     scale: Vec<f64>,
     /// Right-hand side, then solution `(q̈, μ_g, μ_f)`.
     pub sol: Vec<T>,

@@ -88,13 +88,20 @@ impl SparseKkt {
     /// The pattern of a system of dimension `dim`, with `n` coordinates and
     /// the structural nonzeros `entries`
     /// ([`crate::compiled::Pattern::kkt_entries`],
-    /// [`crate::compiled::Compiled::kkt_entries`]), ordered and analysed once. `Err` says why
-    /// faer refused it (a structurally singular system).
+    /// [`crate::compiled::Compiled::kkt_entries`]), ordered and analysed
+    /// once. `Err` says why not: an entry outside the system, or faer
+    /// refused the pattern (a structurally singular system).
     pub fn new(
         mut entries: Vec<(u32, u32, KktSource)>,
         n: usize,
         dim: usize,
     ) -> Result<SparseKkt, String> {
+        let outside = |&(r, c, _): &(u32, u32, KktSource)| r as usize >= dim || c as usize >= dim;
+        if n > dim || entries.iter().any(outside) {
+            return Err(format!(
+                "KKT entries outside a system of dimension {dim} with {n} coordinates"
+            ));
+        }
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));
         let mut col_ptr = vec![0usize; dim + 1];
         for &(_, c, _) in &entries {
@@ -292,6 +299,10 @@ mod tests {
             g_jac: vec![(0, 0), (0, 1), (1, 0), (1, 1)],
             f_jac: vec![],
         };
+        // Dimensions that do not hold the entries are refused.
+        for (n, dim) in [(2, 3), (5, 4)] {
+            assert!(SparseKkt::new(pattern.kkt_entries(2, 2, 0), n, dim).is_err());
+        }
         let mut sparse = SparseKkt::new(pattern.kkt_entries(2, 2, 0), 2, 4).unwrap();
         for (delta, regular) in [(0.5, true), (4.0 * f64::EPSILON, false)] {
             let g11 = 1.0 + delta;

@@ -137,6 +137,19 @@ impl Pattern {
     }
 }
 
+/// Where the pieces of the KKT system's right-hand side start among a
+/// program's outputs: `Q` (`n` values), `g` and `ġ₀` (`s` each), `f`, `ḟ`
+/// and `f̈₀` (`k` each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RhsAt {
+    pub force: usize,
+    pub g: usize,
+    pub g_rate0: usize,
+    pub f: usize,
+    pub f_rate: usize,
+    pub f_accel0: usize,
+}
+
 /// Why a field was not compiled.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Refused(pub String);
@@ -289,6 +302,19 @@ impl Compiled {
             std::any::type_name::<F>(),
             "compiled for another field"
         );
+    }
+
+    /// Where the right-hand side's pieces start among the outputs.
+    pub(crate) fn rhs_at(&self) -> RhsAt {
+        let at = &self.layout;
+        RhsAt {
+            force: at[1],
+            g: at[2],
+            g_rate0: at[4],
+            f: at[5],
+            f_rate: at[7],
+            f_accel0: at[8],
+        }
     }
 
     /// Instructions per evaluation, of them transcendental calls, and the

@@ -1112,12 +1112,15 @@ impl Program {
         let base = self.inputs + self.constants.len();
         assert_eq!(regs.len(), base + self.ops.len(), "program registers");
         assert_eq!(out.len(), self.outputs.len(), "program outputs");
-        for (i, op) in self.ops.iter().enumerate() {
-            // Every operand register is below `base + i` (by construction).
-            regs[base + i] = apply(op, |a| regs[a as usize]);
+        // Every operand register is below the instruction's own (by
+        // construction): cells let the loop read the registers before
+        // it while it writes the next one, without an index per store.
+        let cells = std::cell::Cell::from_mut(regs).as_slice_of_cells();
+        for (op, slot) in self.ops.iter().zip(&cells[base..]) {
+            slot.set(apply(op, |a| cells[a as usize].get()));
         }
         for (o, &r) in out.iter_mut().zip(&self.outputs) {
-            *o = regs[r as usize];
+            *o = cells[r as usize].get();
         }
     }
 }

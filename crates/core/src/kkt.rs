@@ -135,10 +135,11 @@ pub struct Kkt<T: Scalar = f64> {
     /// [`Jet`].
     compiled: Option<(Arc<Compiled>, Workspace<T>)>,
     /// The program's entries of the KKT matrix
-    /// ([`crate::compiled::Pattern::kkt_entries`]), scattered straight into
-    /// the dense matrix with ideal rows; made with the dense storage (a
-    /// sparse system keeps its own list).
-    entries: Vec<(u32, u32, KktSource)>,
+    /// ([`crate::compiled::Pattern::kkt_entries`]) by their place in the
+    /// dense matrix's column-major storage, scattered straight into it with
+    /// ideal rows; made with the dense storage (a sparse system keeps its
+    /// own list).
+    entries: Vec<(u32, KktSource)>,
     /// The system stored sparse ([`crate::sparse`]): systems of at least
     /// [`SPARSE_FROM`] rows with a compiled program, over `f64` or `Dual64`
     /// (Jacobian columns).
@@ -179,7 +180,10 @@ impl<T: Scalar> Kkt<T> {
             self.cs.jac = DMatrix::from_element(self.cs.s + self.cs.k, self.n, T::from(0.0));
         }
         if let (true, Some((c, _))) = (self.entries.is_empty(), &self.compiled) {
-            self.entries = c.kkt_entries();
+            let place = |r: u32, col: u32| r as usize + col as usize * dim;
+            self.entries = (c.kkt_entries().into_iter())
+                .map(|(r, col, src)| (place(r, col) as u32, src))
+                .collect();
         }
     }
 
@@ -315,8 +319,9 @@ impl<T: Scalar> Kkt<T> {
             let Some((_, w)) = &self.compiled else {
                 unreachable!("the ideal path needs a program");
             };
-            for &(r, col, src) in &self.entries {
-                self.matrix[(r as usize, col as usize)] = *src.value(w.outputs());
+            let (m, out) = (self.matrix.as_mut_slice(), w.outputs());
+            for &(at, src) in &self.entries {
+                m[at as usize] = *src.value(out);
             }
             return;
         }
@@ -398,13 +403,13 @@ impl<T: Scalar> Kkt<T> {
             return sparse.solve(&w.pieces(c), &mut self.sol);
         }
         self.assemble(ell, p, scene, rows, t, q, qd);
-        self.solve_assembled()
+        self.solve_in_place()
     }
 
     /// Ideal rows from the compiled program: evaluates it at `(t, q, q̇)`,
-    /// loads its values into [`Kkt::cs`] and writes the right-hand side;
-    /// its entries ([`crate::compiled::Pattern::kkt_entries`]) make the
-    /// matrix.
+    /// loads its constraint values into [`Kkt::cs`] and writes the
+    /// right-hand side straight from its outputs; its entries
+    /// ([`crate::compiled::Pattern::kkt_entries`]) make the matrix.
     fn eval_ideal<F: ScalarField, R: GRows>(
         &mut self,
         p: &[T],
@@ -420,9 +425,19 @@ impl<T: Scalar> Kkt<T> {
         };
         c.check_field::<F>();
         c.eval(w, t, q, qd, p);
-        load(&w.pieces(c), &mut self.cs, &mut self.sol[..n]);
+        // Index by index rather than by `load`: these pieces hold a few
+        // values each, and a copy per piece costs more than the values.
+        let (at, out, cs) = (c.rhs_at(), w.outputs(), &mut self.cs);
+        self.sol[..n].copy_from_slice(&out[at.force..at.force + n]);
         for i in 0..s {
-            self.sol[n + i] = -self.cs.g_rate0[i] - self.cs.g[i] * (2.0 * alpha);
+            let (g, g_rate0) = (out[at.g + i], out[at.g_rate0 + i]);
+            (cs.g[i], cs.g_rate0[i]) = (g, g_rate0);
+            self.sol[n + i] = -g_rate0 - g * (2.0 * alpha);
+        }
+        for i in 0..cs.k {
+            cs.f[i] = out[at.f + i];
+            cs.f_rate[i] = out[at.f_rate + i];
+            cs.f_accel0[i] = out[at.f_accel0 + i];
         }
         self.holonomic_rhs(rows);
     }
@@ -434,6 +449,11 @@ impl<T: Scalar> Kkt<T> {
     /// reported as a [`Singular`] with a NaN pivot, as a non-finite matrix is.
     pub fn solve_assembled(&mut self) -> Result<(), Singular> {
         self.dense();
+        self.solve_in_place()
+    }
+
+    /// [`Kkt::solve_assembled`] on a dense storage already made.
+    fn solve_in_place(&mut self) -> Result<(), Singular> {
         let n = self.n;
         solve_saddle(
             &mut self.matrix,

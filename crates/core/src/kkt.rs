@@ -139,7 +139,7 @@ pub struct Kkt<T: Scalar = f64> {
     /// dense matrix's column-major storage, scattered straight into it with
     /// ideal rows; made with the dense storage (a sparse system keeps its
     /// own list).
-    entries: Vec<(u32, KktSource)>,
+    entries: Vec<(usize, KktSource)>,
     /// The system stored sparse ([`crate::sparse`]): systems of at least
     /// [`SPARSE_FROM`] rows with a compiled program, over `f64` or `Dual64`
     /// (Jacobian columns).
@@ -182,7 +182,7 @@ impl<T: Scalar> Kkt<T> {
         if let (true, Some((c, _))) = (self.entries.is_empty(), &self.compiled) {
             let place = |r: u32, col: u32| r as usize + col as usize * dim;
             self.entries = (c.kkt_entries().into_iter())
-                .map(|(r, col, src)| (place(r, col) as u32, src))
+                .map(|(r, col, src)| (place(r, col), src))
                 .collect();
         }
     }
@@ -321,7 +321,7 @@ impl<T: Scalar> Kkt<T> {
             };
             let (m, out) = (self.matrix.as_mut_slice(), w.outputs());
             for &(at, src) in &self.entries {
-                m[at as usize] = *src.value(out);
+                m[at] = *src.value(out);
             }
             return;
         }

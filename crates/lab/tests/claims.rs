@@ -1453,6 +1453,14 @@ fn sleigh_floor_as_performance_md_states() {
         "docs/performance.md does not say `{said}`"
     );
     let said = format!(
+        "and the two run again there in {} paired repeats",
+        m["paired_repeats"]
+    );
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let said = format!(
         "within {:.1e} m of the same at 1e-13",
         num(m, "reference_error")
     );
@@ -1461,8 +1469,17 @@ fn sleigh_floor_as_performance_md_states() {
         "docs/performance.md does not say `{said}`"
     );
     // Errors at matched tolerance are within a factor 3 of each other: the
-    // two runs compute the same motion.
-    for r in &ladder {
+    // two runs compute the same motion. Only where both errors are above
+    // the reference's own error: below it they are not measured (at
+    // 1e-13 the hand-written run is the reference's check run itself, its
+    // "error" the reference's error by construction).
+    let floor = num(m, "reference_error");
+    let resolved: Vec<_> = ladder
+        .iter()
+        .filter(|r| num(r, "error_b").min(num(r, "error_hand")) > floor)
+        .collect();
+    assert!(resolved.len() >= 6, "{resolved:?}");
+    for r in resolved {
         let q = num(r, "error_b") / num(r, "error_hand");
         assert!((1.0 / 3.0..3.0).contains(&q), "{r:?}");
     }

@@ -16,8 +16,8 @@
 //! (errors are deterministic), and the two sides run again at those
 //! tolerances in alternating repeats (three times the rungs' repeats): the
 //! ratio is the median of the paired ratios, so a machine whose speed
-//! drifts between rungs does not enter it. The errors reached there are
-//! printed and written beside it.
+//! drifts between rungs does not enter it. The errors reached there, and
+//! the number of paired repeats, are printed and written beside it.
 //!
 //! With `--scipy PYTHON`, each rung also runs `crates/bench/scipy/sleigh_b.py`
 //! under that interpreter (it needs NumPy and SciPy): the same problem as a
@@ -271,14 +271,15 @@ fn report() -> Result<(), String> {
         3 * repeats
     );
     let matched = format!(
-        "{target:e},{a:.4},{h:.4},{ratio:.3},{ref_error:.2e},{tol_b:.3e},{tol_h:.3e},{err_b:.3e},{err_h:.3e}\n"
+        "{target:e},{a:.4},{h:.4},{ratio:.3},{ref_error:.2e},{tol_b:.3e},{tol_h:.3e},{err_b:.3e},{err_h:.3e},{}\n",
+        ratios.len()
     );
     let mut files = vec![
         ("ladder.csv", ladder),
         (
             "matched.csv",
             format!(
-                "error,ms_b,ms_hand,time_ratio,reference_error,tol_b,tol_hand,error_b,error_hand\n{matched}"
+                "error,ms_b,ms_hand,time_ratio,reference_error,tol_b,tol_hand,error_b,error_hand,paired_repeats\n{matched}"
             ),
         ),
     ];

@@ -111,8 +111,9 @@ impl Landing {
 /// its state between steps (derivative at the current state, step-size
 /// controller, Jacobian, …). `P` is the system as the method sees it.
 pub(crate) trait Core<P: Hooks> {
-    /// Coefficient vectors of the step polynomial (nested form of [`crate::Dense`]).
-    const NCOEF: usize;
+    /// Coefficient vectors of the step polynomial (nested form of
+    /// [`crate::Dense`]); fixed for the run.
+    fn ncoef(&self) -> usize;
     /// How an adaptive step lands on `t_end` and output times.
     const LANDING: Landing;
 
@@ -504,12 +505,13 @@ impl<P: Hooks, C: Core<P>> Driver<P, C> {
         }
 
         // The guard, on the state `after_step` left.
+        let ncoef = self.core.ncoef();
         let problem = &mut self.problem;
         let crossing = guard_crossing(
             |tg, yg| problem.guard(tg, yg),
             &mut self.g_prev,
             self.core.coef(),
-            C::NCOEF,
+            ncoef,
             t_old,
             t,
             h,

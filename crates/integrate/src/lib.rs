@@ -76,7 +76,7 @@ mod validate;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};
-pub use options::{Method, Options, Radau5Options, RadauNewton};
+pub use options::{Method, Options, Radau5Options, RadauDense, RadauNewton};
 pub use solution::{Solution, Stats};
 pub use solver::Solver;
 pub use stop::StopReason;

@@ -114,6 +114,48 @@ impl RadauNewton {
     }
 }
 
+/// How Radau IIA fills its steps between the step points: the continuous
+/// extension, output samples and guard location. Serialised by
+/// [`RadauDense::name`] (`"collocation"`, `"hermite"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RadauDense {
+    /// RADAU5's collocation polynomial (`CONTR5`, the default): degree 3,
+    /// stage order 3 inside the step, stiffly accurate; the Newton starting
+    /// values extrapolate it whatever this setting.
+    #[default]
+    Collocation,
+    /// A quintic through the values and derivatives at the last three step
+    /// points, in the components whose row of the Jacobian is not stiff over
+    /// the step; the collocation polynomial in the others, at the first step
+    /// and after a projection. For `y' = f(t, y)` only (an implicit system
+    /// is refused). No extra evaluation: `y'_n` is the `f(t_n, y_n)` RADAU5
+    /// evaluates at every accepted state, `y'_{n+1}` the collocation
+    /// polynomial's derivative at the step's end.
+    Hermite,
+}
+
+impl RadauDense {
+    /// Name on the command line and in result files.
+    pub fn name(self) -> &'static str {
+        match self {
+            RadauDense::Collocation => "collocation",
+            RadauDense::Hermite => "hermite",
+        }
+    }
+
+    /// The variant called `name`.
+    pub fn from_name(name: &str) -> Option<RadauDense> {
+        [RadauDense::Collocation, RadauDense::Hermite]
+            .into_iter()
+            .find(|v| v.name() == name)
+    }
+
+    fn is_collocation(&self) -> bool {
+        *self == RadauDense::Collocation
+    }
+}
+
 /// Integrator settings shared by every method (the base), with the
 /// settings of [`Method::Radau5`] in [`Options::radau5`].
 /// `Options::default()` is a reasonable start.
@@ -229,6 +271,7 @@ impl Default for Options {
 /// | `newton_tol` | `FNEWT`, `WORK(4)` | `None`: `max(10·uround/rtol', min(0.03, sqrt(rtol')))` |
 /// | `jacobian_reuse` | `THET`, `WORK(3)` | `0.001` |
 /// | `keep_step` | `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)` | `(1.0, 1.2)` |
+/// | `dense_output` | — (`CONTR5`) | [`RadauDense::Collocation`] (not written when default) |
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Radau5Options {
@@ -254,6 +297,11 @@ pub struct Radau5Options {
     /// size is left unchanged, which saves the LU decompositions (RADAU5's
     /// `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`). Default `(1.0, 1.2)`.
     pub keep_step: (f64, f64),
+    /// The continuous extension between step points; see [`RadauDense`].
+    /// Default [`RadauDense::Collocation`], left out of serialised settings
+    /// when default (records written before it existed read the same).
+    #[serde(skip_serializing_if = "RadauDense::is_collocation")]
+    pub dense_output: RadauDense,
 }
 
 impl Default for Radau5Options {
@@ -264,6 +312,7 @@ impl Default for Radau5Options {
             newton_tol: None,
             jacobian_reuse: 0.001,
             keep_step: (1.0, 1.2),
+            dense_output: RadauDense::Collocation,
         }
     }
 }

@@ -326,7 +326,9 @@ impl<M: Scheme> Rk<M> {
 }
 
 impl<M: Scheme, S: OdeSystem + ?Sized> Core<Rhs<'_, S>> for Rk<M> {
-    const NCOEF: usize = M::NCOEF;
+    fn ncoef(&self) -> usize {
+        M::NCOEF
+    }
     const LANDING: Landing = Landing {
         stretch: 1.01,
         inclusive: false,

@@ -183,7 +183,14 @@
 //! The collocation polynomial (order 3 inside the step, `CONTR5`), stored in
 //! the nested form of [`crate::Dense`] (`y_n + s(b + (1 − s)(c + s d))`, converted
 //! from the values at the nodes) for `Options::dense`, output samples,
-//! guard location and the Newton starting values.
+//! guard location and the Newton starting values. With
+//! `radau5.dense_output = hermite` ([`crate::RadauDense::Hermite`], ODEs
+//! only) the first three uses take instead, component by component, the
+//! quintic through `(y, y')` at `t_{n−1}`, `t_n`, `t_{n+1}` where the
+//! component's row of the Jacobian is not stiff over the step (`hermite.rs`
+//! says how that is decided), six coefficient vectors per step; the Newton
+//! starting values still extrapolate the collocation polynomial, so the
+//! steps, and every counter, are those of the default.
 //!
 //! # Settings ([`Options`], and [`crate::Radau5Options`] in `Options::radau5`)
 //!
@@ -202,6 +209,7 @@
 //! | `radau5.newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
 //! | `radau5.jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
 //! | `radau5.keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
+//! | `radau5.dense_output` | collocation polynomial or the Hermite quintic | `collocation` |
 //!
 //! # Counters ([`Stats`])
 //!
@@ -309,6 +317,7 @@
 //! [`crate::Solver::implicit`]; a step allocates only when it stores samples
 //! and step polynomials.
 
+mod hermite;
 mod linalg;
 mod newton;
 mod problem;
@@ -321,9 +330,10 @@ use crate::explicit::control::{Tol, all_finite};
 use crate::record::Record;
 use crate::validate::{atol_vector, validate};
 use crate::{
-    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauNewton, Stats,
-    SystemError,
+    Failure, ImplicitSystem, IntegrateError, Method, OdeSystem, Options, RadauDense, RadauNewton,
+    Stats, SystemError,
 };
+use hermite::{Hermite, Step};
 use newton::{Newton, NewtonParams};
 use problem::{Dae, Ode, Problem, UROUND};
 use sparse::SparseIteration;
@@ -459,7 +469,14 @@ fn driver<P: Problem>(
     opts: &Options,
 ) -> Result<Driver<P, RadauCore>, Failure> {
     let n = p.dim();
-    let rec = Record::new(Method::Radau5, n, NCOEF, opts, t_end);
+    let hermite = opts.radau5.dense_output == RadauDense::Hermite;
+    let rec = Record::new(
+        Method::Radau5,
+        n,
+        if hermite { hermite::NCOEF } else { NCOEF },
+        opts,
+        t_end,
+    );
     let mut index = vec![1u8; n];
     p.variable_index(&mut index);
     if let Err(msg) = validate(Method::Radau5.needs_fixed_step(), n, t0, y0, t_end, opts)
@@ -467,8 +484,16 @@ fn driver<P: Problem>(
     {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
+    if hermite && !P::IDENTITY_JP {
+        let msg = "dense_output = hermite interpolates the derivatives of y' = f(t, y): an \
+                   implicit system F(t, y, y') = 0 keeps the collocation polynomial \
+                   (dense_output = collocation)"
+            .to_string();
+        return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
+    }
     // Sparse iteration matrices for a system with sparse Jacobians.
-    let sparse = match p.sparsity() {
+    let sparsity = p.sparsity();
+    let sparse = match &sparsity {
         None => None,
         Some(_) if opts.radau5.newton == RadauNewton::Full => {
             let msg = "full Newton (`newton = full`) forms dense stage Jacobians: it is not \
@@ -476,12 +501,15 @@ fn driver<P: Problem>(
                 .to_string();
             return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
         }
-        Some(sp) => match SparseIteration::new(n, &sp) {
+        Some(sp) => match SparseIteration::new(n, sp) {
             Ok(it) => Some((it, sp.jy.len(), sp.jyp.len())),
             Err(msg) => return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0)),
         },
     };
     let mut core = RadauCore::new(index, opts, P::IDENTITY_JP, sparse);
+    if hermite {
+        core.hermite = Some(Box::new(Hermite::new(n, sparsity.map(|sp| sp.jy))));
+    }
     if let Some(yp0) = yp0 {
         if let Err(e) = core.consistent(&mut p, t0, y0, yp0, opts) {
             let evals = p.evals();
@@ -538,6 +566,10 @@ struct RadauCore {
     erracc: f64,
     /// The step size proposed after the last accepted step.
     h_new: f64,
+    /// The Hermite continuous extension ([`RadauDense::Hermite`]).
+    hermite: Option<Box<Hermite>>,
+    /// `J` has been evaluated in this run (the Hermite extension reads its rows).
+    jy_valid: bool,
 }
 
 impl RadauCore {
@@ -584,6 +616,8 @@ impl RadauCore {
             hold: f64::NAN,
             erracc: 1e-2,
             h_new: f64::NAN,
+            hermite: None,
+            jy_valid: false,
         }
     }
 
@@ -654,6 +688,7 @@ impl RadauCore {
                 return Err(Attempt::Failed(e));
             }
             self.caljac = true;
+            self.jy_valid = true;
             self.h_lu = f64::NAN;
         }
         // NaN (no factorisation) compares false: factor.
@@ -793,7 +828,13 @@ impl RadauCore {
 }
 
 impl<P: Problem> Core<P> for RadauCore {
-    const NCOEF: usize = NCOEF;
+    fn ncoef(&self) -> usize {
+        if self.hermite.is_some() {
+            hermite::NCOEF
+        } else {
+            NCOEF
+        }
+    }
     const LANDING: Landing = Landing {
         stretch: 1.0001,
         inclusive: true,
@@ -862,6 +903,19 @@ impl<P: Problem> Core<P> for RadauCore {
     fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, _stats: &mut Stats) -> bool {
         self.nsing = 0;
         self.w.polynomial(y);
+        if let Some(ext) = self.hermite.as_mut() {
+            ext.step(&Step {
+                t: tr.t,
+                h: tr.h,
+                y,
+                yp: &self.yp,
+                z3: &self.w.z[2],
+                yp_end: &self.w.yp_new,
+                collocation: &self.w.coef,
+                jy: self.jy_valid.then_some(&self.w.jy[..]),
+                sc: &self.sk,
+            });
+        }
         self.hold = tr.h;
         for (yi, zi) in y.iter_mut().zip(&self.w.z[2]) {
             *yi += zi;
@@ -881,9 +935,14 @@ impl<P: Problem> Core<P> for RadauCore {
         p: &mut P,
         t: f64,
         y: &[f64],
-        _projected: bool,
+        projected: bool,
         last: bool,
     ) -> Result<(), IntegrateError> {
+        if projected {
+            if let Some(ext) = self.hermite.as_mut() {
+                ext.reset();
+            }
+        }
         if !all_finite(y) {
             return Err(IntegrateError::NonFinite { t });
         }
@@ -911,7 +970,10 @@ impl<P: Problem> Core<P> for RadauCore {
     }
 
     fn coef(&self) -> &[f64] {
-        &self.w.coef
+        match &self.hermite {
+            Some(ext) => &ext.coef,
+            None => &self.w.coef,
+        }
     }
 
     fn proposal(&self) -> Option<f64> {

@@ -22,7 +22,7 @@ use std::time::Instant;
 use diffsol::{NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod};
 use nonholo_chetaev::Chetaev;
 use nonholo_core::integrate::{
-    Dense, Method, OdeSystem, Options, Radau5Options, RadauNewton, solve,
+    Dense, Method, OdeSystem, Options, Radau5Options, RadauDense, RadauNewton, solve,
 };
 use nonholo_core::{Model, Observation, Params, Scene};
 use nonholo_realise::{Visc, visc};
@@ -238,6 +238,10 @@ pub enum Solver {
     /// RADAU5's default 0.001 (`radau5.jacobian_reuse`; Hairer's RADAU5
     /// suggests 0.1 where Jacobians are costly).
     OursReuse(Reuse),
+    /// Ours, Radau IIA with simplified Newton and the Hermite continuous
+    /// extension (`radau5.dense_output = hermite`), with RADAU5's reuse
+    /// threshold (`None`) or another one.
+    OursHermite(Option<Reuse>),
     /// diffsol with this method; `max_fails` is its cap on nonlinear-solver
     /// failures over the whole run (`OdeSolverOptions::
     /// max_nonlinear_solver_failures`, default [`DIFFSOL_DEFAULT_CAP`]).
@@ -279,7 +283,10 @@ pub enum DiffsolMethod {
 impl Solver {
     pub fn crate_name(self) -> &'static str {
         match self {
-            Solver::Ours(_) | Solver::OursFullNewton | Solver::OursReuse(_) => "nonholo",
+            Solver::Ours(_)
+            | Solver::OursFullNewton
+            | Solver::OursReuse(_)
+            | Solver::OursHermite(_) => "nonholo",
             Solver::OdeSolversDop853 => "ode_solvers",
             _ => "diffsol",
         }
@@ -291,6 +298,13 @@ impl Solver {
             Solver::OursFullNewton => "Radau IIA (radau5), full Newton",
             Solver::OursReuse(Reuse::Hundredth) => "Radau IIA (radau5), reuse θ ≤ 0.01",
             Solver::OursReuse(Reuse::Tenth) => "Radau IIA (radau5), reuse θ ≤ 0.1",
+            Solver::OursHermite(None) => "Radau IIA (radau5), Hermite dense output",
+            Solver::OursHermite(Some(Reuse::Hundredth)) => {
+                "Radau IIA (radau5), reuse θ ≤ 0.01, Hermite dense output"
+            }
+            Solver::OursHermite(Some(Reuse::Tenth)) => {
+                "Radau IIA (radau5), reuse θ ≤ 0.1, Hermite dense output"
+            }
             Solver::Ours(Method::Dop853) => "DOP853",
             Solver::Ours(Method::Dopri5) => "DOPRI5",
             Solver::Ours(Method::Rk4) => "RK4",
@@ -339,6 +353,16 @@ impl Solver {
                 let radau = Radau5Options {
                     newton: RadauNewton::Simplified,
                     jacobian_reuse: reuse.theta(),
+                    ..Radau5Options::default()
+                };
+                run_ours(problem, Method::Radau5, radau, tol, grid, dense)
+            }
+            Solver::OursHermite(reuse) => {
+                let radau = Radau5Options {
+                    newton: RadauNewton::Simplified,
+                    jacobian_reuse: reuse
+                        .map_or(Radau5Options::default().jacobian_reuse, Reuse::theta),
+                    dense_output: RadauDense::Hermite,
                     ..Radau5Options::default()
                 };
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)

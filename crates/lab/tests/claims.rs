@@ -1591,6 +1591,42 @@ fn jacobian_reuse_as_peers_md_states() {
     said.push(format!(
         "our time is {a0} BDF's with the default, {a1} with θ ≤ 0.01 and {a2} with θ ≤ 0.1 on the adapted form, and {b0}, {b1} and {b2} in the body frame"
     ));
+    // The Hermite continuous extension: the same steps, the errors between
+    // them, the times at matched error, and the reference's own error.
+    let hermite = format!("{radau}, Hermite dense output");
+    let tenth_hermite = format!("{tenth}, Hermite dense output");
+    let steps: Vec<&str> = [1e-6, 1e-8, 1e-10]
+        .iter()
+        .map(|&tol| {
+            assert_eq!(run(radau, tol)["steps"], run(&hermite, tol)["steps"]);
+            run(radau, tol)["steps"].as_str()
+        })
+        .collect();
+    let errs = |method: &str| {
+        [1e-6, 1e-8, 1e-10].map(|tol| format!("{:.2e}", num(run(method, tol), "err_max")))
+    };
+    let [c6, c8, c10] = errs(radau);
+    let [h6, h8, h10] = errs(&hermite);
+    said.push(format!(
+        "in the same {}, {} and {} steps at tol 1e-6, 1e-8 and 1e-10, the collocation polynomial's error is {c6}, {c8} and {c10}, the Hermite extension's {h6}, {h8} and {h10}",
+        steps[0], steps[1], steps[2]
+    ));
+    let [e0, e1] =
+        [hermite, tenth_hermite].map(|s| ratio_range("visc-adapted", &format!("nonholo {s}")));
+    let [f0, f1] = [
+        format!("nonholo {radau}, Hermite dense output"),
+        format!("nonholo {tenth}, Hermite dense output"),
+    ]
+    .map(|s| ratio_range("visc-body", &s));
+    said.push(format!(
+        "takes our time to {e0} BDF's with RADAU5's reuse threshold and to {e1} with θ ≤ 0.1 on the adapted form ({f0} and {f1} in the body frame)"
+    ));
+    let ref_errs: Vec<f64> = runs.iter().map(|r| num(r, "ref_err")).collect();
+    let lo = ref_errs.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = ref_errs.iter().cloned().fold(0.0, f64::max);
+    said.push(format!(
+        "itself within {lo:.1e}–{hi:.1e} of the same at 3e-14 (`ref_err`)"
+    ));
     let flat = doc_flat("peers.md");
     for s in said {
         assert!(flat.contains(&s), "docs/peers.md does not say `{s}`");

@@ -36,8 +36,9 @@ const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
   --quick        k = 1e2, 1e6 and tolerances 1e-6 only (a smoke run)
   --page         run nothing: rebuild index.html and its figures from the stored files
   --reuse        run only the Jacobian-reuse study: our Radau IIA with RADAU5's reuse
-                 threshold θ ≤ 0.001 and with 0.01 and 0.1, beside diffsol's BDF, on visc
-                 in the adapted form and the body frame (reuse.csv, reuse-matched.csv)";
+                 threshold θ ≤ 0.001 and with 0.01 and 0.1, and with the Hermite dense
+                 output (θ ≤ 0.001 and 0.1), beside diffsol's BDF, on visc in the adapted
+                 form and the body frame (reuse.csv, reuse-matched.csv)";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -376,7 +377,18 @@ fn our_reference(
     tol: f64,
     g: &[f64],
 ) -> Result<Reference, String> {
-    match Solver::Ours(method).run(problem, tol, g, true) {
+    reference_by(problem, Solver::Ours(method), tol, g)
+}
+
+/// A reference by one of our solvers at `tol`, kept as a continuous extension.
+fn reference_by(
+    problem: &Problem,
+    solver: Solver,
+    tol: f64,
+    g: &[f64],
+) -> Result<Reference, String> {
+    let method = solver.method_name();
+    match solver.run(problem, tol, g, true) {
         Ok(out) => {
             let map = std::cell::RefCell::new(problem.to_cartesian()?);
             out.dense
@@ -384,8 +396,7 @@ fn our_reference(
                 .ok_or_else(|| "the reference run kept no continuous extension".to_string())
         }
         Err(f) => Err(format!(
-            "reference {} at {tol:e} failed: {}",
-            method.name(),
+            "reference {method} at {tol:e} failed: {}",
             f.message
         )),
     }
@@ -683,11 +694,12 @@ fn load_average() -> String {
 /// The Jacobian-reuse study: RADAU5 refreshes its Jacobian after every
 /// accepted step whose Newton contraction exceeded θ = 0.001; on `visc` in
 /// the adapted form that is nearly every step. Our Radau IIA at three
-/// thresholds and diffsol's BDF, on the adapted form (AD Jacobian, ~11
-/// right-hand sides) and the body frame (forward differences), k = 1e4 …
-/// 1e8, errors against our Radau IIA at 1e-13 on the adapted form;
-/// `reuse.csv` has every run, `reuse-matched.csv` the times at matched
-/// error.
+/// thresholds, with the Hermite continuous extension at two of them, and
+/// diffsol's BDF, on the adapted form (AD Jacobian, ~11 right-hand sides)
+/// and the body frame (forward differences), k = 1e4 … 1e8, errors against
+/// our Radau IIA at 1e-13 with the Hermite extension on the adapted form
+/// (its distance to the same at 3e-14 in `ref_err`); `reuse.csv` has every
+/// run, `reuse-matched.csv` the times at matched error.
 fn reuse_study(args: &Args) -> Result<(), String> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
@@ -705,18 +717,24 @@ fn reuse_study(args: &Args) -> Result<(), String> {
     for &k in ks {
         let adapted = visc_problem(&scene, k, "visc-adapted");
         let body = visc_problem(&scene, k, "visc-body");
-        eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13, adapted form");
-        let reference = our_reference(&adapted, Method::Radau5, 1e-13, &g)?;
-        let ref_name = "ours radau5 @1e-13, adapted form";
+        // The collocation polynomial of Radau IIA at 1e-13 is 4e-10 off
+        // between its step points; the Hermite extension is not (docs/peers.md).
+        eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13 (Hermite), checked at 3e-14");
+        let reference = reference_by(&adapted, Solver::OursHermite(None), 1e-13, &g)?;
+        let check = reference_by(&adapted, Solver::OursHermite(None), 3e-14, &g)?;
+        let ref_err = reference_distance(&reference, &check, &g, 6);
+        let ref_name = "ours radau5 @1e-13, Hermite dense output, adapted form";
         for &tol in tols {
             for p in [&adapted, &body] {
                 for solver in [
                     Solver::Ours(Method::Radau5),
                     Solver::OursReuse(Reuse::Hundredth),
                     Solver::OursReuse(Reuse::Tenth),
+                    Solver::OursHermite(None),
+                    Solver::OursHermite(Some(Reuse::Tenth)),
                     BDF,
                 ] {
-                    let row = measured(p, solver, tol, &g, &reference, ref_name, f64::NAN, args);
+                    let row = measured(p, solver, tol, &g, &reference, ref_name, ref_err, args);
                     csv.push_str(&row.csv());
                     csv.push('\n');
                 }

@@ -143,7 +143,9 @@ impl Hermite {
             }
             let a = -h_prev / s.h;
             for j in 0..n {
-                if !(h_max * self.row[j] <= STIFF_ROW * s.sc[j]) {
+                // False also for a NaN row or scale.
+                let smooth = h_max * self.row[j] <= STIFF_ROW * s.sc[j];
+                if !smooth {
                     continue;
                 }
                 let c = cubic(s.y[j], s.y[j] + s.z3[j], s.h * s.yp[j], s.h * s.yp_end[j]);

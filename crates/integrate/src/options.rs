@@ -126,10 +126,12 @@ pub enum RadauDense {
     #[default]
     Collocation,
     /// A quintic through the values and derivatives at the last three step
-    /// points, in the components whose row of the Jacobian is not stiff over
-    /// the step; the collocation polynomial in the others, at the first step
-    /// and after a projection. For `y' = f(t, y)` only (an implicit system
-    /// is refused). No extra evaluation: `y'_n` is the `f(t_n, y_n)` RADAU5
+    /// points (a quartic without the value at `t_{n−1}` after a more than
+    /// twofold step growth), in the components whose row of the last
+    /// Jacobian evaluated is not stiff over the step; the collocation
+    /// polynomial in the others, at the first step, after a projection and
+    /// while no Jacobian has been evaluated (full Newton with a fixed step).
+    /// For `y' = f(t, y)` only (an implicit system is refused). No extra evaluation: `y'_n` is the `f(t_n, y_n)` RADAU5
     /// evaluates at every accepted state, `y'_{n+1}` the collocation
     /// polynomial's derivative at the step's end.
     Hermite,

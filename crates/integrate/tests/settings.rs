@@ -1,7 +1,7 @@
 //! The settings serialise (as written beside every result) and read back;
 //! missing fields take their defaults, unknown fields are refused.
 
-use nonholo_integrate::{Options, Radau5Options, RadauNewton};
+use nonholo_integrate::{Options, Radau5Options, RadauDense, RadauNewton};
 
 #[test]
 fn options_round_trip_through_json() {
@@ -26,6 +26,29 @@ fn options_round_trip_through_json() {
     assert_eq!(json["h_init"], serde_json::Value::Null);
     let back: Options = serde_json::from_value(json).unwrap();
     assert_eq!(back, opts);
+}
+
+/// `dense_output` is written only when it is not the default, so records
+/// written before it existed read, and serialise, as they did.
+#[test]
+fn dense_output_is_written_only_when_hermite() {
+    let json = serde_json::to_value(Options::default()).unwrap();
+    assert!(json["radau5"].get("dense_output").is_none(), "{json}");
+    let opts = Options {
+        radau5: Radau5Options {
+            dense_output: RadauDense::Hermite,
+            ..Radau5Options::default()
+        },
+        ..Options::default()
+    };
+    let json = serde_json::to_value(&opts).unwrap();
+    assert_eq!(json["radau5"]["dense_output"], "hermite");
+    assert_eq!(serde_json::from_value::<Options>(json).unwrap(), opts);
+    assert!(serde_json::from_str::<Options>(r#"{"radau5": {"dense_output": "cubic"}}"#).is_err());
+    for v in [RadauDense::Collocation, RadauDense::Hermite] {
+        assert_eq!(serde_json::to_value(v).unwrap(), v.name());
+        assert_eq!(RadauDense::from_name(v.name()), Some(v));
+    }
 }
 
 #[test]

@@ -16,27 +16,45 @@
 //! collocation polynomial, which uses no derivative at `t_n`, is the
 //! accurate one there. So the quintic is taken component by component where
 //! `h_max Σ_k |J_jk| sc_k <= STIFF_ROW · sc_j` (`h_max` the longer of the
-//! two steps, `sc` the error scale at the step start), and the collocation
-//! polynomial elsewhere, at the first step and after a projection.
+//! two steps, `sc` the error scale at the step start, `J` the last Jacobian
+//! evaluated, which with Jacobian reuse may be some steps old), and the
+//! collocation polynomial elsewhere: at the first step, after a projection,
+//! and where no Jacobian has been evaluated (full Newton with a fixed step).
+//! On `[0, 1]` the quintic weighs the data at `s = a = −h_{n−1}/h_n`, 0, 1
+//! by at most 0.72, 1, 1 (values) and 0.11, 0.50, 0.10 (derivatives, per
+//! unit of `s`) for `a <= −1/2`; at `a = −1/8`, which RADAU5's controller
+//! allows, the values at `t_{n−1}` and `t_n` would weigh 40 each,
+//! amplifying whatever of their error the derivatives do not explain. So a
+//! step more than twice the previous one (`a > −1/2`) drops the value at
+//! `t_{n−1}` and keeps its derivative: a quartic, interpolation error
+//! `O(h⁵)`, whose weights stay at most 0.18 (derivative at `t_{n−1}`), 1, 1
+//! (values) and 0.41, 0.12 (derivatives) for every `a` in `(−1/2, 0)`.
 //!
 //! In the nested form of [`crate::Dense`] with six coefficients,
 //! `y = c1 + s (c2 + s1 (c3 + s (c4 + s1 (c5 + s c6))))` with `s1 = 1 − s`,
 //! the first four terms are the cubic Hermite interpolant of the values and
 //! derivatives at `s = 0` and `s = 1`, and the last two,
 //! `s² s1² (c5 + c6 s)`, vanish there with their derivatives: `c5` and `c6`
-//! take the value and the derivative at `s = a = −h_{n−1}/h_n`.
+//! take the value and the derivative at `s = a` (the quartic: `c6 = 0`
+//! and `c5` from the derivative alone).
 
 /// Coefficient vectors of the quintic in the nested form.
 pub(super) const NCOEF: usize = 6;
 
-/// The largest `h Σ_k |J_jk| sc_k / sc_j` at which component `j` takes the
-/// quintic: a derivative error of `Σ_k |J_jk| sc_k` moves the interpolant
-/// by at most about a tenth of `h` times it (the derivative weights of the
-/// quintic on `[0, 1]`), so up to this the extension's own error stays near
-/// `sc_j`. Measured on `visc` in its adapted form (`k = 1e4 … 1e8`) and on
-/// Van der Pol (`ε = 1e-6`): the non-stiff rows lie below 1, the stiff ones
-/// at `h k ≥ 1e2`.
+/// The largest `h_max Σ_k |J_jk| sc_k / sc_j` at which component `j` takes
+/// the quintic. Were every value off by its full scale `sc_k`, the
+/// derivatives would be off by up to `Σ_k |J_jk| sc_k`, which the
+/// derivative weights (together at most 0.71 for `a <= −1/2`) turn into at
+/// most `7 sc_j` at this bound. Chosen by measurement: on `visc` in its
+/// adapted form (`k = 1e4 … 1e8`) a bound of 1 sent a third of the smooth
+/// rows' samples back to the collocation polynomial and kept a third of the
+/// gain, 10 kept all of it; the stiff rows (`h k >= 1e2`) and Van der Pol's
+/// at `ε = 1e-6` lie far above either.
 pub(super) const STIFF_ROW: f64 = 10.0;
+
+/// The smallest `h_{n−1}/h_n` at which the quintic is taken; below it the
+/// quartic (see the module documentation).
+pub(super) const MIN_STEP_RATIO: f64 = 0.5;
 
 /// Coefficients 5 and 6 of the nested form: with `c1 … c4` the cubic
 /// Hermite interpolant on `[0, 1]`, the quintic that also takes the value
@@ -56,6 +74,15 @@ pub(super) fn outer(c: [f64; 4], a: f64, ya: f64, da: f64) -> (f64, f64) {
     (l - c6 * a, c6)
 }
 
+/// Coefficient 5 of the nested form (6 is zero): with `c1 … c4` the cubic
+/// Hermite interpolant on `[0, 1]`, the quartic that also takes the
+/// derivative `da` (per unit of `s`) at `s = a < 0`.
+pub(super) fn outer_slope(c: [f64; 4], a: f64, da: f64) -> f64 {
+    let [_, c2, c3, c4] = c;
+    let dh = c2 + c3 * (1.0 - 2.0 * a) + c4 * a * (2.0 - 3.0 * a);
+    (da - dh) / (2.0 * a * (1.0 - a) * (1.0 - 2.0 * a))
+}
+
 /// The cubic Hermite interpolant on `[0, 1]` in nested form: values `y0`,
 /// `y1`, derivatives (per unit of `s`) `d0`, `d1`.
 pub(super) fn cubic(y0: f64, y1: f64, d0: f64, d1: f64) -> [f64; 4] {
@@ -73,11 +100,9 @@ pub(super) struct Hermite {
     yp_prev: Vec<f64>,
     /// The step polynomial: six coefficient vectors.
     pub(super) coef: Vec<f64>,
-    /// `(row, column)` of `J`'s stored values when the system gives it sparse.
-    entries: Option<Vec<(usize, usize)>>,
     /// `Σ_k |J_jk| sc_k` per row.
     row: Vec<f64>,
-    /// Components that took the quintic, over the run (for tests and reports).
+    /// Components that took the quintic or the quartic, over the run (for tests).
     pub(super) quintic: usize,
 }
 
@@ -93,20 +118,19 @@ pub(super) struct Step<'a> {
     pub yp_end: &'a [f64],
     /// The collocation polynomial, four coefficient vectors.
     pub collocation: &'a [f64],
-    /// `J = ∂F/∂y` (row-major, or at `entries`), `None` if not evaluated.
+    /// `J = ∂F/∂y = −∂f/∂y`, row-major; `None` if not evaluated.
     pub jy: Option<&'a [f64]>,
     /// Error scale at the step start.
     pub sc: &'a [f64],
 }
 
 impl Hermite {
-    pub(super) fn new(n: usize, entries: Option<Vec<(usize, usize)>>) -> Self {
+    pub(super) fn new(n: usize) -> Self {
         Hermite {
             prev: None,
             y_prev: vec![0.0; n],
             yp_prev: vec![0.0; n],
             coef: vec![0.0; 6 * n],
-            entries,
             row: vec![0.0; n],
             quintic: 0,
         }
@@ -124,22 +148,13 @@ impl Hermite {
         let (head, tail) = self.coef.split_at_mut(4 * n);
         head.copy_from_slice(s.collocation);
         tail.fill(0.0);
-        if let (Some(t_prev), Some(jy)) = (self.prev, s.jy) {
-            let h_prev = s.t - t_prev;
+        let h_prev = self.prev.map(|t_prev| s.t - t_prev);
+        if let (Some(h_prev), Some(jy)) = (h_prev, s.jy) {
+            let quintic = h_prev >= MIN_STEP_RATIO * s.h;
             let h_max = s.h.max(h_prev);
-            self.row.fill(0.0);
-            match &self.entries {
-                None => {
-                    for (j, r) in self.row.iter_mut().enumerate() {
-                        let line = &jy[j * n..(j + 1) * n];
-                        *r = line.iter().zip(s.sc).map(|(v, sc)| v.abs() * sc).sum();
-                    }
-                }
-                Some(entries) => {
-                    for (&(j, k), v) in entries.iter().zip(jy) {
-                        self.row[j] += v.abs() * s.sc[k];
-                    }
-                }
+            for (j, r) in self.row.iter_mut().enumerate() {
+                let line = &jy[j * n..(j + 1) * n];
+                *r = line.iter().zip(s.sc).map(|(v, sc)| v.abs() * sc).sum();
             }
             let a = -h_prev / s.h;
             for j in 0..n {
@@ -149,7 +164,11 @@ impl Hermite {
                     continue;
                 }
                 let c = cubic(s.y[j], s.y[j] + s.z3[j], s.h * s.yp[j], s.h * s.yp_end[j]);
-                let (c5, c6) = outer(c, a, self.y_prev[j], s.h * self.yp_prev[j]);
+                let (c5, c6) = if quintic {
+                    outer(c, a, self.y_prev[j], s.h * self.yp_prev[j])
+                } else {
+                    (outer_slope(c, a, s.h * self.yp_prev[j]), 0.0)
+                };
                 if !(c5.is_finite() && c6.is_finite()) {
                     continue;
                 }
@@ -201,11 +220,28 @@ mod tests {
         }
     }
 
+    /// The quartic reproduces every quartic from its slope at `a` and its
+    /// values and slopes at 0 and 1.
+    #[test]
+    fn quartic_is_reproduced() {
+        let p = |s: f64| 0.3 - 1.1 * s + 0.7 * s * s + 2.0 * s.powi(3) - 1.3 * s.powi(4);
+        let dp = |s: f64| -1.1 + 1.4 * s + 6.0 * s * s - 5.2 * s.powi(3);
+        for a in [-0.49, -0.125, -0.01] {
+            let c4 = cubic(p(0.0), p(1.0), dp(0.0), dp(1.0));
+            let c5 = outer_slope(c4, a, dp(a));
+            let c = [c4[0], c4[1], c4[2], c4[3], c5, 0.0];
+            for k in 0..=20 {
+                let s = a + (1.0 - a) * k as f64 / 20.0;
+                assert!((nested(&c, s) - p(s)).abs() <= 1e-12, "a = {a}, s = {s}");
+            }
+        }
+    }
+
     /// A stiff row keeps the collocation polynomial; the first step too.
     #[test]
     fn stiff_rows_and_first_step_keep_collocation() {
         let n = 2;
-        let mut e = Hermite::new(n, None);
+        let mut e = Hermite::new(n);
         let collocation: Vec<f64> = (0..4 * n).map(|k| k as f64 * 0.1).collect();
         // J = [[0, 1], [−1e6, −1e6]], sc = 1e-6: row 0 is 1e-6, row 1 2e0.
         let jy = [0.0, 1.0, -1e6, -1e6];
@@ -235,14 +271,11 @@ mod tests {
         for k in 0..4 {
             assert_eq!(e.coef[k * n], c[k]);
         }
-        // Sparse storage gives the same choice.
-        let mut sparse = Hermite::new(n, Some(vec![(0, 1), (1, 0), (1, 1)]));
-        let values = [1.0, -1e6, -1e6];
-        for t in [0.0, 0.1] {
-            let mut st = step(t);
-            st.jy = Some(&values);
-            sparse.step(&st);
-        }
-        assert_eq!(sparse.coef, e.coef);
+        // A step of 0.1 after one of 0.01 (more than twofold growth): the
+        // quartic, which has no c6, in the smooth row.
+        e.step(&step(0.11));
+        assert_eq!(e.quintic, 2);
+        assert_eq!(e.coef[5 * n], 0.0);
+        assert_eq!(e.coef[4 * n], outer_slope(c, -(0.11 - 0.1) / 0.1, 0.05));
     }
 }

@@ -186,9 +186,10 @@
 //! guard location and the Newton starting values. With
 //! `radau5.dense_output = hermite` ([`crate::RadauDense::Hermite`], ODEs
 //! only) the first three uses take instead, component by component, the
-//! quintic through `(y, y')` at `t_{n−1}`, `t_n`, `t_{n+1}` where the
-//! component's row of the Jacobian is not stiff over the step (`hermite.rs`
-//! says how that is decided), six coefficient vectors per step; the Newton
+//! quintic through `(y, y')` at `t_{n−1}`, `t_n`, `t_{n+1}` (a quartic
+//! without the value at `t_{n−1}` after a more than twofold step growth)
+//! where the component's row of the Jacobian is not stiff over the step
+//! (`hermite.rs` says how that is decided), six coefficient vectors per step; the Newton
 //! starting values still extrapolate the collocation polynomial, so the
 //! steps, and every counter, are those of the default.
 //!
@@ -492,8 +493,7 @@ fn driver<P: Problem>(
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
     // Sparse iteration matrices for a system with sparse Jacobians.
-    let sparsity = p.sparsity();
-    let sparse = match &sparsity {
+    let sparse = match p.sparsity() {
         None => None,
         Some(_) if opts.radau5.newton == RadauNewton::Full => {
             let msg = "full Newton (`newton = full`) forms dense stage Jacobians: it is not \
@@ -501,14 +501,14 @@ fn driver<P: Problem>(
                 .to_string();
             return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
         }
-        Some(sp) => match SparseIteration::new(n, sp) {
+        Some(sp) => match SparseIteration::new(n, &sp) {
             Ok(it) => Some((it, sp.jy.len(), sp.jyp.len())),
             Err(msg) => return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0)),
         },
     };
     let mut core = RadauCore::new(index, opts, P::IDENTITY_JP, sparse);
     if hermite {
-        core.hermite = Some(Box::new(Hermite::new(n, sparsity.map(|sp| sp.jy))));
+        core.hermite = Some(Box::new(Hermite::new(n)));
     }
     if let Some(yp0) = yp0 {
         if let Err(e) = core.consistent(&mut p, t0, y0, yp0, opts) {

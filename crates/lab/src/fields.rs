@@ -8,7 +8,7 @@
 //! (`experiments/x.toml:31: \`formulation.rtol\`: …`). docs/cli.md lists
 //! the ranges.
 
-use nonholo_core::integrate::{Method, RadauNewton};
+use nonholo_core::integrate::{Method, RadauDense, RadauNewton};
 
 /// Smallest relative tolerance: below ~100 ε double precision cannot
 /// deliver what is asked, and a result file would claim it did.
@@ -161,6 +161,14 @@ pub fn method(name: &str) -> Result<Method, String> {
 pub fn radau_newton(name: &str) -> Result<RadauNewton, String> {
     RadauNewton::from_name(name).ok_or_else(|| {
         format!("unknown Radau Newton iteration `{name}`; valid: auto, simplified, full")
+    })
+}
+
+/// The continuous extension of Radau IIA called `name` (`--radau-dense`,
+/// `radau_dense`).
+pub fn radau_dense(name: &str) -> Result<RadauDense, String> {
+    RadauDense::from_name(name).ok_or_else(|| {
+        format!("unknown Radau continuous extension `{name}`; valid: collocation, hermite")
     })
 }
 

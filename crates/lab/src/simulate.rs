@@ -53,6 +53,12 @@ pub struct SimulateArgs {
     /// Newton iteration of radau5: auto (the formulation's choice), simplified, full.
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub radau_newton: String,
+    /// Continuous extension of radau5 (output samples, guard location):
+    /// collocation (RADAU5's polynomial), hermite (a quintic through the last
+    /// three step points where the Jacobian's row is not stiff; ODE
+    /// formulations only).
+    #[arg(long, default_value = "collocation", allow_hyphen_values = true)]
+    pub radau_dense: String,
     /// Budget on integrator steps (accepted plus rejected): where the run
     /// stops on it is the same on every machine.
     #[arg(long, default_value_t = 10_000_000, allow_hyphen_values = true)]
@@ -180,6 +186,7 @@ pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
         ..Options::default()
     };
     options.radau5.newton = flag("--radau-newton", fields::radau_newton(&args.radau_newton))?;
+    options.radau5.dense_output = flag("--radau-dense", fields::radau_dense(&args.radau_dense))?;
     Ok((method, options))
 }
 

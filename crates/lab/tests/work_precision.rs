@@ -287,6 +287,14 @@ fn bad_work_precision_files_name_key_and_line() {
         ),
         &["`formulation.radau_newton`", "auto, simplified, full"],
     );
+    refused(
+        "unknown-dense",
+        &good.replace(
+            "integrator = \"radau5\"",
+            "integrator = \"radau5\"\nradau_dense = \"cubic\"",
+        ),
+        &["`formulation.radau_dense`", "collocation, hermite"],
+    );
 }
 
 #[test]

@@ -22,6 +22,7 @@
 //! the key. Every [`Settings`], [`RefSpec`] field is destructured by name:
 //! a new setting does not compile until the key holds it.
 
+use nonholo_core::integrate::RadauDense;
 use serde::{Serialize, Serializer};
 use sha2::{Digest, Sha256};
 
@@ -90,10 +91,18 @@ struct SettingsKey<'a> {
     max_wall_time: Option<Bits>,
     project_init: bool,
     radau_newton: &'a str,
+    /// Left out when `collocation`, so that keys made before the setting
+    /// existed still name the same runs.
+    #[serde(skip_serializing_if = "is_collocation")]
+    radau_dense: &'a str,
     /// Left out when off, so that keys made before the setting existed
     /// still name the same runs.
     #[serde(skip_serializing_if = "is_false")]
     stiff_stop: bool,
+}
+
+fn is_collocation(s: &&str) -> bool {
+    *s == RadauDense::Collocation.name()
 }
 
 fn is_false(b: &bool) -> bool {
@@ -115,6 +124,7 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             max_wall_time,
             project_init,
             radau_newton,
+            radau_dense,
             stiff_stop,
         } = s;
         SettingsKey {
@@ -126,6 +136,7 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             max_wall_time: max_wall_time.map(Bits),
             project_init: *project_init,
             radau_newton,
+            radau_dense,
             stiff_stop: *stiff_stop,
         }
     }

@@ -24,6 +24,8 @@
 //! formulation = "chetaev"            # or vakonomic, embedding, closed-form
 //! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init,
 //!                                    # radau_newton = "auto" | "simplified" | "full",
+//!                                    # radau_dense = "collocation" | "hermite" (radau5's continuous
+//!                                    #   extension; hermite: ODE formulations only),
 //!                                    # stiff_stop = true (end where the stiffness test keeps firing)
 //! options = { stab = "none" }
 //! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
@@ -73,11 +75,12 @@
 //! (every formulation that has option `o`), `case` (a name for the point,
 //! e.g. in a zip sweep over a catalogue of cases), and
 //! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
-//! `<label>.rtol|atol|step|integrator|radau_newton` (one formulation).
+//! `<label>.rtol|atol|step|integrator|radau_newton|radau_dense` (one formulation).
 
 use std::path::{Path, PathBuf};
 
 use indexmap::IndexMap;
+use nonholo_core::integrate::RadauDense;
 use serde::Deserialize;
 use toml::{Spanned, Value};
 
@@ -313,6 +316,7 @@ struct FormulationFile {
     max_steps: Option<Spanned<u64>>,
     max_wall_time: Option<Spanned<f64>>,
     radau_newton: Option<Spanned<String>>,
+    radau_dense: Option<Spanned<String>>,
     #[serde(default)]
     project_init: bool,
     #[serde(default)]
@@ -412,6 +416,8 @@ pub struct Settings {
     pub project_init: bool,
     /// Newton iteration of radau5: `auto`, `simplified`, `full`.
     pub radau_newton: String,
+    /// Continuous extension of radau5: `collocation`, `hermite`.
+    pub radau_dense: String,
     /// Stop an explicit run where its stiffness test keeps firing.
     pub stiff_stop: bool,
 }
@@ -742,7 +748,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     let bad = || {
         format!(
             "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, case, or <label>.param.<p>, \
-             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton \
+             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton|radau_dense \
              (labels: {})",
             labels.join(", ")
         )
@@ -759,7 +765,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
             _ => Err(bad()),
         },
         [label, setting] if labels.iter().any(|l| l == label) => match *setting {
-            "rtol" | "atol" | "step" | "integrator" | "radau_newton" => {
+            "rtol" | "atol" | "step" | "integrator" | "radau_newton" | "radau_dense" => {
                 Ok(Target::FormSetting(label.to_string(), setting.to_string()))
             }
             _ => Err(bad()),
@@ -826,6 +832,10 @@ pub fn apply(
                         "radau_newton" => {
                             fields::radau_newton(value).map_err(|m| format!("`{field}`: {m}"))?;
                             f.settings.radau_newton = value.to_string();
+                        }
+                        "radau_dense" => {
+                            fields::radau_dense(value).map_err(|m| format!("`{field}`: {m}"))?;
+                            f.settings.radau_dense = value.to_string();
                         }
                         _ => {
                             fields::method(value).map_err(|m| format!("`{field}`: {m}"))?;
@@ -1006,6 +1016,14 @@ impl Experiment {
                         Some(v) => {
                             fields::radau_newton(v.get_ref())
                                 .map_err(|m| ctx.err(v.span(), "formulation.radau_newton", m))?;
+                            v.get_ref().clone()
+                        }
+                    },
+                    radau_dense: match &f.radau_dense {
+                        None => RadauDense::default().name().into(),
+                        Some(v) => {
+                            fields::radau_dense(v.get_ref())
+                                .map_err(|m| ctx.err(v.span(), "formulation.radau_dense", m))?;
                             v.get_ref().clone()
                         }
                     },

@@ -175,6 +175,8 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                         radau5: Radau5Options {
                             newton: fields::radau_newton(&s.radau_newton)
                                 .map_err(|m| format!("{}: radau_newton: {m}", f.label))?,
+                            dense_output: fields::radau_dense(&s.radau_dense)
+                                .map_err(|m| format!("{}: radau_dense: {m}", f.label))?,
                             ..Radau5Options::default()
                         },
                         output: grid.clone(),

@@ -237,11 +237,15 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
     )
 }
 
-/// `label: formulation · integrator` (with the Newton iteration if chosen).
+/// `label: formulation · integrator` (with the Newton iteration and the
+/// continuous extension if chosen).
 pub(super) fn line_name(f: &FormulationSpec) -> String {
     let mut s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
     if f.settings.integrator == "radau5" && f.settings.radau_newton != "auto" {
         s.push_str(&format!(" ({} Newton)", f.settings.radau_newton));
+    }
+    if f.settings.integrator == "radau5" && f.settings.radau_dense != "collocation" {
+        s.push_str(&format!(" ({} dense output)", f.settings.radau_dense));
     }
     s
 }

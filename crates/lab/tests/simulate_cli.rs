@@ -905,3 +905,85 @@ fn realisations_run_from_the_command_line() {
         &["not applicable", "no nonholonomic constraints"],
     );
 }
+
+/// `simulate` on `visc` at k = 1e6 by radau5 with `--radau-dense NAME`.
+fn visc_radau(dense: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "visc",
+        "--option",
+        "k=1e6",
+        "--integrator",
+        "radau5",
+        "--t-end",
+        "2",
+        "--rtol",
+        "1e-8",
+        "--radau-dense",
+        dense,
+    ];
+    args.extend(extra);
+    nonholo(&args)
+}
+
+/// `--radau-dense`: the record names the extension only when it is not
+/// the default, and both runs take the same steps (the extension changes
+/// no step).
+#[test]
+fn radau_dense_is_recorded_and_changes_no_step() {
+    let dir = tmpdir("radau-dense");
+    let runs: Vec<serde_json::Value> = ["collocation", "hermite"]
+        .iter()
+        .map(|dense| {
+            let out = dir.join(format!("{dense}.json"));
+            let o = visc_radau(dense, &["--out", out.to_str().unwrap()]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
+        })
+        .collect();
+    assert!(
+        runs[0]["integrator"]["radau5"]
+            .get("dense_output")
+            .is_none()
+    );
+    assert_eq!(runs[1]["integrator"]["radau5"]["dense_output"], "hermite");
+    for counter in ["steps", "rhs_evals", "jacobian_evals"] {
+        assert_eq!(
+            runs[0]["stats"][counter], runs[1]["stats"][counter],
+            "{counter}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An unknown `--radau-dense` is refused naming the flag; A's implicit form
+/// (a DAE under radau5) refuses the Hermite extension with the reason.
+#[test]
+fn radau_dense_refuses_bad_names_and_implicit_forms() {
+    let o = visc_radau("cubic", &[]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("--radau-dense") && e.contains("collocation, hermite"),
+        "{e}"
+    );
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "sleigh-incline",
+        "--formulation",
+        "embedding",
+        "--integrator",
+        "radau5",
+        "--radau-dense",
+        "hermite",
+        "--t-end",
+        "0.5",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o) + &String::from_utf8_lossy(&o.stdout);
+    assert!(e.contains("dense_output = hermite"), "{e}");
+}

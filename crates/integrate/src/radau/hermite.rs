@@ -103,7 +103,7 @@ pub(super) struct Hermite {
     /// `Σ_k |J_jk| sc_k` per row.
     row: Vec<f64>,
     /// Components that took the quintic or the quartic, over the run (for tests).
-    pub(super) quintic: usize,
+    pub(super) taken: usize,
 }
 
 /// One accepted step as the extension sees it.
@@ -132,7 +132,7 @@ impl Hermite {
             yp_prev: vec![0.0; n],
             coef: vec![0.0; 6 * n],
             row: vec![0.0; n],
-            quintic: 0,
+            taken: 0,
         }
     }
 
@@ -175,7 +175,7 @@ impl Hermite {
                 for (k, ck) in c.into_iter().chain([c5, c6]).enumerate() {
                     self.coef[k * n + j] = ck;
                 }
-                self.quintic += 1;
+                self.taken += 1;
             }
         }
         self.prev = Some(s.t);
@@ -260,7 +260,7 @@ mod tests {
         assert_eq!(&e.coef[..4 * n], &collocation[..]);
         assert!(e.coef[4 * n..].iter().all(|&c| c == 0.0));
         e.step(&step(0.1));
-        assert_eq!(e.quintic, 1);
+        assert_eq!(e.taken, 1);
         // Component 1 (stiff row): the collocation polynomial, padded.
         for k in 0..4 {
             assert_eq!(e.coef[k * n + 1], collocation[k * n + 1]);
@@ -274,7 +274,7 @@ mod tests {
         // A step of 0.1 after one of 0.01 (more than twofold growth): the
         // quartic, which has no c6, in the smooth row.
         e.step(&step(0.11));
-        assert_eq!(e.quintic, 2);
+        assert_eq!(e.taken, 2);
         assert_eq!(e.coef[5 * n], 0.0);
         assert_eq!(e.coef[4 * n], outer_slope(c, -(0.11 - 0.1) / 0.1, 0.05));
     }

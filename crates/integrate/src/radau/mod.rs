@@ -471,13 +471,7 @@ fn driver<P: Problem>(
 ) -> Result<Driver<P, RadauCore>, Failure> {
     let n = p.dim();
     let hermite = opts.radau5.dense_output == RadauDense::Hermite;
-    let rec = Record::new(
-        Method::Radau5,
-        n,
-        if hermite { hermite::NCOEF } else { NCOEF },
-        opts,
-        t_end,
-    );
+    let rec = Record::new(Method::Radau5, n, ncoef(hermite), opts, t_end);
     let mut index = vec![1u8; n];
     p.variable_index(&mut index);
     if let Err(msg) = validate(Method::Radau5.needs_fixed_step(), n, t0, y0, t_end, opts)
@@ -507,9 +501,6 @@ fn driver<P: Problem>(
         },
     };
     let mut core = RadauCore::new(index, opts, P::IDENTITY_JP, sparse);
-    if hermite {
-        core.hermite = Some(Box::new(Hermite::new(n)));
-    }
     if let Some(yp0) = yp0 {
         if let Err(e) = core.consistent(&mut p, t0, y0, yp0, opts) {
             let evals = p.evals();
@@ -517,6 +508,12 @@ fn driver<P: Problem>(
         }
     }
     Ok(Driver::new(p, core, rec, t0, y0, t_end, opts))
+}
+
+/// Coefficient vectors per step of the dense output: the collocation
+/// polynomial's, or the Hermite extension's.
+fn ncoef(hermite: bool) -> usize {
+    if hermite { hermite::NCOEF } else { NCOEF }
 }
 
 /// Step-size controller of RADAU5: `SAFE`, `FACL`, `FACR`.
@@ -568,8 +565,6 @@ struct RadauCore {
     h_new: f64,
     /// The Hermite continuous extension ([`RadauDense::Hermite`]).
     hermite: Option<Box<Hermite>>,
-    /// `J` has been evaluated in this run (the Hermite extension reads its rows).
-    jy_valid: bool,
 }
 
 impl RadauCore {
@@ -616,8 +611,8 @@ impl RadauCore {
             hold: f64::NAN,
             erracc: 1e-2,
             h_new: f64::NAN,
-            hermite: None,
-            jy_valid: false,
+            hermite: (opts.radau5.dense_output == RadauDense::Hermite)
+                .then(|| Box::new(Hermite::new(n))),
         }
     }
 
@@ -688,7 +683,6 @@ impl RadauCore {
                 return Err(Attempt::Failed(e));
             }
             self.caljac = true;
-            self.jy_valid = true;
             self.h_lu = f64::NAN;
         }
         // NaN (no factorisation) compares false: factor.
@@ -829,11 +823,7 @@ impl RadauCore {
 
 impl<P: Problem> Core<P> for RadauCore {
     fn ncoef(&self) -> usize {
-        if self.hermite.is_some() {
-            hermite::NCOEF
-        } else {
-            NCOEF
-        }
+        ncoef(self.hermite.is_some())
     }
     const LANDING: Landing = Landing {
         stretch: 1.0001,
@@ -900,7 +890,7 @@ impl<P: Problem> Core<P> for RadauCore {
 
     /// `y_{n+1} = y_n + Z_3` and, for implicit systems, `y'_{n+1} = Y'_3`;
     /// the collocation polynomial is the step polynomial.
-    fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, _stats: &mut Stats) -> bool {
+    fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, stats: &mut Stats) -> bool {
         self.nsing = 0;
         self.w.polynomial(y);
         if let Some(ext) = self.hermite.as_mut() {
@@ -912,7 +902,8 @@ impl<P: Problem> Core<P> for RadauCore {
                 z3: &self.w.z[2],
                 yp_end: &self.w.yp_new,
                 collocation: &self.w.coef,
-                jy: self.jy_valid.then_some(&self.w.jy[..]),
+                // A failed evaluation of J ends the run, so a count is a valid J.
+                jy: (stats.jacobian_evals > 0).then_some(&self.w.jy[..]),
                 sc: &self.sk,
             });
         }

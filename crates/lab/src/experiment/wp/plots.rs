@@ -148,7 +148,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
             let plot = LinePlot {
                 title: title(what),
                 x_label: x_label.into(),
-                y_label: "largest error in q [m or rad, as each]".into(),
+                y_label: "largest error in q [m, rad]".into(),
                 log_x: true,
                 log_y: true,
                 equal_aspect: false,

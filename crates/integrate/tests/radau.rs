@@ -674,6 +674,35 @@ fn hermite_extension_keeps_the_collocation_polynomial_on_stiff_rows() {
 }
 
 #[test]
+fn hermite_extension_without_a_step_jacobian_keeps_the_collocation_polynomial() {
+    // Full Newton in fixed steps evaluates only its stage Jacobians, never
+    // the step-start J whose rows tell stiff from smooth, so every row keeps
+    // the collocation polynomial: the dense output is the collocation run's
+    // bit for bit, the stiff row (λ = 1e6) included, at 1001 points of
+    // [0, 10] (h = 0.05; the first step, which has no predecessor, aside).
+    let y0 = [1.0, 0.0, 0.5];
+    let opts = Options {
+        fixed_step: Some(0.05),
+        ..mode(&tol_opts(1e-8), RadauNewton::Full)
+    };
+    let run = |opts: &Options| {
+        let mut sys = OscillatorAndRelaxation { lambda: 1e6 };
+        solve(Method::Radau5, &mut sys, 0.0, &y0, 10.0, opts).unwrap()
+    };
+    let (c, h) = (run(&opts), run(&hermite(opts.clone())));
+    assert!(h.stats.jacobian_evals > 0, "stage Jacobians are counted");
+    let (dc, dh) = (c.dense.as_ref().unwrap(), h.dense.as_ref().unwrap());
+    let (mut oc, mut oh) = ([0.0; 3], [0.0; 3]);
+    for i in 0..=1000 {
+        let t = 10.0 * i as f64 / 1000.0;
+        assert!(dc.eval(t, &mut oc) && dh.eval(t, &mut oh));
+        for k in 0..3 {
+            assert_eq!(oc[k].to_bits(), oh[k].to_bits(), "t = {t}, y{k}");
+        }
+    }
+}
+
+#[test]
 fn hermite_extension_is_refused_for_implicit_systems() {
     let mut p = Pendulum {
         g: G,

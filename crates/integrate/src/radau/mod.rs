@@ -565,6 +565,10 @@ struct RadauCore {
     h_new: f64,
     /// The Hermite continuous extension ([`RadauDense::Hermite`]).
     hermite: Option<Box<Hermite>>,
+    /// `w.jy` holds a Jacobian evaluated in this run (the Hermite extension
+    /// reads its rows). Not the Jacobian count: full Newton with a fixed
+    /// step evaluates its stage Jacobians elsewhere and never writes `w.jy`.
+    jy_valid: bool,
 }
 
 impl RadauCore {
@@ -613,6 +617,7 @@ impl RadauCore {
             h_new: f64::NAN,
             hermite: (opts.radau5.dense_output == RadauDense::Hermite)
                 .then(|| Box::new(Hermite::new(n))),
+            jy_valid: false,
         }
     }
 
@@ -683,6 +688,7 @@ impl RadauCore {
                 return Err(Attempt::Failed(e));
             }
             self.caljac = true;
+            self.jy_valid = true;
             self.h_lu = f64::NAN;
         }
         // NaN (no factorisation) compares false: factor.
@@ -890,7 +896,7 @@ impl<P: Problem> Core<P> for RadauCore {
 
     /// `y_{n+1} = y_n + Z_3` and, for implicit systems, `y'_{n+1} = Y'_3`;
     /// the collocation polynomial is the step polynomial.
-    fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, stats: &mut Stats) -> bool {
+    fn accept(&mut self, tr: Trial, y: &mut Vec<f64>, _stats: &mut Stats) -> bool {
         self.nsing = 0;
         self.w.polynomial(y);
         if let Some(ext) = self.hermite.as_mut() {
@@ -902,8 +908,7 @@ impl<P: Problem> Core<P> for RadauCore {
                 z3: &self.w.z[2],
                 yp_end: &self.w.yp_new,
                 collocation: &self.w.coef,
-                // A failed evaluation of J ends the run, so a count is a valid J.
-                jy: (stats.jacobian_evals > 0).then_some(&self.w.jy[..]),
+                jy: self.jy_valid.then_some(&self.w.jy[..]),
                 sc: &self.sk,
             });
         }

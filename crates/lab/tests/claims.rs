@@ -162,7 +162,7 @@ fn realisation_rates_as_figures_md_states() {
 }
 
 /// figures.md, extreme-horizon: B's error grows quadratically without
-/// stabilisation (1.3e-3 m at 1e4 s), 1.7e-6 m with projection, 2.6e-9 m
+/// stabilisation (1.3e-3 m at 1e4 s), 1.7e-6 m with projection, 2.5e-9 m
 /// with Baumgarte; C and mass stop on their step budget at t ≈ 393–394 s,
 /// 1.05 km from B; visc's violation stays below 6.7e-4; A's implicit form
 /// stops at 0.843 s.
@@ -200,6 +200,11 @@ fn extreme_horizon_as_figures_md_states() {
 /// implicit form) 5.0–5.5 and slopes 0.66.
 #[test]
 fn wp_sleigh_orders_as_figures_md_states() {
+    figures_md_says(&[
+        "observed 4.0–4.3 (RK4), 5.3–6.1 (DOPRI5), 8.9–10.9 (DOP853) — with error slopes against the tolerance of 0.84–1.07",
+        "(`radau_dense = \"hermite\"`: 5.7–6.1, slopes 0.87–1.01)",
+        "Radau IIA shows 5.0–5.5 and slopes 0.66",
+    ]);
     let path =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../results/wp-sleigh/summary.json");
     let summary: serde_json::Value =
@@ -374,22 +379,31 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
         "80× C with Radau IIA",
     ]);
     let rows = table("wp-sleigh", "work_precision.csv");
-    for point in ["0", "1"] {
-        let t = |l: &str| time_at_error(&rows, point, l, 1e-8);
-        for (integrator, (c_lo, c_hi), (b_lo, b_hi)) in [
-            ("dopri5", (295.5, 647.5), (685.5, 1551.5)),
-            ("dop853", (295.5, 647.5), (685.5, 1551.5)),
-            ("rk4", (1101.5, 1819.5), (3455.5, 7351.5)),
-        ] {
-            let a = t(&format!("A-{integrator}")).unwrap();
-            let c = a / t(&format!("C-{integrator}")).unwrap();
-            let b = a / t(&format!("B-{integrator}")).unwrap();
-            assert!((c_lo..=c_hi).contains(&c), "{point} {integrator}: A/C {c}");
-            assert!((b_lo..=b_hi).contains(&b), "{point} {integrator}: A/B {b}");
+    // The ranges the prose quotes are the smallest and largest ratio over
+    // both points and the integrators named (endpoints attained, rounded).
+    let ranges = |integrators: &[&str]| {
+        let (mut c, mut b) = (Vec::new(), Vec::new());
+        for point in ["0", "1"] {
+            for i in integrators {
+                c.push(t_ratio(&rows, point, &format!("A-{i}"), &format!("C-{i}")));
+                b.push(t_ratio(&rows, point, &format!("A-{i}"), &format!("B-{i}")));
+            }
         }
-    }
+        let span = |v: &[f64]| {
+            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = v.iter().copied().fold(0.0, f64::max);
+            format!("{lo:.0}–{hi:.0}×")
+        };
+        format!("{} C and {} B", span(&c), span(&b))
+    };
+    let explicit = ranges(&["dopri5", "dop853"]);
+    let rk4 = ranges(&["rk4"]);
     let radau = t_ratio(&rows, "0", "A-radau5", "C-radau5");
-    assert!((79.5..80.5).contains(&radau), "{radau}");
+    figures_md_says(&[
+        &format!("{explicit} with DOPRI5 and DOP853"),
+        &format!("{rk4} with RK4"),
+        &format!("{radau:.0}× C with Radau IIA"),
+    ]);
     assert!(time_at_error(&rows, "1", "A-radau5", 1e-8).is_none());
 }
 
@@ -603,7 +617,7 @@ fn stiff_costs_as_figures_md_states() {
         "77–101 steps",
         "Radau IIA is 4 % off at N = 1e6 and 198× off at 1e7",
         "DOP853 14 % off at 1e7 and 52× off at 1e8",
-        "by up to 2.1× with the later changes to the KKT solve (7 %, 195×, 18 % and 25× in the results computed before them)",
+        "by up to 2.1× between the results committed before this regeneration and these (7 %, 195×, 18 % and 25× then;",
     ]);
     let visc = runs("stiff-visc");
     let steps = |k: &str, l: &str| {

@@ -3,6 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
+use nonholo_core::integrate::{Method, RadauDense, RadauNewton};
+
 use super::{MIN_COST_SPREAD, WpPoint, WpRow, slopes};
 use crate::experiment::spec::{Experiment, FormulationSpec, compact};
 use crate::plot::{Cell, CellStatus, LinePlot, Series, StatusGrid, line_plot, status_grid};
@@ -241,10 +243,11 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
 /// continuous extension if chosen).
 pub(super) fn line_name(f: &FormulationSpec) -> String {
     let mut s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
-    if f.settings.integrator == "radau5" && f.settings.radau_newton != "auto" {
+    let radau = f.settings.integrator == Method::Radau5.name();
+    if radau && f.settings.radau_newton != RadauNewton::Auto.name() {
         s.push_str(&format!(" ({} Newton)", f.settings.radau_newton));
     }
-    if f.settings.integrator == "radau5" && f.settings.radau_dense != "collocation" {
+    if radau && f.settings.radau_dense != RadauDense::Collocation.name() {
         s.push_str(&format!(" ({} dense output)", f.settings.radau_dense));
     }
     s

@@ -2,6 +2,7 @@
 //! result files.
 
 pub mod bvp;
+pub mod compare;
 pub mod experiment;
 pub mod fields;
 pub mod formulations;
@@ -39,6 +40,10 @@ pub enum CliError {
     /// The results directory is in use by another nonholo process. Exit 5.
     #[error("{0}")]
     Busy(String),
+    /// `compare`: the two results directories hold different results (the
+    /// report on stdout says where). Exit 6.
+    #[error("{0}")]
+    Differ(String),
 }
 
 impl CliError {
@@ -49,6 +54,7 @@ impl CliError {
             CliError::RunsFailed(_) => 3,
             CliError::Output(_) => 4,
             CliError::Busy(_) => 5,
+            CliError::Differ(_) => 6,
         }
     }
 }

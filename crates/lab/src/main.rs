@@ -1,5 +1,6 @@
 use clap::{Parser, Subcommand};
 use nonholo_lab::bvp::{self, BvpArgs};
+use nonholo_lab::compare::{self, CompareArgs};
 use nonholo_lab::experiment::cli::{
     self, ExperimentArgs, MergeArgs, PlotArgs, ReproduceArgs, WorkPrecisionArgs,
 };
@@ -12,8 +13,8 @@ use nonholo_lab::{CliError, listing, note};
 ///
 /// Exit status: 0 success; 1 a run failed; 2 refused input (nothing ran);
 /// 3 an experiment finished but some of its runs failed; 4 a result could
-/// not be written; 5 the results directory is in use by another nonholo
-/// (docs/cli.md).
+/// not be written; 5 the results directory is in use by another nonholo;
+/// 6 `compare` found different results (docs/cli.md).
 #[derive(Debug, Parser)]
 #[command(name = "nonholo", version, about, long_about)]
 struct Cli {
@@ -45,6 +46,8 @@ enum Command {
     Plot(PlotArgs),
     /// Run every experiment marked as a figure and rebuild docs/figures.md.
     Reproduce(ReproduceArgs),
+    /// Whether two results directories hold the same results: every table, cell by cell, wall times aside (exit 6 if not).
+    Compare(CompareArgs),
 }
 
 fn scenes(json: bool) -> Result<(), CliError> {
@@ -91,6 +94,7 @@ fn main() {
         Command::Merge(args) => cli::merge(args),
         Command::Plot(args) => cli::plot(args),
         Command::Reproduce(args) => cli::reproduce(args),
+        Command::Compare(args) => compare::command(args),
     };
     if let Err(e) = result {
         note!("error: {e}");

@@ -399,3 +399,63 @@ fn shards_merge_into_the_single_run() {
         assert_eq!(o.status.code(), Some(2), "--shard {bad}");
     }
 }
+
+/// `nonholo compare`: the same experiment run twice (other thread counts,
+/// so other wall times) holds the same results, exit 0; a number moved in
+/// one copy is reported with its table, row, column and both values, exit
+/// 6; a directory that does not exist is refused, exit 2.
+#[test]
+fn compare_finds_equal_runs_equal_and_names_a_moved_number() {
+    let (file, dir) = setup("cmp", "cmp", &disk_sweep("cmp", 4, 5.0));
+    let f = file.to_str().unwrap();
+    let other = dir.with_file_name("cmp-again");
+    let o = other.to_str().unwrap();
+    for (out, threads) in [(dir.to_str().unwrap(), "1"), (o, "2")] {
+        let run = nonholo(&[
+            "experiment",
+            f,
+            "--out",
+            out,
+            "--threads",
+            threads,
+            "--quiet",
+        ]);
+        assert!(run.status.success(), "{}", common::stderr(&run));
+    }
+    let d = dir.to_str().unwrap();
+    let same = nonholo(&["compare", d, o]);
+    let text = String::from_utf8_lossy(&same.stdout).into_owned();
+    assert_eq!(same.status.code(), Some(0), "{text}");
+    assert!(
+        text.starts_with("equal: 1 experiment(s), 2 table(s)"),
+        "{text}"
+    );
+
+    let runs = other.join("runs.csv");
+    let csv = std::fs::read_to_string(&runs).unwrap();
+    let mut lines: Vec<String> = csv.lines().map(str::to_string).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let col = header.iter().position(|h| *h == "div_xy_end").unwrap();
+    let mut cells: Vec<String> = lines[2].split(',').map(str::to_string).collect();
+    let before = cells[col].clone();
+    cells[col] = "0.125".into();
+    lines[2] = cells.join(",");
+    std::fs::write(&runs, lines.join("\n") + "\n").unwrap();
+    let moved = nonholo(&["compare", d, o]);
+    let text = String::from_utf8_lossy(&moved.stdout).into_owned();
+    assert_eq!(moved.status.code(), Some(6), "{text}");
+    assert!(
+        text.contains(&format!(
+            "runs.csv row 2 (point 0, label C), div_xy_end: {before} | 0.125"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.lines().last().unwrap().starts_with("different:"),
+        "{text}"
+    );
+
+    let missing = nonholo(&["compare", d, "/nonexistent/results"]);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(common::stderr(&missing).contains("not a directory"));
+}

@@ -13,8 +13,10 @@
 //! hold the numbers the figures and claims are drawn from.
 //!
 //! `A` and `B` are either two results directories (`results/`: their
-//! experiment directories with the same name are paired; one found in only
-//! one of them is listed, not compared) or two experiment directories.
+//! experiment directories with the same name are paired; an experiment's
+//! directory, one with a `manifest.json`, found in only one of them is a
+//! difference, and other directories with tables, such as the benchmarks'
+//! outputs, are listed, not compared) or two experiment directories.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -237,37 +239,89 @@ fn compare_experiment(
     Ok(())
 }
 
-/// Compares two results directories, or two experiment directories (a
-/// directory with tables at its top is one experiment).
-pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
-    for dir in [a, b] {
-        if !dir.is_dir() {
-            return Err(format!("{}: not a directory", dir.display()));
-        }
+/// What a directory given to `compare` is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    /// Tables at its top: one experiment's results.
+    Experiment,
+    /// Experiment directories below it: a results directory.
+    Results,
+}
+
+fn kind(dir: &Path) -> Result<Kind, String> {
+    if !dir.is_dir() {
+        return Err(format!("{}: not a directory", dir.display()));
     }
+    if !tables(dir)?.is_empty() {
+        Ok(Kind::Experiment)
+    } else if !experiments(dir)?.is_empty() {
+        Ok(Kind::Results)
+    } else {
+        Err(format!(
+            "{}: holds no results (neither tables nor experiment directories with tables)",
+            dir.display()
+        ))
+    }
+}
+
+/// Compares two results directories, or two experiment directories. An
+/// experiment found in only one results directory is a difference if it
+/// was written by an experiment (it has a `manifest.json`); other
+/// directories with tables (the benchmarks' outputs, which `reproduce`
+/// does not write) are listed, not compared.
+pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
+    let (ka, kb) = (kind(a)?, kind(b)?);
     if !(0.0..1.0).contains(&rtol) {
         return Err(format!("--rtol: {rtol} must be at least 0 and below 1"));
     }
     let mut report = Report::default();
-    if !tables(a)?.is_empty() || !tables(b)?.is_empty() {
-        compare_experiment("", a, b, rtol, &mut report)?;
-        report.experiments.push(a.display().to_string());
-        return Ok(report);
+    match (ka, kb) {
+        (Kind::Experiment, Kind::Experiment) => {
+            compare_experiment("", a, b, rtol, &mut report)?;
+            report.experiments.push(a.display().to_string());
+            return Ok(report);
+        }
+        (Kind::Results, Kind::Results) => {}
+        _ => {
+            let name = |k| match k {
+                Kind::Experiment => "an experiment directory (tables at its top)",
+                Kind::Results => "a results directory (experiment directories below it)",
+            };
+            return Err(format!(
+                "{} is {} and {} is {}: give two of the same kind",
+                a.display(),
+                name(ka),
+                b.display(),
+                name(kb)
+            ));
+        }
     }
     let (ea, eb) = (experiments(a)?, experiments(b)?);
-    if ea.is_empty() && eb.is_empty() {
-        return Err(format!(
-            "neither {} nor {} holds results (experiment directories with tables)",
-            a.display(),
-            b.display()
-        ));
-    }
     for name in ea.intersection(&eb) {
         compare_experiment(name, &a.join(name), &b.join(name), rtol, &mut report)?;
         report.experiments.push(name.clone());
     }
-    report.only_in_a = ea.difference(&eb).cloned().collect();
-    report.only_in_b = eb.difference(&ea).cloned().collect();
+    for (side, only, dir) in [
+        (&mut report.only_in_a, ea.difference(&eb), a),
+        (&mut report.only_in_b, eb.difference(&ea), b),
+    ] {
+        for name in only {
+            if dir.join(name).join("manifest.json").is_file() {
+                report
+                    .mismatches
+                    .push(format!("{name}: an experiment only in {}", dir.display()));
+            } else {
+                side.push(name.clone());
+            }
+        }
+    }
+    if report.experiments.is_empty() {
+        return Err(format!(
+            "{} and {} have no experiment in common: nothing to compare",
+            a.display(),
+            b.display()
+        ));
+    }
     Ok(report)
 }
 
@@ -280,7 +334,7 @@ pub fn render(report: &Report, a: &Path, b: &Path) -> String {
     for (side, names) in [(a, &report.only_in_a), (b, &report.only_in_b)] {
         if !names.is_empty() {
             out.push_str(&format!(
-                "only in {} (not compared): {}\n",
+                "only in {} (not written by an experiment, not compared): {}\n",
                 side.display(),
                 names.join(", ")
             ));
@@ -399,8 +453,11 @@ mod tests {
             "timing.csv",
             "point,label,wall_time_s\n0,B,2\n",
         );
-        // A benchmark's directory on one side only is listed, not compared.
+        // A benchmark's directory on one side only is listed, not compared;
+        // an experiment's (it has a manifest) would be a difference.
         write(&a.join("bench"), "scale.csv", "n,rhs_us\n1,0.4\n");
+        write(&a.join("x"), "manifest.json", "{}");
+        write(&b.join("x"), "manifest.json", "{}");
         let r = compare(&a, &b, 0.0).unwrap();
         assert!(r.equal(), "{r:?}");
         assert_eq!(r.experiments, ["x"]);
@@ -411,6 +468,15 @@ mod tests {
             text.contains("only in")
                 && text.contains("equal: 1 experiment(s), 1 table(s), 6 cells"),
             "{text}"
+        );
+        write(&a.join("y"), "runs.csv", RUNS);
+        write(&a.join("y"), "manifest.json", "{}");
+        let r = compare(&a, &b, 0.0).unwrap();
+        assert!(!r.equal());
+        assert_eq!(r.mismatches.len(), 1);
+        assert!(
+            r.mismatches[0].starts_with("y: an experiment only in"),
+            "{r:?}"
         );
         std::fs::remove_dir_all(root).unwrap();
     }
@@ -484,11 +550,21 @@ mod tests {
         let root = scratch("refuse");
         std::fs::create_dir_all(root.join("empty")).unwrap();
         let missing = root.join("missing");
-        let e = compare(&root.join("empty"), &missing, 0.0).unwrap_err();
+        let e = compare(&missing, &root.join("empty"), 0.0).unwrap_err();
         assert!(e.contains("not a directory"), "{e}");
         let e = compare(&root.join("empty"), &root.join("empty"), 0.0).unwrap_err();
-        assert!(e.contains("holds results"), "{e}");
+        assert!(e.contains("holds no results"), "{e}");
         write(&root.join("x"), "runs.csv", RUNS);
+        // A results directory against an experiment's: refused, not a pile
+        // of differences.
+        let e = compare(&root, &root.join("x"), 0.0).unwrap_err();
+        assert!(e.contains("give two of the same kind"), "{e}");
+        // Two results directories with no experiment in common.
+        write(&root.join("other").join("y"), "runs.csv", RUNS);
+        let only_x = root.join("only-x");
+        write(&only_x.join("x"), "runs.csv", RUNS);
+        let e = compare(&only_x, &root.join("other"), 0.0).unwrap_err();
+        assert!(e.contains("nothing to compare"), "{e}");
         for rtol in [-1.0, f64::NAN, 1.0] {
             let e = compare(&root.join("x"), &root.join("x"), rtol).unwrap_err();
             assert!(e.contains("--rtol"), "{e}");

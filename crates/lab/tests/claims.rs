@@ -516,11 +516,140 @@ fn wp_visc_as_figures_md_states() {
     )]);
 }
 
-/// `x` to two significant digits (wall times vary by tens of percent between
-/// runs; a third digit would be noise).
-fn sig2(x: f64) -> String {
-    let decimals = (1 - x.log10().floor() as i32).max(0) as usize;
+/// `x` to `n` significant digits, in positional notation (wall times to
+/// two: they vary by tens of percent between runs, a third digit would be
+/// noise).
+fn sig(x: f64, n: i32) -> String {
+    let decimals = (n - 1 - x.abs().log10().floor() as i32).max(0) as usize;
     format!("{x:.decimals$}")
+}
+
+fn sig2(x: f64) -> String {
+    sig(x, 2)
+}
+
+/// A wall time as the tables write it: two digits, in ms below 0.1 s.
+fn wall(seconds: f64) -> String {
+    if seconds < 0.1 {
+        format!("{} ms", sig2(seconds * 1e3))
+    } else {
+        format!("{} s", sig2(seconds))
+    }
+}
+
+/// performance.md §3, wp-mass at N = 1e6: the time (and DOP853's
+/// evaluations) for a largest error of 1e-8, compliance against direct
+/// form, from the committed timed run.
+#[test]
+fn wp_mass_costs_as_performance_md_states() {
+    let rows = timed_table("wp-mass", "work_precision.csv");
+    let at = |label: &str, column: &str| at_error(&rows, "2", label, 1e-8, column).unwrap();
+    assert!(
+        rows.iter()
+            .any(|r| r["point"] == "2" && r["option.N"] == "1000000.0")
+    );
+    performance_md_says(&[&format!(
+        "at N = 1e6 the compliance form reaches 1e-8 in {} (DOP853), the direct form in {} (DOP853, {:.0} evaluations) or {} (Radau IIA)",
+        wall(at("compliance-dop853", "wall_time_median_s")),
+        wall(at("direct-dop853", "wall_time_median_s")),
+        at("direct-dop853", "rhs_evals"),
+        wall(at("direct-radau5", "wall_time_median_s")),
+    )]);
+}
+
+/// performance.md §2 and §3: the tables of stiff-visc and stiff-mass,
+/// rebuilt from `runs.csv` (steps, distances, failures: deterministic) and
+/// the committed `timing.csv` (wall times).
+#[test]
+fn stiff_tables_as_performance_md_states() {
+    let decades = [
+        ("100.0", "1e2"),
+        ("1000.0", "1e3"),
+        ("10000.0", "1e4"),
+        ("100000.0", "1e5"),
+        ("1000000.0", "1e6"),
+        ("10000000.0", "1e7"),
+        ("100000000.0", "1e8"),
+    ];
+    let mut said = Vec::new();
+    for (name, option) in [("stiff-visc", "option.k"), ("stiff-mass", "option.N")] {
+        let runs = runs(name);
+        let timing = timed_table(name, "timing.csv");
+        let run = |k: &str, label: &str| {
+            runs.iter()
+                .find(|r| r[option] == k && r["label"] == label)
+                .unwrap_or_else(|| panic!("{name}: no {label} at {k}"))
+        };
+        let time = |r: &HashMap<String, String>| {
+            let t = timing
+                .iter()
+                .find(|t| t["point"] == r["point"] && t["label"] == r["label"])
+                .unwrap();
+            wall(num(t, "wall_time_s"))
+        };
+        for (i, (k, decade)) in decades.iter().enumerate() {
+            let steps = |r: &HashMap<String, String>| {
+                let word = if i == 0 { " steps" } else { "" };
+                format!("{}{word}, {}", r["steps"], time(r))
+            };
+            let row = if name == "stiff-visc" {
+                let (adapted, cartesian, dop) = (
+                    run(k, "visc-radau5"),
+                    run(k, "visc-cartesian-radau5"),
+                    run(k, "visc-dop853"),
+                );
+                assert_eq!(num(adapted, "newton_failures"), 0.0);
+                let d = num(adapted, "div_xy_end");
+                let cells = [adapted, cartesian, dop].map(|r| {
+                    if r["status"] != "completed" {
+                        assert!(r["error"].contains("step budget"), "{k}");
+                        return format!("step budget: stopped at t = {}", sig(num(r, "t_last"), 3));
+                    }
+                    match num(r, "newton_failures") {
+                        0.0 => steps(r),
+                        f => format!("{} ({f} Newton failures)", steps(r)),
+                    }
+                });
+                format!(
+                    "| {decade} | {} | {:.1e} | {} |",
+                    if d >= 0.1 {
+                        sig(d, 3)
+                    } else {
+                        format!("{d:.2e}")
+                    },
+                    num(adapted, "constraint_residual_max"),
+                    cells.join(" | ")
+                )
+            } else {
+                if !["1e2", "1e4", "1e6", "1e7", "1e8"].contains(decade) {
+                    continue;
+                }
+                let exact = num(run(k, "compliance-dop853"), "div_q_end");
+                let cells = [
+                    "compliance-dop853",
+                    "compliance-radau5",
+                    "direct-dop853",
+                    "direct-radau5",
+                ]
+                .map(|label| {
+                    let r = run(k, label);
+                    let mut cell = steps(r);
+                    let d = num(r, "div_q_end");
+                    if (d / exact - 1.0).abs() > 0.01 {
+                        cell.push_str(&format!("; **{d:.1e}**"));
+                    }
+                    if num(r, "newton_failures") > 0.0 {
+                        cell.push_str(&format!(", {} Newton failures", r["newton_failures"]));
+                    }
+                    cell
+                });
+                format!("| {decade} | {exact:.2e} | {} |", cells.join(" | "))
+            };
+            said.push(row);
+        }
+    }
+    let said: Vec<&str> = said.iter().map(String::as_str).collect();
+    performance_md_says(&said);
 }
 
 /// performance.md §2, wp-visc: the table of time (median, interpolated
@@ -833,59 +962,120 @@ fn extreme_sleigh_digits_as_figures_md_states() {
     assert!((a[0] - 5.8).abs() < 0.05, "{a:?}");
 }
 
-/// performance.md §4, extreme-sleigh: where A's two forms stop in each case
-/// (three decimals), A's explicit digits at `a = 50`, and the range of the
-/// errors of the completed runs against their references.
+/// performance.md §4, extreme-sleigh: its table row by row — B, C and mass
+/// complete every case, visc too (its reference unchecked where the check
+/// used up its step budget), where and why A's two forms stop, A's digits
+/// at `a = 50` — and the range of the errors of the completed runs against
+/// their references.
 #[test]
 fn extreme_sleigh_table_as_performance_md_states() {
     let rows = table("extreme-sleigh", "work_precision.csv");
-    let a = |point: &str, label: &str| find(&rows, point, label);
+    let references = table("extreme-sleigh", "references.csv");
+    let run = |point: &str, label: &str| find(&rows, point, label);
+    let completed = |point: &str, labels: &[&str]| {
+        labels
+            .iter()
+            .all(|l| run(point, l)["status"] == "completed")
+    };
+    let stop = |point: &str, label: &str, reason: &str| {
+        let r = run(point, label);
+        assert_eq!(r["status"], "stopped", "{point} {label}");
+        assert!(
+            r["error"].contains(reason),
+            "{point} {label}: {}",
+            r["error"]
+        );
+        num(r, "error_t")
+    };
+    let (resolution, singular) = (
+        "reached its resolution limit",
+        "singular set of the embedding map",
+    );
     let mut said = Vec::new();
     for (point, case) in [
+        ("0", "nominal"),
         ("1", "up the slope"),
         ("2", "α = 89°"),
         ("3", "J = a² + 1e-6"),
         ("4", "a = 1e-9"),
+        ("5", "a = 50"),
+        ("6", "ω0 = 0"),
     ] {
-        let (e, i) = (a(point, "A-dop853"), a(point, "A-radau5"));
-        assert_eq!((&*e["status"], &*i["status"]), ("stopped", "stopped"));
-        said.push(format!(
-            "| stops at {:.3} | stops at {:.3} |",
-            num(e, "error_t"),
-            num(i, "error_t")
-        ));
-        assert!(doc_flat("performance.md").contains(&format!("| {case} |")));
+        let b_c_mass = [
+            "B-dop853",
+            "B-dop853-proj",
+            "B-radau5",
+            "B-rk4",
+            "C-dop853",
+            "C-radau5",
+            "mass-dop853",
+        ];
+        assert!(completed(point, &b_c_mass), "{case}");
+        assert!(completed(point, &["visc-radau5"]), "{case}");
+        let visc_check = &references
+            .iter()
+            .find(|r| r["point"] == point && r["label"] == "visc-radau5")
+            .unwrap()["check_failure"];
+        let visc = if visc_check.is_empty() {
+            "complete".to_string()
+        } else {
+            assert!(
+                visc_check.contains("step budget of 200000 steps used up"),
+                "{visc_check}"
+            );
+            let t: f64 = visc_check["at t = ".len()..]
+                .split(':')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap();
+            format!(
+                "complete (reference unchecked: its DOP853 check used up its 200 000 steps at t = {t:.1e} s, stiff)"
+            )
+        };
+        let a = match point {
+            "0" => format!(
+                "stops at t = {:.3}: resolution limit | stops at t = {:.3}: singular set of the embedding map",
+                stop(point, "A-dop853", resolution),
+                stop(point, "A-radau5", singular)
+            ),
+            "6" => format!(
+                "stops at {:.3}: resolution limit | stops at {:.3}: singular set",
+                stop(point, "A-dop853", resolution),
+                stop(point, "A-radau5", singular)
+            ),
+            "5" => {
+                let (e, i) = (run(point, "A-dop853"), run(point, "A-radau5"));
+                assert!(completed(point, &["A-dop853", "A-radau5"]));
+                format!(
+                    "completes, {:.1} correct digits | completes, but only {:.1} correct digits ({:.1e} off its reference)",
+                    num(e, "scd_max"),
+                    num(i, "scd_max"),
+                    num(i, "err_max")
+                )
+            }
+            _ => format!(
+                "stops at {:.3} | stops at {:.3}",
+                stop(point, "A-dop853", resolution),
+                stop(point, "A-radau5", singular)
+            ),
+        };
+        said.push(format!("| {case} | complete | {visc} | {a} |"));
     }
-    said.push(format!(
-        "stops at t = {:.3}: resolution limit | stops at t = {:.3}: singular set of the embedding map |",
-        num(a("0", "A-dop853"), "error_t"),
-        num(a("0", "A-radau5"), "error_t")
-    ));
-    said.push(format!(
-        "stops at {:.3}: resolution limit | stops at {:.3}: singular set |",
-        num(a("6", "A-dop853"), "error_t"),
-        num(a("6", "A-radau5"), "error_t")
-    ));
-    let (e, i) = (a("5", "A-dop853"), a("5", "A-radau5"));
-    said.push(format!(
-        "completes, {:.1} correct digits | completes, but only {:.1} correct digits ({:.1e} off its reference)",
-        num(e, "scd_max"),
-        num(i, "scd_max"),
-        num(i, "err_max")
-    ));
     // Every completed run but A's implicit one at a = 50; then A's runs up
     // to their stops.
     let completed: Vec<&HashMap<String, String>> = rows
         .iter()
         .filter(|r| r["status"] == "completed" && !(r["point"] == "5" && r["label"] == "A-radau5"))
         .collect();
+    let err = |r: &&HashMap<String, String>| num(r, "err_max");
     let lo = completed
         .iter()
-        .min_by(|x, y| num(x, "err_max").total_cmp(&num(y, "err_max")))
+        .min_by(|x, y| err(x).total_cmp(&err(y)))
         .unwrap();
     let hi = completed
         .iter()
-        .max_by(|x, y| num(x, "err_max").total_cmp(&num(y, "err_max")))
+        .max_by(|x, y| err(x).total_cmp(&err(y)))
         .unwrap();
     assert_eq!((&*hi["point"], &*hi["label"]), ("5", "visc-radau5"));
     let a_max = rows
@@ -897,8 +1087,8 @@ fn extreme_sleigh_table_as_performance_md_states() {
         .fold(0.0, f64::max);
     said.push(format!(
         "Completed runs are within {:.1e} … {:.1e} of their references at this tolerance (the largest: visc by Radau IIA at `a = 50`); A's, up to its stop, within {:.1e}",
-        num(lo, "err_max"),
-        num(hi, "err_max"),
+        err(lo),
+        err(hi),
         a_max
     ));
     let said: Vec<&str> = said.iter().map(String::as_str).collect();

@@ -3,27 +3,32 @@
 //! regeneration on another machine, or CI's check that the committed
 //! results are what the code computes.
 //!
-//! Compared: every table (`*.csv`) at the top of each experiment directory
-//! found in both, cell by cell — except what depends on the machine:
+//! Compared: every table (`*.csv`) at the top of each experiment's results
+//! directory, cell by cell — except what depends on the machine:
 //! `timing.csv` and the columns whose names begin with `wall_` (wall times
 //! of work-precision and boundary-value runs). Cells are equal if their
 //! text is, or, with `rtol > 0`, if both are numbers within `rtol` of each
-//! other (relative to the larger magnitude). Subdirectories (`references/`,
-//! `trajectories/`, `plots/`) and JSON files are not compared: the tables
-//! hold the numbers the figures and claims are drawn from.
+//! other (relative to the larger magnitude). Not compared: the other files
+//! (`summary.json`, `config.json`, `manifest.json`, pages, figures, which
+//! are drawn from the tables) and subdirectories (`points/`,
+//! `references/`, `trajectories/`, `plots/`).
 //!
-//! `A` and `B` are either two results directories (`results/`: their
-//! experiment directories with the same name are paired; an experiment's
-//! directory, one with a `manifest.json`, found in only one of them is a
-//! difference, and other directories with tables, such as the benchmarks'
-//! outputs, are listed, not compared) or two experiment directories.
+//! `A` and `B` are either two results directories (`results/`) or two
+//! experiment directories. In results directories an experiment is a
+//! directory with a nonholo manifest; those of the same name are paired,
+//! and one found on one side only is a difference. Other directories with
+//! tables (the benchmarks' outputs, whose time columns have other names)
+//! are listed, not compared.
 
 use std::collections::BTreeSet;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
 
 use crate::CliError;
+use crate::experiment::dir::written_by_an_experiment;
+use crate::table::read_csv;
 
 #[derive(Debug, Clone, Args)]
 pub struct CompareArgs {
@@ -31,14 +36,14 @@ pub struct CompareArgs {
     pub a: PathBuf,
     /// The results directory to compare with it (or an experiment's).
     pub b: PathBuf,
-    /// Numbers within this relative difference count as equal (default 0:
-    /// the same text).
+    /// Numbers within this relative difference count as equal, 0 ≤ R < 1
+    /// (default 0: the same text).
     #[arg(long, default_value_t = 0.0)]
     pub rtol: f64,
 }
 
 /// The machine-dependent columns, left out of the comparison.
-pub fn is_timing_column(name: &str) -> bool {
+fn is_timing_column(name: &str) -> bool {
     name.starts_with("wall_")
 }
 
@@ -61,14 +66,13 @@ pub struct Difference {
 pub struct Report {
     /// Experiments compared (found in both).
     pub experiments: Vec<String>,
-    /// Experiments found in only one directory (not compared).
-    pub only_in_a: Vec<String>,
-    pub only_in_b: Vec<String>,
+    /// Directories with tables that no experiment wrote, listed.
+    pub not_compared: Vec<String>,
     /// Tables compared and cells compared in them.
     pub tables: usize,
     pub cells: usize,
-    /// Structural differences: a table missing on one side, another
-    /// header, another number of rows.
+    /// Structural differences: an experiment or a table on one side only,
+    /// other columns, another number of rows.
     pub mismatches: Vec<String>,
     pub differences: Vec<Difference>,
 }
@@ -83,19 +87,19 @@ impl Report {
         self.differences
             .iter()
             .filter_map(|d| relative(&d.a, &d.b))
-            .fold(None, |m, r| Some(m.map_or(r, |m: f64| m.max(r))))
+            .reduce(f64::max)
     }
 }
 
-/// `|a − b| / max(|a|, |b|)` if both parse as numbers (0 if both are 0 or
-/// the same non-finite value).
+/// `|a − b| / max(|a|, |b|)` if both parse as numbers: 0 if they are equal
+/// (or both NaN), infinite if either is not finite.
 fn relative(a: &str, b: &str) -> Option<f64> {
     let (x, y) = (a.parse::<f64>().ok()?, b.parse::<f64>().ok()?);
     if x == y || (x.is_nan() && y.is_nan()) {
         return Some(0.0);
     }
     let scale = x.abs().max(y.abs());
-    Some(if scale.is_finite() {
+    Some(if x.is_finite() && y.is_finite() {
         (x - y).abs() / scale
     } else {
         f64::INFINITY
@@ -106,49 +110,65 @@ fn cells_equal(a: &str, b: &str, rtol: f64) -> bool {
     a == b || (rtol > 0.0 && relative(a, b).is_some_and(|r| r <= rtol))
 }
 
-/// The `*.csv` files at the top of `dir`, by name.
-fn tables(dir: &Path) -> Result<BTreeSet<String>, String> {
-    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let mut names = BTreeSet::new();
-    for entry in entries {
+fn entries(dir: &Path) -> Result<Vec<(OsString, PathBuf)>, String> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))? {
         let entry = entry.map_err(|e| format!("{}: {e}", dir.display()))?;
-        let name = entry.file_name().to_string_lossy().into_owned();
-        if name.ends_with(".csv") && entry.path().is_file() {
-            names.insert(name);
-        }
+        out.push((entry.file_name(), entry.path()));
     }
-    Ok(names)
+    Ok(out)
 }
 
-/// The subdirectories of `dir` that hold tables, by name.
-fn experiments(dir: &Path) -> Result<BTreeSet<String>, String> {
-    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let mut names = BTreeSet::new();
-    for entry in entries {
-        let entry = entry.map_err(|e| format!("{}: {e}", dir.display()))?;
-        let path = entry.path();
-        if path.is_dir() && !tables(&path)?.is_empty() {
-            names.insert(entry.file_name().to_string_lossy().into_owned());
-        }
-    }
-    Ok(names)
+/// The `*.csv` files at the top of `dir`.
+fn tables(dir: &Path) -> Result<BTreeSet<OsString>, String> {
+    Ok(entries(dir)?
+        .into_iter()
+        .filter(|(name, path)| name.to_string_lossy().ends_with(".csv") && path.is_file())
+        .map(|(name, _)| name)
+        .collect())
 }
 
-fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<Vec<String>>), String> {
-    let mut reader =
-        csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let header = reader
-        .headers()
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    let mut rows = Vec::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| format!("{}: {e}", path.display()))?;
-        rows.push(record.iter().map(str::to_string).collect());
+/// What a directory given to `compare` is.
+enum Kind {
+    /// Tables at its top: one experiment's results.
+    Experiment,
+    /// A results directory: its experiments, and the other directories
+    /// with tables.
+    Results {
+        experiments: BTreeSet<OsString>,
+        others: Vec<String>,
+    },
+}
+
+fn kind(dir: &Path) -> Result<Kind, String> {
+    if !dir.is_dir() {
+        return Err(format!("{}: not a directory", dir.display()));
     }
-    Ok((header, rows))
+    if !tables(dir)?.is_empty() {
+        return Ok(Kind::Experiment);
+    }
+    let (mut experiments, mut others) = (BTreeSet::new(), Vec::new());
+    for (name, path) in entries(dir)? {
+        if !path.is_dir() || tables(&path)?.is_empty() {
+            continue;
+        }
+        if written_by_an_experiment(&path) {
+            experiments.insert(name);
+        } else {
+            others.push(name.to_string_lossy().into_owned());
+        }
+    }
+    if experiments.is_empty() {
+        return Err(format!(
+            "{}: holds no results (neither tables nor experiments' directories with tables)",
+            dir.display()
+        ));
+    }
+    others.sort();
+    Ok(Kind::Results {
+        experiments,
+        others,
+    })
 }
 
 /// Compares one table of one experiment.
@@ -179,30 +199,29 @@ fn compare_table(
     let col = |c: &str| ha.iter().position(|h| h == c);
     let (point, label) = (col("point"), col("label"));
     for (i, (x, y)) in ra.iter().zip(&rb).enumerate() {
-        for (j, column) in ha.iter().enumerate() {
+        // The reader refuses a record with another number of fields than
+        // the header, so the three zip in step.
+        for ((column, u), v) in ha.iter().zip(x).zip(y) {
             if is_timing_column(column) {
                 continue;
             }
             report.cells += 1;
-            let (u, v) = (
-                x.get(j).map_or("", String::as_str),
-                y.get(j).map_or("", String::as_str),
-            );
-            if !cells_equal(u, v, rtol) {
-                let key = [("point", point), ("label", label)]
-                    .iter()
-                    .filter_map(|(k, c)| c.and_then(|c| x.get(c)).map(|v| format!("{k} {v}")))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                report.differences.push(Difference {
-                    table: name.to_string(),
-                    row: i + 1,
-                    key,
-                    column: column.clone(),
-                    a: u.to_string(),
-                    b: v.to_string(),
-                });
+            if cells_equal(u, v, rtol) {
+                continue;
             }
+            let key = [("point", point), ("label", label)]
+                .iter()
+                .filter_map(|(k, c)| c.and_then(|c| x.get(c)).map(|v| format!("{k} {v}")))
+                .collect::<Vec<_>>()
+                .join(", ");
+            report.differences.push(Difference {
+                table: name.to_string(),
+                row: i + 1,
+                key,
+                column: column.clone(),
+                a: u.to_string(),
+                b: v.to_string(),
+            });
         }
     }
     Ok(())
@@ -221,10 +240,11 @@ fn compare_experiment(
         if t == "timing.csv" {
             continue;
         }
+        let shown = t.to_string_lossy();
         let label = if name.is_empty() {
-            t.clone()
+            shown.into_owned()
         } else {
-            format!("{name}/{t}")
+            format!("{name}/{shown}")
         };
         match (ta.contains(t), tb.contains(t)) {
             (true, true) => compare_table(&label, &a.join(t), &b.join(t), rtol, report)?,
@@ -239,89 +259,62 @@ fn compare_experiment(
     Ok(())
 }
 
-/// What a directory given to `compare` is.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Kind {
-    /// Tables at its top: one experiment's results.
-    Experiment,
-    /// Experiment directories below it: a results directory.
-    Results,
-}
-
-fn kind(dir: &Path) -> Result<Kind, String> {
-    if !dir.is_dir() {
-        return Err(format!("{}: not a directory", dir.display()));
-    }
-    if !tables(dir)?.is_empty() {
-        Ok(Kind::Experiment)
-    } else if !experiments(dir)?.is_empty() {
-        Ok(Kind::Results)
-    } else {
-        Err(format!(
-            "{}: holds no results (neither tables nor experiment directories with tables)",
-            dir.display()
-        ))
-    }
-}
-
-/// Compares two results directories, or two experiment directories. An
-/// experiment found in only one results directory is a difference if it
-/// was written by an experiment (it has a `manifest.json`); other
-/// directories with tables (the benchmarks' outputs, which `reproduce`
-/// does not write) are listed, not compared.
+/// Compares two results directories, or two experiment directories.
 pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
     let (ka, kb) = (kind(a)?, kind(b)?);
     if !(0.0..1.0).contains(&rtol) {
         return Err(format!("--rtol: {rtol} must be at least 0 and below 1"));
     }
     let mut report = Report::default();
-    match (ka, kb) {
-        (Kind::Experiment, Kind::Experiment) => {
+    let (
+        Kind::Results {
+            experiments: ea,
+            others: oa,
+        },
+        Kind::Results {
+            experiments: eb,
+            others: ob,
+        },
+    ) = (&ka, &kb)
+    else {
+        if let (Kind::Experiment, Kind::Experiment) = (&ka, &kb) {
             compare_experiment("", a, b, rtol, &mut report)?;
             report.experiments.push(a.display().to_string());
             return Ok(report);
         }
-        (Kind::Results, Kind::Results) => {}
-        _ => {
-            let name = |k| match k {
-                Kind::Experiment => "an experiment directory (tables at its top)",
-                Kind::Results => "a results directory (experiment directories below it)",
-            };
-            return Err(format!(
-                "{} is {} and {} is {}: give two of the same kind",
-                a.display(),
-                name(ka),
-                b.display(),
-                name(kb)
+        let what = |k: &Kind| match k {
+            Kind::Experiment => "an experiment directory (tables at its top)",
+            Kind::Results { .. } => "a results directory (experiments' directories below it)",
+        };
+        return Err(format!(
+            "{} is {} and {} is {}: give two of the same kind",
+            a.display(),
+            what(&ka),
+            b.display(),
+            what(&kb)
+        ));
+    };
+    for name in ea.intersection(eb) {
+        let shown = name.to_string_lossy();
+        compare_experiment(&shown, &a.join(name), &b.join(name), rtol, &mut report)?;
+        report.experiments.push(shown.into_owned());
+    }
+    for (only, dir) in [(ea.difference(eb), a), (eb.difference(ea), b)] {
+        for name in only {
+            report.mismatches.push(format!(
+                "{}: an experiment only in {}",
+                name.to_string_lossy(),
+                dir.display()
             ));
         }
     }
-    let (ea, eb) = (experiments(a)?, experiments(b)?);
-    for name in ea.intersection(&eb) {
-        compare_experiment(name, &a.join(name), &b.join(name), rtol, &mut report)?;
-        report.experiments.push(name.clone());
-    }
-    for (side, only, dir) in [
-        (&mut report.only_in_a, ea.difference(&eb), a),
-        (&mut report.only_in_b, eb.difference(&ea), b),
-    ] {
-        for name in only {
-            if dir.join(name).join("manifest.json").is_file() {
-                report
-                    .mismatches
-                    .push(format!("{name}: an experiment only in {}", dir.display()));
-            } else {
-                side.push(name.clone());
-            }
-        }
-    }
-    if report.experiments.is_empty() {
-        return Err(format!(
-            "{} and {} have no experiment in common: nothing to compare",
-            a.display(),
-            b.display()
-        ));
-    }
+    report.not_compared = oa
+        .iter()
+        .chain(ob)
+        .cloned()
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
     Ok(report)
 }
 
@@ -329,33 +322,20 @@ pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
 const SHOWN_PER_TABLE: usize = 5;
 
 /// The report as text: what was compared, what differs.
-pub fn render(report: &Report, a: &Path, b: &Path) -> String {
+pub fn render(report: &Report) -> String {
     let mut out = String::new();
-    for (side, names) in [(a, &report.only_in_a), (b, &report.only_in_b)] {
-        if !names.is_empty() {
-            out.push_str(&format!(
-                "only in {} (not written by an experiment, not compared): {}\n",
-                side.display(),
-                names.join(", ")
-            ));
-        }
+    if !report.not_compared.is_empty() {
+        out.push_str(&format!(
+            "not compared (no experiment wrote them): {}\n",
+            report.not_compared.join(", ")
+        ));
     }
     for m in &report.mismatches {
         out.push_str(&format!("{m}\n"));
     }
-    let mut shown: Vec<(&str, usize)> = Vec::new();
-    for d in &report.differences {
-        let n = match shown.iter_mut().find(|(t, _)| *t == d.table) {
-            Some((_, n)) => {
-                *n += 1;
-                *n
-            }
-            None => {
-                shown.push((&d.table, 1));
-                1
-            }
-        };
-        if n <= SHOWN_PER_TABLE {
+    // The differences of one table are contiguous.
+    for table in report.differences.chunk_by(|x, y| x.table == y.table) {
+        for d in table.iter().take(SHOWN_PER_TABLE) {
             let key = if d.key.is_empty() {
                 String::new()
             } else {
@@ -366,12 +346,11 @@ pub fn render(report: &Report, a: &Path, b: &Path) -> String {
                 d.table, d.row, d.column, d.a, d.b
             ));
         }
-    }
-    for (table, n) in &shown {
-        if *n > SHOWN_PER_TABLE {
+        if table.len() > SHOWN_PER_TABLE {
             out.push_str(&format!(
-                "{table}: {n} cells differ ({} shown)\n",
-                SHOWN_PER_TABLE
+                "{}: {} cells differ ({SHOWN_PER_TABLE} shown)\n",
+                table[0].table,
+                table.len()
             ));
         }
     }
@@ -389,7 +368,7 @@ pub fn render(report: &Report, a: &Path, b: &Path) -> String {
             .map(|r| format!("; largest relative difference {r:.1e}"))
             .unwrap_or_default();
         out.push_str(&format!(
-            "different: {what}; {} cell(s) differ, {} table(s) do not match{largest}\n",
+            "different: {what}; {} cell(s) differ, {} table(s) or experiment(s) do not match{largest}\n",
             report.differences.len(),
             report.mismatches.len()
         ));
@@ -401,8 +380,7 @@ pub fn render(report: &Report, a: &Path, b: &Path) -> String {
 /// the results differ.
 pub fn command(args: &CompareArgs) -> Result<(), CliError> {
     let report = compare(&args.a, &args.b, args.rtol).map_err(CliError::Input)?;
-    let text = render(&report, &args.a, &args.b);
-    crate::print_stdout(&text)?;
+    crate::print_stdout(&render(&report))?;
     if report.equal() {
         Ok(())
     } else {
@@ -423,6 +401,12 @@ mod tests {
         std::fs::write(dir.join(file), text).unwrap();
     }
 
+    /// `dir` as an experiment's results: a manifest and `runs.csv`.
+    fn experiment(dir: &Path, runs: &str) {
+        write(dir, "manifest.json", r#"{"schema": "nonholo.manifest/1"}"#);
+        write(dir, "runs.csv", runs);
+    }
+
     fn scratch(name: &str) -> PathBuf {
         let dir =
             std::env::temp_dir().join(format!("nonholo-compare-{name}-{}", std::process::id()));
@@ -437,10 +421,9 @@ mod tests {
     fn equal_tables_with_other_timings_are_equal() {
         let root = scratch("equal");
         let (a, b) = (root.join("a"), root.join("b"));
-        write(&a.join("x"), "work_precision.csv", RUNS);
-        write(
+        experiment(&a.join("x"), RUNS);
+        experiment(
             &b.join("x"),
-            "work_precision.csv",
             &RUNS.replace("0.001", "0.7").replace("0.002", "9"),
         );
         write(
@@ -453,30 +436,29 @@ mod tests {
             "timing.csv",
             "point,label,wall_time_s\n0,B,2\n",
         );
-        // A benchmark's directory on one side only is listed, not compared;
-        // an experiment's (it has a manifest) would be a difference.
+        // A benchmark's tables (no manifest), on one side or both, are
+        // listed, not compared: their time columns have other names.
         write(&a.join("bench"), "scale.csv", "n,rhs_us\n1,0.4\n");
-        write(&a.join("x"), "manifest.json", "{}");
-        write(&b.join("x"), "manifest.json", "{}");
+        write(&b.join("bench"), "scale.csv", "n,rhs_us\n1,0.5\n");
         let r = compare(&a, &b, 0.0).unwrap();
         assert!(r.equal(), "{r:?}");
         assert_eq!(r.experiments, ["x"]);
-        assert_eq!(r.only_in_a, ["bench"]);
+        assert_eq!(r.not_compared, ["bench"]);
         assert_eq!((r.tables, r.cells), (1, 6));
-        let text = render(&r, &a, &b);
-        assert!(
-            text.contains("only in")
-                && text.contains("equal: 1 experiment(s), 1 table(s), 6 cells"),
-            "{text}"
+        assert_eq!(
+            render(&r),
+            "not compared (no experiment wrote them): bench\n\
+             equal: 1 experiment(s), 1 table(s), 6 cells compared (timing.csv and wall_* columns aside)\n"
         );
-        write(&a.join("y"), "runs.csv", RUNS);
-        write(&a.join("y"), "manifest.json", "{}");
+        // An experiment on one side only is a difference, whichever side.
+        experiment(&b.join("y"), RUNS);
         let r = compare(&a, &b, 0.0).unwrap();
-        assert!(!r.equal());
-        assert_eq!(r.mismatches.len(), 1);
+        assert_eq!(
+            r.mismatches,
+            [format!("y: an experiment only in {}", b.display())]
+        );
         assert!(
-            r.mismatches[0].starts_with("y: an experiment only in"),
-            "{r:?}"
+            render(&r).ends_with("0 cell(s) differ, 1 table(s) or experiment(s) do not match\n")
         );
         std::fs::remove_dir_all(root).unwrap();
     }
@@ -485,12 +467,8 @@ mod tests {
     fn a_number_that_moved_is_named_with_its_row_and_column() {
         let root = scratch("moved");
         let (a, b) = (root.join("a"), root.join("b"));
-        write(&a.join("x"), "runs.csv", RUNS);
-        write(
-            &b.join("x"),
-            "runs.csv",
-            &RUNS.replace("2.0e-9", "2.0000001e-9"),
-        );
+        experiment(&a.join("x"), RUNS);
+        experiment(&b.join("x"), &RUNS.replace("2.0e-9", "2.0000001e-9"));
         let r = compare(&a, &b, 0.0).unwrap();
         assert_eq!(
             r.differences,
@@ -503,15 +481,47 @@ mod tests {
                 b: "2.0000001e-9".into(),
             }]
         );
+        // |2.0e-9 − 2.0000001e-9| / 2.0000001e-9, to the last bits of the
+        // parsed numbers.
+        assert_eq!(r.largest_relative(), relative("2.0e-9", "2.0000001e-9"));
         let rel = r.largest_relative().unwrap();
-        assert!((rel - 5e-8).abs() < 1e-12, "{rel}");
+        assert!((rel * 2.0000001e-9 / 1e-16 - 1.0).abs() < 1e-6, "{rel}");
         assert!(
-            render(&r, &a, &b)
-                .contains("x/runs.csv row 2 (point 0, label C), err_max: 2.0e-9 | 2.0000001e-9")
+            render(&r)
+                .contains("x/runs.csv row 2 (point 0, label C), err_max: 2.0e-9 | 2.0000001e-9\n")
         );
         // Within a relative tolerance it is the same number.
         assert!(compare(&a, &b, 1e-7).unwrap().equal());
         assert!(!compare(&a, &b, 1e-8).unwrap().equal());
+        std::fs::remove_dir_all(root).unwrap();
+    }
+
+    #[test]
+    fn many_differences_in_a_table_are_counted_after_the_first_five() {
+        let root = scratch("many");
+        let (a, b) = (root.join("a"), root.join("b"));
+        let rows = |v: f64| -> String {
+            let mut t = String::from("point,label,err_max\n");
+            for i in 0..8 {
+                t.push_str(&format!("{i},B,{}\n", v + i as f64));
+            }
+            t
+        };
+        write(&a, "runs.csv", &rows(1.0));
+        write(&b, "runs.csv", &rows(2.0));
+        let r = compare(&a, &b, 0.0).unwrap();
+        assert_eq!(r.differences.len(), 8);
+        let text = render(&r);
+        assert_eq!(text.matches("runs.csv row").count(), 5, "{text}");
+        assert!(
+            text.contains("runs.csv: 8 cells differ (5 shown)\n"),
+            "{text}"
+        );
+        // The largest relative difference: 1 against 2.
+        assert!(
+            text.ends_with("largest relative difference 5.0e-1\n"),
+            "{text}"
+        );
         std::fs::remove_dir_all(root).unwrap();
     }
 
@@ -526,22 +536,18 @@ mod tests {
         write(&a, "minima.csv", "point,best\n0,1\n");
         // Two experiment directories, compared as one experiment each.
         let r = compare(&a, &b, 0.0).unwrap();
-        assert_eq!(r.mismatches.len(), 3, "{:?}", r.mismatches);
-        assert!(
-            r.mismatches
-                .iter()
-                .any(|m| m.contains("minima.csv: only in"))
+        assert_eq!(
+            r.mismatches,
+            [
+                format!("minima.csv: only in {}", a.display()),
+                "pairs.csv: the columns differ (point,a,b,div against point,a,b,div_xy)".into(),
+                "runs.csv: 2 rows against 3".into(),
+            ]
         );
-        assert!(
-            r.mismatches
-                .iter()
-                .any(|m| m.contains("runs.csv: 2 rows against 3"))
-        );
-        assert!(
-            r.mismatches
-                .iter()
-                .any(|m| m.contains("pairs.csv: the columns differ"))
-        );
+        // A ragged table is refused with its file's name.
+        write(&b, "runs.csv", "point,label,err_max\n0,B\n");
+        let e = compare(&a, &b, 0.0).unwrap_err();
+        assert!(e.contains("runs.csv") && e.contains("fields"), "{e}");
         std::fs::remove_dir_all(root).unwrap();
     }
 
@@ -554,17 +560,19 @@ mod tests {
         assert!(e.contains("not a directory"), "{e}");
         let e = compare(&root.join("empty"), &root.join("empty"), 0.0).unwrap_err();
         assert!(e.contains("holds no results"), "{e}");
-        write(&root.join("x"), "runs.csv", RUNS);
+        // Tables that no experiment wrote are not results either.
+        write(
+            &root.join("bench").join("scale"),
+            "scale.csv",
+            "n,rhs_us\n1,0.4\n",
+        );
+        let e = compare(&root.join("bench"), &root.join("bench"), 0.0).unwrap_err();
+        assert!(e.contains("holds no results"), "{e}");
+        experiment(&root.join("x"), RUNS);
         // A results directory against an experiment's: refused, not a pile
         // of differences.
         let e = compare(&root, &root.join("x"), 0.0).unwrap_err();
         assert!(e.contains("give two of the same kind"), "{e}");
-        // Two results directories with no experiment in common.
-        write(&root.join("other").join("y"), "runs.csv", RUNS);
-        let only_x = root.join("only-x");
-        write(&only_x.join("x"), "runs.csv", RUNS);
-        let e = compare(&only_x, &root.join("other"), 0.0).unwrap_err();
-        assert!(e.contains("nothing to compare"), "{e}");
         for rtol in [-1.0, f64::NAN, 1.0] {
             let e = compare(&root.join("x"), &root.join("x"), rtol).unwrap_err();
             assert!(e.contains("--rtol"), "{e}");

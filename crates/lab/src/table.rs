@@ -61,6 +61,25 @@ impl Serialize for Plain {
     }
 }
 
+/// A CSV file with a header: its column names and records; an error names
+/// the file (a record with another number of fields than the header is
+/// one).
+pub fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<csv::StringRecord>), String> {
+    let mut reader =
+        csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let header = reader
+        .headers()
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .iter()
+        .map(String::from)
+        .collect();
+    let records = reader
+        .records()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok((header, records))
+}
+
 /// `serialize_with` for an `f64` field: [`Plain`].
 pub fn plain<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
     Plain(*v).serialize(s)

@@ -431,16 +431,22 @@ fn compare_finds_equal_runs_equal_and_names_a_moved_number() {
         "{text}"
     );
 
+    // One cell of the copy's runs.csv moved: C's distance at point 0.
     let runs = other.join("runs.csv");
-    let csv = std::fs::read_to_string(&runs).unwrap();
-    let mut lines: Vec<String> = csv.lines().map(str::to_string).collect();
-    let header: Vec<&str> = lines[0].split(',').collect();
-    let col = header.iter().position(|h| *h == "div_xy_end").unwrap();
-    let mut cells: Vec<String> = lines[2].split(',').map(str::to_string).collect();
-    let before = cells[col].clone();
-    cells[col] = "0.125".into();
-    lines[2] = cells.join(",");
-    std::fs::write(&runs, lines.join("\n") + "\n").unwrap();
+    let mut reader = csv::Reader::from_path(&runs).unwrap();
+    let header = reader.headers().unwrap().clone();
+    let mut records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let col = header.iter().position(|h| h == "div_xy_end").unwrap();
+    let before = records[1][col].to_string();
+    let mut moved: Vec<&str> = records[1].iter().collect();
+    moved[col] = "0.125";
+    records[1] = csv::StringRecord::from(moved);
+    let mut writer = csv::Writer::from_path(&runs).unwrap();
+    writer.write_record(&header).unwrap();
+    for r in &records {
+        writer.write_record(r).unwrap();
+    }
+    writer.flush().unwrap();
     let moved = nonholo(&["compare", d, o]);
     let text = String::from_utf8_lossy(&moved.stdout).into_owned();
     assert_eq!(moved.status.code(), Some(6), "{text}");

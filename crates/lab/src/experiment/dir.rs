@@ -117,6 +117,17 @@ impl ResultsDir {
     }
 }
 
+/// Whether `dir` holds an experiment's results: a `manifest.json` of
+/// nonholo's schema.
+pub fn written_by_an_experiment(dir: &Path) -> bool {
+    fs::read_to_string(dir.join("manifest.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .as_ref()
+        .and_then(|m| m["schema"].as_str())
+        .is_some_and(|s| s.starts_with("nonholo.manifest/"))
+}
+
 /// Refuses a directory that holds files nonholo did not write.
 fn check_ours(dir: &Path, what: &str) -> Result<(), CliError> {
     let entries: Vec<String> = fs::read_dir(dir)
@@ -127,14 +138,7 @@ fn check_ours(dir: &Path, what: &str) -> Result<(), CliError> {
     if entries.is_empty() || entries.iter().any(|e| e == LOCK) {
         return Ok(());
     }
-    let manifest = fs::read_to_string(dir.join("manifest.json"))
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-    let ours = manifest
-        .as_ref()
-        .and_then(|m| m["schema"].as_str())
-        .is_some_and(|s| s.starts_with("nonholo.manifest/"));
-    if ours {
+    if written_by_an_experiment(dir) {
         return Ok(());
     }
     let mut shown: Vec<String> = entries.iter().take(3).map(|e| format!("`{e}`")).collect();

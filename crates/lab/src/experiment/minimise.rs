@@ -257,25 +257,23 @@ pub fn run(
 
 /// The rows of a CSV file as named fields.
 fn read_rows(path: &Path) -> Result<Vec<std::collections::HashMap<String, String>>, String> {
-    let mut reader = csv::Reader::from_path(path)
-        .map_err(|e| format!("{}: {e} (run the experiment to compute it)", path.display()))?;
-    let header: Vec<String> = reader
-        .headers()
-        .map_err(|e| format!("{}: {e}", path.display()))?
+    if !path.is_file() {
+        return Err(format!(
+            "{}: missing (run the experiment to compute it)",
+            path.display()
+        ));
+    }
+    let (header, records) = crate::table::read_csv(path)?;
+    Ok(records
         .iter()
-        .map(String::from)
-        .collect();
-    reader
-        .records()
         .map(|r| {
-            let r = r.map_err(|e| format!("{}: {e}", path.display()))?;
-            Ok(header
+            header
                 .iter()
                 .cloned()
                 .zip(r.iter().map(String::from))
-                .collect())
+                .collect()
         })
-        .collect()
+        .collect())
 }
 
 /// For `summary.json`: over which name, the smallest and the largest of the

@@ -20,7 +20,10 @@ use super::write_outputs;
 /// Points that cannot be drawn (NaN, ±inf, or non-positive on a log axis)
 /// break the curve into separate pieces; the legend then says how many
 /// points were left out. Series with at most 40 points, and isolated points
-/// between gaps, are also drawn as dots.
+/// between gaps, are also drawn as dots. A series every point of which a
+/// later series of another colour covers (two formulations that take the
+/// same steps to the same errors) gets a band beneath it, and its legend
+/// entry says so.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Series {
     /// Legend text; a series with an empty label has no legend entry
@@ -84,6 +87,49 @@ struct SeriesData {
     /// Maximal runs of drawable points, in plot coordinates (see [`Axis`]).
     runs: Vec<Vec<(f64, f64)>>,
     markers: bool,
+    /// How many later series of another colour cover every point of this
+    /// one (at most [`MAX_DEPTH`] counted): it is drawn with a band beneath
+    /// it, [`COVERED_EXTRA_PX`] wider per such series, so that all of them
+    /// show.
+    covered: u32,
+}
+
+/// Coinciding series beyond this many are not widened further.
+const MAX_DEPTH: u32 = 3;
+
+/// The band beneath a covered series is its colour mixed with white in this
+/// proportion: lighter than the line, so that the line over it stays
+/// readable.
+const BAND_SHADE: f64 = 0.6;
+
+/// How much wider than [`LINE_PX`] (and its dots' radius) a covered series
+/// is drawn: its colour shows as a band on both sides of the line above.
+const COVERED_EXTRA_PX: u32 = 6;
+
+/// A point of one series covers a point of another within this fraction of
+/// each axis' span (about 4 pixels on the plot).
+const COVER_FRACTION: f64 = 0.004;
+
+impl SeriesData {
+    /// The band drawn beneath a covered series (solid, its colour made
+    /// lighter); nothing for one that no other covers.
+    fn band(&self) -> ShapeStyle {
+        if self.covered > 0 {
+            // Mixed with white, opaque: overlapping pieces of the band
+            // (segments and the discs at their joins) do not darken.
+            let RGBColor(r, g, b) = self.pen.rgb();
+            let light = |c: u8| (c as f64 * BAND_SHADE + 255.0 * (1.0 - BAND_SHADE)).round() as u8;
+            RGBColor(light(r), light(g), light(b))
+                .stroke_width(LINE_PX + COVERED_EXTRA_PX * self.covered)
+        } else {
+            TRANSPARENT.stroke_width(0)
+        }
+    }
+
+    fn marker(&self) -> (i32, ShapeStyle) {
+        let (r, style) = marker(self.pen);
+        (r + (COVERED_EXTRA_PX * self.covered) as i32 / 2, style)
+    }
 }
 
 struct LineData {
@@ -141,6 +187,7 @@ impl LineData {
                 pen: s.pen.unwrap_or_else(|| Pen::by_position(series.len())),
                 runs,
                 markers: s.x.len() <= MARKER_MAX_POINTS,
+                covered: 0,
             });
         }
         let points = || series.iter().flat_map(|s| s.runs.iter().flatten());
@@ -162,12 +209,71 @@ impl LineData {
         } else {
             Some("nothing to draw: no finite values".to_string())
         };
+        mark_covered(&mut series, &x, &y);
         Ok(LineData {
             series,
             x,
             y,
             empty_note,
         })
+    }
+}
+
+/// Counts for every series the later ones (drawn over it) that coincide
+/// with it, every point of each near a point of the other, and says so in its legend entry, naming the first of them by
+/// its label up to a colon or a parenthesis.
+fn mark_covered(series: &mut [SeriesData], x: &Axis, y: &Axis) {
+    let (sx, sy) = (
+        x.span().max(f64::MIN_POSITIVE),
+        y.span().max(f64::MIN_POSITIVE),
+    );
+    let near = |a: (f64, f64), b: (f64, f64)| {
+        (a.0 - b.0).abs() <= COVER_FRACTION * sx && (a.1 - b.1).abs() <= COVER_FRACTION * sy
+    };
+    for i in 0..series.len() {
+        // Unnamed series are further branches of a family named once: they
+        // are not widened (nor is a series under one of its own colour: the
+        // colour is what tells formulations apart).
+        if series[i].label.is_empty() {
+            continue;
+        }
+        let mine: Vec<(f64, f64)> = series[i].runs.iter().flatten().copied().collect();
+        if mine.is_empty() {
+            continue;
+        }
+        let colour = series[i].pen.colour;
+        // Each within the other: a line through the points of another
+        // series (the common end of many curves) does not hide it.
+        let covers = |s: &SeriesData| {
+            if s.pen.colour == colour {
+                return false;
+            }
+            let theirs: Vec<(f64, f64)> = s.runs.iter().flatten().copied().collect();
+            if theirs.len() == mine.len() && mine.iter().zip(&theirs).all(|(&a, &b)| near(a, b)) {
+                return true;
+            }
+            let within = |p: &[(f64, f64)], q: &[(f64, f64)]| {
+                p.iter().all(|&a| q.iter().any(|&b| near(a, b)))
+            };
+            !theirs.is_empty() && within(&mine, &theirs) && within(&theirs, &mine)
+        };
+        let depth = series[i + 1..].iter().filter(|s| covers(s)).count() as u32;
+        if let Some(above) = series[i + 1..].iter().find(|s| covers(s)) {
+            let name = above
+                .label
+                .split([':', '('])
+                .next()
+                .unwrap_or("")
+                .trim()
+                .to_string();
+            let s = &mut series[i];
+            s.covered = depth.min(MAX_DEPTH);
+            s.label = if name.is_empty() {
+                format!("{} (banded: a line lies on it)", s.label)
+            } else {
+                format!("{} (banded: {name} lies on it)", s.label)
+            };
+        }
     }
 }
 
@@ -345,6 +451,32 @@ fn draw_line_plot<DB: DrawingBackend>(
                 .iter()
                 .map(|&(x, y)| (xa.value(x), ya.value(y)))
                 .collect();
+            if run.len() >= 2 && s.covered > 0 {
+                if joins == Joins::Segments {
+                    // Separate segments (see `Joins`), with a disc at every
+                    // point for a round join: a wide band of bare segments
+                    // shows notches wherever the curve turns.
+                    let band = s.band();
+                    let disc = ShapeStyle {
+                        filled: true,
+                        ..band
+                    };
+                    let r = band.stroke_width as i32 / 2;
+                    chart
+                        .draw_series(
+                            run.windows(2)
+                                .map(|w| PathElement::new(vec![w[0], w[1]], band)),
+                        )
+                        .map_err(draw_err)?;
+                    chart
+                        .draw_series(run.iter().map(|&q| Circle::new(q, r, disc)))
+                        .map_err(draw_err)?;
+                } else {
+                    chart
+                        .draw_series(LineSeries::new(run.iter().copied(), s.band()))
+                        .map_err(draw_err)?;
+                }
+            }
             if run.len() >= 2 {
                 if let Some((dash, gap)) = s.pen.dash.on_plot() {
                     chart
@@ -364,7 +496,7 @@ fn draw_line_plot<DB: DrawingBackend>(
                 }
             }
             if s.markers || run.len() == 1 {
-                let (r, mark) = marker(s.pen);
+                let (r, mark) = s.marker();
                 chart
                     .draw_series(run.iter().map(|&q| Circle::new(q, r, mark)))
                     .map_err(draw_err)?;
@@ -375,7 +507,8 @@ fn draw_line_plot<DB: DrawingBackend>(
     for s in labelled(data) {
         let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
-        let (r, mark) = marker(s.pen);
+        let band = s.band();
+        let (r, mark) = s.marker();
         let r = if s.markers { r } else { 0 };
         let len = LEGEND_SAMPLE_PX as i32 - 14;
         let anno = chart
@@ -385,12 +518,14 @@ fn draw_line_plot<DB: DrawingBackend>(
         if let Some((dash, gap)) = s.pen.dash.in_legend() {
             anno.legend(move |(x, y)| {
                 EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (len, 0)], band)
                     + DashedPathElement::new(vec![(0, 0), (len, 0)], dash, gap, style)
                     + Circle::new((len / 2, 0), r, mark)
             });
         } else {
             anno.legend(move |(x, y)| {
                 EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (len, 0)], band)
                     + PathElement::new(vec![(0, 0), (len, 0)], style)
                     + Circle::new((len / 2, 0), r, mark)
             });
@@ -443,6 +578,10 @@ fn draw_outside_legend<DB: DrawingBackend>(
         let x0 = 4 + (k / per_column) as i32 * col_w;
         let colour = s.pen.rgb();
         let line = colour.stroke_width(LINE_PX);
+        if s.covered > 0 {
+            area.draw(&PathElement::new(vec![(x0, y), (x0 + len, y)], s.band()))
+                .map_err(draw_err)?;
+        }
         if let Some((dash, gap)) = s.pen.dash.in_legend() {
             area.draw(&DashedPathElement::new(
                 vec![(x0, y), (x0 + len, y)],
@@ -456,7 +595,7 @@ fn draw_outside_legend<DB: DrawingBackend>(
                 .map_err(draw_err)?;
         }
         if s.markers {
-            let (r, mark) = marker(s.pen);
+            let (r, mark) = s.marker();
             area.draw(&Circle::new((x0 + len / 2, y), r, mark))
                 .map_err(draw_err)?;
         }
@@ -559,7 +698,66 @@ fn legend_position<DB: DrawingBackend>(
 
 #[cfg(test)]
 mod tests {
-    use super::clip_run;
+    use super::super::style::{Dash, Pen};
+    use super::{LineData, LinePlot, Series, clip_run};
+
+    /// A series whose every point a later series of another colour covers
+    /// is banded, once per such series, and its legend names the first by
+    /// its label up to a colon; series of the same colour, unnamed ones and
+    /// ones that part anywhere are not.
+    #[test]
+    fn covered_series_are_banded_and_say_by_whom() {
+        let line = |label: &str, colour: usize, shift: f64| Series {
+            label: label.into(),
+            x: vec![1.0, 10.0, 100.0],
+            y: vec![1e-3, 1e-6 * (1.0 + shift), 1e-9],
+            pen: Some(Pen {
+                colour,
+                dash: Dash::Solid,
+            }),
+        };
+        let plot = |series: Vec<Series>| LinePlot {
+            title: "t".into(),
+            x_label: "evaluations [count]".into(),
+            y_label: "error [m]".into(),
+            log_x: true,
+            log_y: true,
+            series,
+            ..LinePlot::default()
+        };
+        let d = LineData::new(&plot(vec![
+            line("mass: compliance", 4, 0.0),
+            line("C: vakonomic (order 8.6)", 2, 1e-4),
+            line("B", 0, 0.0),
+        ]))
+        .unwrap();
+        let covered: Vec<u32> = d.series.iter().map(|s| s.covered).collect();
+        assert_eq!(covered, [2, 1, 0]);
+        assert_eq!(d.series[0].label, "mass: compliance (banded: C lies on it)");
+        assert_eq!(
+            d.series[1].label,
+            "C: vakonomic (order 8.6) (banded: B lies on it)"
+        );
+        // Parted at one point (a factor 2 at 1e-6 is far on the plot).
+        let d = LineData::new(&plot(vec![line("a", 4, 0.0), line("b", 2, 1.0)])).unwrap();
+        assert_eq!(d.series[0].covered, 0);
+        // A line through a series' only point, and on beyond it, does not
+        // hide it.
+        let mut end = line("end", 6, 0.0);
+        (end.x, end.y) = (vec![10.0, 10.0], vec![1e-6, 1e-6]);
+        let d = LineData::new(&plot(vec![end, line("a", 4, 0.0)])).unwrap();
+        assert_eq!(d.series[0].covered, 0);
+        // Under a series of the same colour, or unnamed, nothing changes.
+        let d = LineData::new(&plot(vec![line("a", 2, 0.0), line("b", 2, 0.0)])).unwrap();
+        assert_eq!(d.series[0].covered, 0);
+        assert_eq!(d.series[0].label, "a");
+        let d = LineData::new(&plot(vec![line("", 4, 0.0), line("c", 0, 0.0)])).unwrap();
+        assert_eq!(d.series[0].covered, 0);
+        // A named series under an unnamed one is banded, without a name.
+        let d = LineData::new(&plot(vec![line("a", 2, 0.0), line("", 4, 0.0)])).unwrap();
+        assert_eq!(d.series[0].covered, 1);
+        assert_eq!(d.series[0].label, "a (banded: a line lies on it)");
+    }
 
     /// A curve leaving the range is cut where it crosses an edge (by
     /// linear interpolation), and a segment across the whole range keeps

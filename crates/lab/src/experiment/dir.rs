@@ -14,9 +14,12 @@
 //! - temporaries left by a killed run (`.NAME.PID.tmp` that no writer
 //!   holds) are removed.
 //!
-//! When the results are complete ([`ResultsDir::finish`], after the
-//! manifest is written) the lock file is removed; after a run that did not
-//! finish it stays, unlocked, and marks the directory as nonholo's.
+//! When the process lets go of the directory ([`ResultsDir::finish`] once
+//! the results are complete, or on an error: a `nonholo plot` that stops at
+//! a missing trajectory) and the directory holds a manifest, the lock file
+//! is removed: the manifest marks the directory as nonholo's. Without a
+//! manifest (a first run that did not finish), or after a killed process,
+//! it stays, unlocked, as that mark.
 
 use std::fs::{self, File, OpenOptions, TryLockError};
 use std::io::{Read, Write};
@@ -104,16 +107,21 @@ impl ResultsDir {
         Ok(())
     }
 
-    /// The results are complete: removes the lock file (if the manifest,
-    /// which marks the directory as nonholo's from then on, is there) and
-    /// releases the lock.
-    pub fn finish(mut self) {
-        if self.lock.take().is_some() && self.path.join("manifest.json").is_file() {
+    /// The results are complete: lets go of the directory (see [`Drop`]).
+    pub fn finish(self) {}
+}
+
+impl Drop for ResultsDir {
+    /// Removes the lock file if nonholo's manifest, which marks the
+    /// directory as nonholo's, is there, and releases the lock.
+    fn drop(&mut self) {
+        if self.lock.is_some() && written_by_an_experiment(&self.path) {
             // Removed while still held: a process that opened the file
             // before sees that it is gone once it holds the lock, and
             // starts again on a new one.
             let _ = fs::remove_file(self.path.join(LOCK));
         }
+        self.lock.take();
     }
 }
 
@@ -259,8 +267,23 @@ mod tests {
             d.join(LOCK).exists(),
             "kept as the mark until a manifest is written"
         );
+        // A file of that name that is not nonholo's manifest is no mark.
         fs::write(d.join("manifest.json"), "{}").unwrap();
         ResultsDir::open(&d, "--out", true).unwrap().finish();
+        assert!(d.join(LOCK).exists());
+        fs::write(
+            d.join("manifest.json"),
+            r#"{"schema": "nonholo.manifest/1"}"#,
+        )
+        .unwrap();
+        ResultsDir::open(&d, "--out", true).unwrap().finish();
+        assert!(!d.join(LOCK).exists());
+        // A process that stops on an error in a directory with a manifest
+        // (`nonholo plot` at a missing trajectory) leaves no lock file
+        // behind either.
+        let failed = ResultsDir::open(&d, "--out", true).unwrap();
+        assert!(d.join(LOCK).exists());
+        drop(failed);
         assert!(!d.join(LOCK).exists());
     }
 

@@ -560,96 +560,131 @@ fn wp_mass_costs_as_performance_md_states() {
     )]);
 }
 
-/// performance.md §2 and §3: the tables of stiff-visc and stiff-mass,
-/// rebuilt from `runs.csv` (steps, distances, failures: deterministic) and
-/// the committed `timing.csv` (wall times).
-#[test]
-fn stiff_tables_as_performance_md_states() {
-    let decades = [
-        ("100.0", "1e2"),
-        ("1000.0", "1e3"),
-        ("10000.0", "1e4"),
-        ("100000.0", "1e5"),
-        ("1000000.0", "1e6"),
-        ("10000000.0", "1e7"),
-        ("100000000.0", "1e8"),
-    ];
-    let mut said = Vec::new();
-    for (name, option) in [("stiff-visc", "option.k"), ("stiff-mass", "option.N")] {
-        let runs = runs(name);
-        let timing = timed_table(name, "timing.csv");
-        let run = |k: &str, label: &str| {
-            runs.iter()
-                .find(|r| r[option] == k && r["label"] == label)
-                .unwrap_or_else(|| panic!("{name}: no {label} at {k}"))
-        };
-        let time = |r: &HashMap<String, String>| {
-            let t = timing
-                .iter()
-                .find(|t| t["point"] == r["point"] && t["label"] == r["label"])
-                .unwrap();
-            wall(num(t, "wall_time_s"))
-        };
-        for (i, (k, decade)) in decades.iter().enumerate() {
-            let steps = |r: &HashMap<String, String>| {
-                let word = if i == 0 { " steps" } else { "" };
-                format!("{}{word}, {}", r["steps"], time(r))
-            };
-            let row = if name == "stiff-visc" {
-                let (adapted, cartesian, dop) = (
-                    run(k, "visc-radau5"),
-                    run(k, "visc-cartesian-radau5"),
-                    run(k, "visc-dop853"),
-                );
-                assert_eq!(num(adapted, "newton_failures"), 0.0);
-                let d = num(adapted, "div_xy_end");
-                let cells = [adapted, cartesian, dop].map(|r| {
-                    if r["status"] != "completed" {
-                        assert!(r["error"].contains("step budget"), "{k}");
-                        return format!("step budget: stopped at t = {}", sig(num(r, "t_last"), 3));
-                    }
-                    match num(r, "newton_failures") {
-                        0.0 => steps(r),
-                        f => format!("{} ({f} Newton failures)", steps(r)),
-                    }
-                });
-                format!(
-                    "| {decade} | {} | {:.1e} | {} |",
-                    if d >= 0.1 {
-                        sig(d, 3)
-                    } else {
-                        format!("{d:.2e}")
-                    },
-                    num(adapted, "constraint_residual_max"),
-                    cells.join(" | ")
-                )
-            } else {
-                if !["1e2", "1e4", "1e6", "1e7", "1e8"].contains(decade) {
-                    continue;
-                }
-                let exact = num(run(k, "compliance-dop853"), "div_q_end");
-                let cells = [
-                    "compliance-dop853",
-                    "compliance-radau5",
-                    "direct-dop853",
-                    "direct-radau5",
-                ]
-                .map(|label| {
-                    let r = run(k, label);
-                    let mut cell = steps(r);
-                    let d = num(r, "div_q_end");
-                    if (d / exact - 1.0).abs() > 0.01 {
-                        cell.push_str(&format!("; **{d:.1e}**"));
-                    }
-                    if num(r, "newton_failures") > 0.0 {
-                        cell.push_str(&format!(", {} Newton failures", r["newton_failures"]));
-                    }
-                    cell
-                });
-                format!("| {decade} | {exact:.2e} | {} |", cells.join(" | "))
-            };
-            said.push(row);
+/// The runs of a stiff sweep (`stiff-visc` over `option.k`, `stiff-mass`
+/// over `option.N`), for the tables of performance.md §2–3: steps and
+/// distances from `runs.csv` (deterministic), wall times from the committed
+/// `timing.csv`.
+struct StiffSweep {
+    name: &'static str,
+    option: &'static str,
+    runs: Vec<HashMap<String, String>>,
+    timing: Vec<HashMap<String, String>>,
+}
+
+/// The decades of the stiff sweeps: the value as `runs.csv` writes it, and
+/// as the tables do.
+const STIFF_DECADES: [(&str, &str); 7] = [
+    ("100.0", "1e2"),
+    ("1000.0", "1e3"),
+    ("10000.0", "1e4"),
+    ("100000.0", "1e5"),
+    ("1000000.0", "1e6"),
+    ("10000000.0", "1e7"),
+    ("100000000.0", "1e8"),
+];
+
+impl StiffSweep {
+    fn new(name: &'static str, option: &'static str) -> Self {
+        StiffSweep {
+            name,
+            option,
+            runs: runs(name),
+            timing: timed_table(name, "timing.csv"),
         }
+    }
+
+    fn run(&self, k: &str, label: &str) -> &HashMap<String, String> {
+        self.runs
+            .iter()
+            .find(|r| r[self.option] == k && r["label"] == label)
+            .unwrap_or_else(|| panic!("{}: no {label} at {k}", self.name))
+    }
+
+    fn time(&self, r: &HashMap<String, String>) -> String {
+        let t = self
+            .timing
+            .iter()
+            .find(|t| t["point"] == r["point"] && t["label"] == r["label"])
+            .unwrap();
+        wall(num(t, "wall_time_s"))
+    }
+
+    /// A cell's "steps, time"; the first row of a table says "steps".
+    fn steps(&self, r: &HashMap<String, String>, first: bool) -> String {
+        let word = if first { " steps" } else { "" };
+        format!("{}{word}, {}", r["steps"], self.time(r))
+    }
+}
+
+/// performance.md §2: the table of stiff-visc, every decade.
+#[test]
+fn stiff_visc_table_as_performance_md_states() {
+    let sweep = StiffSweep::new("stiff-visc", "option.k");
+    let mut said = Vec::new();
+    for (i, (k, decade)) in STIFF_DECADES.iter().enumerate() {
+        let (adapted, cartesian, dop) = (
+            sweep.run(k, "visc-radau5"),
+            sweep.run(k, "visc-cartesian-radau5"),
+            sweep.run(k, "visc-dop853"),
+        );
+        assert_eq!(num(adapted, "newton_failures"), 0.0);
+        let d = num(adapted, "div_xy_end");
+        let cells = [adapted, cartesian, dop].map(|r| {
+            if r["status"] != "completed" {
+                assert!(r["error"].contains("step budget"), "{k}");
+                return format!("step budget: stopped at t = {}", sig(num(r, "t_last"), 3));
+            }
+            match num(r, "newton_failures") {
+                0.0 => sweep.steps(r, i == 0),
+                f => format!("{} ({f} Newton failures)", sweep.steps(r, i == 0)),
+            }
+        });
+        said.push(format!(
+            "| {decade} | {} | {:.1e} | {} |",
+            if d >= 0.1 {
+                sig(d, 3)
+            } else {
+                format!("{d:.2e}")
+            },
+            num(adapted, "constraint_residual_max"),
+            cells.join(" | ")
+        ));
+    }
+    let said: Vec<&str> = said.iter().map(String::as_str).collect();
+    performance_md_says(&said);
+}
+
+/// performance.md §3: the table of stiff-mass, at the decades it shows;
+/// a distance more than 1 % from the compliance form's is quoted in bold.
+#[test]
+fn stiff_mass_table_as_performance_md_states() {
+    let sweep = StiffSweep::new("stiff-mass", "option.N");
+    let shown = ["1e2", "1e4", "1e6", "1e7", "1e8"];
+    let mut said = Vec::new();
+    for (k, decade) in STIFF_DECADES.iter().filter(|(_, d)| shown.contains(d)) {
+        let exact = num(sweep.run(k, "compliance-dop853"), "div_q_end");
+        let cells = [
+            "compliance-dop853",
+            "compliance-radau5",
+            "direct-dop853",
+            "direct-radau5",
+        ]
+        .map(|label| {
+            let r = sweep.run(k, label);
+            let mut cell = sweep.steps(r, *decade == shown[0]);
+            let d = num(r, "div_q_end");
+            if (d / exact - 1.0).abs() > 0.01 {
+                cell.push_str(&format!("; **{d:.1e}**"));
+            }
+            if num(r, "newton_failures") > 0.0 {
+                cell.push_str(&format!(", {} Newton failures", r["newton_failures"]));
+            }
+            cell
+        });
+        said.push(format!(
+            "| {decade} | {exact:.2e} | {} |",
+            cells.join(" | ")
+        ));
     }
     let said: Vec<&str> = said.iter().map(String::as_str).collect();
     performance_md_says(&said);
@@ -2286,21 +2321,20 @@ fn scale_as_performance_md_states() {
 /// rtol 1e-10 faster than every Radau run below 1e-8 m.
 #[test]
 fn wp_train_dae_as_figures_md_states() {
-    fn line<'a>(
-        rows: &'a [HashMap<String, String>],
-        label: &str,
-    ) -> Vec<&'a HashMap<String, String>> {
-        let mut v: Vec<_> = rows.iter().filter(|r| r["label"] == label).collect();
-        v.sort_by(|a, b| num(b, "tolerance").total_cmp(&num(a, "tolerance")));
-        v
+    type Line<'a> = Vec<&'a HashMap<String, String>>;
+    /// The DAE form's, the ODE form's and DOP853's ladders, loosest
+    /// tolerance first, six rungs each.
+    fn lines(rows: &[HashMap<String, String>]) -> (Line<'_>, Line<'_>, Line<'_>) {
+        let line = |label: &str| {
+            let mut v: Vec<_> = rows.iter().filter(|r| r["label"] == label).collect();
+            v.sort_by(|a, b| num(b, "tolerance").total_cmp(&num(a, "tolerance")));
+            assert_eq!(v.len(), 6, "{label}");
+            v
+        };
+        (line("B-dae-radau5"), line("B-radau5"), line("B-dop853"))
     }
     let rows = table("wp-train-dae", "work_precision.csv");
-    let (dae, ode, dop) = (
-        line(&rows, "B-dae-radau5"),
-        line(&rows, "B-radau5"),
-        line(&rows, "B-dop853"),
-    );
-    assert_eq!((dae.len(), ode.len(), dop.len()), (6, 6, 6));
+    let (dae, ode, dop) = lines(&rows);
     for (d, o) in dae.iter().zip(&ode) {
         assert_eq!(num(d, "tolerance"), num(o, "tolerance"));
         assert!(
@@ -2310,12 +2344,7 @@ fn wp_train_dae_as_figures_md_states() {
         );
     }
     let timed = timed_table("wp-train-dae", "work_precision.csv");
-    let (t_dae, t_ode, t_dop) = (
-        line(&timed, "B-dae-radau5"),
-        line(&timed, "B-radau5"),
-        line(&timed, "B-dop853"),
-    );
-    assert_eq!((t_dae.len(), t_ode.len(), t_dop.len()), (6, 6, 6));
+    let (t_dae, t_ode, t_dop) = lines(&timed);
     assert_eq!(num(t_dop[5], "tolerance"), 1e-10);
     for (d, o) in t_dae.iter().zip(&t_ode) {
         assert!(

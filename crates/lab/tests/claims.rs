@@ -783,8 +783,28 @@ fn wp_mass_as_figures_md_states() {
         "166 evaluations, error 2.6e-8 at N = 1e4 and 1e6, as C",
         "407, 2228 and 12 655 evaluations at N = 1e2, 1e4, 1e6",
         "keeps 1.3e-8 to 1.7e-8 at tolerance 1e-10 for every N while its evaluations grow from 468 to 3428",
+        "at N = 1e6 it takes C's steps at every tolerance, to errors within 0.003 % of C's, so C's line lies on it",
     ]);
     let rows = table("wp-mass", "work_precision.csv");
+    // The banded line of the cited figure (N = 1e6): C's evaluations at
+    // every rung, errors within 0.003 %.
+    let ladder = |label: &str| {
+        let mut v: Vec<_> = rows
+            .iter()
+            .filter(|r| r["option.N"] == "1000000.0" && r["label"] == label)
+            .collect();
+        v.sort_by(|a, b| num(a, "tolerance").total_cmp(&num(b, "tolerance")));
+        v
+    };
+    let (mass, c) = (ladder("compliance-dop853"), ladder("C"));
+    assert_eq!(mass.len(), 8);
+    assert_eq!(mass.len(), c.len());
+    for (m, c) in mass.iter().zip(&c) {
+        assert_eq!(m["tolerance"], c["tolerance"]);
+        assert_eq!(m["rhs_evals"], c["rhs_evals"]);
+        let rel = (num(m, "err_max") / num(c, "err_max") - 1.0).abs();
+        assert!(rel < 3e-5, "{} {rel}", m["tolerance"]);
+    }
     let at = |n: &str, label: &str, tol: f64| {
         rows.iter()
             .find(|r| {

@@ -115,11 +115,13 @@ impl Drop for ResultsDir {
     /// Removes the lock file if nonholo's manifest, which marks the
     /// directory as nonholo's, is there, and releases the lock.
     fn drop(&mut self) {
-        if self.lock.is_some() && written_by_an_experiment(&self.path) {
+        let path = self.path.join(LOCK);
+        let ours = self.lock.as_ref().is_some_and(|f| same_file(f, &path));
+        if ours && written_by_an_experiment(&self.path) {
             // Removed while still held: a process that opened the file
             // before sees that it is gone once it holds the lock, and
             // starts again on a new one.
-            let _ = fs::remove_file(self.path.join(LOCK));
+            let _ = fs::remove_file(&path);
         }
         self.lock.take();
     }
@@ -258,8 +260,8 @@ mod tests {
                 .contains(&format!("pid {}", std::process::id()))
         );
         drop(first);
-        // Dropped without finishing (as a killed run): the lock file stays,
-        // unlocked, and does not block.
+        // Dropped without a manifest (a first run that did not finish, or
+        // a killed one): the lock file stays, unlocked, and does not block.
         assert!(d.join(LOCK).exists());
         let third = ResultsDir::open(&d, "--out", true).unwrap();
         third.finish();

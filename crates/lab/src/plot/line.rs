@@ -1,6 +1,7 @@
 //! Line plots: curves on shared (linear or logarithmic) axes, with a
 //! legend placed where it covers no curve.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
@@ -97,10 +98,15 @@ struct SeriesData {
 /// Coinciding series beyond this many are not widened further.
 const MAX_DEPTH: u32 = 3;
 
+/// A band gets a round join (a disc) where its curve turns by more than
+/// this angle (radians, in units of the axes' spans): below it the notch
+/// between bare segments is about a pixel for the widest band.
+const BAND_TURN: f64 = 0.1;
+
 /// The band beneath a covered series is its colour mixed with white in this
 /// proportion: lighter than the line, so that the line over it stays
 /// readable.
-const BAND_SHADE: f64 = 0.6;
+const BAND_SHADE: f64 = 0.45;
 
 /// How much wider than [`LINE_PX`] (and its dots' radius) a covered series
 /// is drawn: its colour shows as a band on both sides of the line above.
@@ -219,61 +225,129 @@ impl LineData {
     }
 }
 
-/// Counts for every series the later ones (drawn over it) that coincide
-/// with it, every point of each near a point of the other, and says so in its legend entry, naming the first of them by
-/// its label up to a colon or a parenthesis.
+/// The points of one series on a grid of cells [`COVER_FRACTION`] of each
+/// axis' span wide, for the search of coinciding series in time linear in
+/// their points.
+struct Cells {
+    points: Vec<(f64, f64)>,
+    grid: HashMap<(i64, i64), Vec<(f64, f64)>>,
+    /// Bounding box: `(x_lo, x_hi, y_lo, y_hi)`.
+    bounds: (f64, f64, f64, f64),
+}
+
+impl Cells {
+    fn new(s: &SeriesData, cell: (f64, f64)) -> Cells {
+        let points: Vec<(f64, f64)> = s.runs.iter().flatten().copied().collect();
+        let mut grid: HashMap<(i64, i64), Vec<(f64, f64)>> = HashMap::new();
+        let mut bounds = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &p in &points {
+            grid.entry(Cells::key(p, cell)).or_default().push(p);
+            bounds = (
+                bounds.0.min(p.0),
+                bounds.1.max(p.0),
+                bounds.2.min(p.1),
+                bounds.3.max(p.1),
+            );
+        }
+        Cells {
+            points,
+            grid,
+            bounds,
+        }
+    }
+
+    fn key(p: (f64, f64), cell: (f64, f64)) -> (i64, i64) {
+        ((p.0 / cell.0).floor() as i64, (p.1 / cell.1).floor() as i64)
+    }
+
+    /// Whether every point of `self` is within one cell of a point of
+    /// `other` in both coordinates.
+    fn within(&self, other: &Cells, cell: (f64, f64)) -> bool {
+        let near = |a: (f64, f64), b: (f64, f64)| {
+            (a.0 - b.0).abs() <= cell.0 && (a.1 - b.1).abs() <= cell.1
+        };
+        self.points.iter().all(|&a| {
+            let (kx, ky) = Cells::key(a, cell);
+            (-1..=1).any(|dx| {
+                (-1..=1).any(|dy| {
+                    other
+                        .grid
+                        .get(&(kx + dx, ky + dy))
+                        .is_some_and(|ps| ps.iter().any(|&b| near(a, b)))
+                })
+            })
+        })
+    }
+
+    /// Each series within the other: a line through the points of another
+    /// series (the common end of many curves) does not hide it.
+    fn coincide(&self, other: &Cells, cell: (f64, f64)) -> bool {
+        let (a, b) = (self.bounds, other.bounds);
+        let apart = (a.0 - b.0).abs() > cell.0
+            || (a.1 - b.1).abs() > cell.0
+            || (a.2 - b.2).abs() > cell.1
+            || (a.3 - b.3).abs() > cell.1;
+        !self.points.is_empty()
+            && !other.points.is_empty()
+            && !apart
+            && self.within(other, cell)
+            && other.within(self, cell)
+    }
+}
+
+/// Bands every named series that later series (drawn over it) coincide
+/// with, every point of each near a point of the other ([`Cells`]): one
+/// band width more than the widest band among them (a later series of the
+/// same colour counts only if it is banded itself: otherwise it looks the
+/// same either way), so that each band shows around the ones above it.
+/// Its legend entry names the first of them by its label up to a colon, a
+/// parenthesis or a comma.
 fn mark_covered(series: &mut [SeriesData], x: &Axis, y: &Axis) {
-    let (sx, sy) = (
-        x.span().max(f64::MIN_POSITIVE),
-        y.span().max(f64::MIN_POSITIVE),
+    let cell = (
+        COVER_FRACTION * x.span().max(f64::MIN_POSITIVE),
+        COVER_FRACTION * y.span().max(f64::MIN_POSITIVE),
     );
-    let near = |a: (f64, f64), b: (f64, f64)| {
-        (a.0 - b.0).abs() <= COVER_FRACTION * sx && (a.1 - b.1).abs() <= COVER_FRACTION * sy
-    };
-    for i in 0..series.len() {
-        // Unnamed series are further branches of a family named once: they
-        // are not widened (nor is a series under one of its own colour: the
-        // colour is what tells formulations apart).
+    let cells: Vec<Cells> = series.iter().map(|s| Cells::new(s, cell)).collect();
+    // From the last series down: a band's width depends on those above it.
+    for i in (0..series.len()).rev() {
+        // Unnamed series are further branches of a family named once.
         if series[i].label.is_empty() {
             continue;
         }
-        let mine: Vec<(f64, f64)> = series[i].runs.iter().flatten().copied().collect();
-        if mine.is_empty() {
+        let colour = series[i].pen.rgb();
+        let mut depth = 0;
+        let mut above: Vec<usize> = Vec::new();
+        for j in i + 1..series.len() {
+            let counts = series[j].pen.rgb() != colour || series[j].covered > 0;
+            if counts && cells[i].coincide(&cells[j], cell) {
+                depth = depth.max(series[j].covered + 1);
+                above.push(j);
+            }
+        }
+        let Some(&first) = above.first() else {
             continue;
-        }
-        let colour = series[i].pen.colour;
-        // Each within the other: a line through the points of another
-        // series (the common end of many curves) does not hide it.
-        let covers = |s: &SeriesData| {
-            if s.pen.colour == colour {
-                return false;
-            }
-            let theirs: Vec<(f64, f64)> = s.runs.iter().flatten().copied().collect();
-            if theirs.len() == mine.len() && mine.iter().zip(&theirs).all(|(&a, &b)| near(a, b)) {
-                return true;
-            }
-            let within = |p: &[(f64, f64)], q: &[(f64, f64)]| {
-                p.iter().all(|&a| q.iter().any(|&b| near(a, b)))
-            };
-            !theirs.is_empty() && within(&mine, &theirs) && within(&theirs, &mine)
         };
-        let depth = series[i + 1..].iter().filter(|s| covers(s)).count() as u32;
-        if let Some(above) = series[i + 1..].iter().find(|s| covers(s)) {
-            let name = above
-                .label
-                .split([':', '('])
-                .next()
-                .unwrap_or("")
-                .trim()
-                .to_string();
-            let s = &mut series[i];
-            s.covered = depth.min(MAX_DEPTH);
-            s.label = if name.is_empty() {
-                format!("{} (banded: a line lies on it)", s.label)
-            } else {
-                format!("{} (banded: {name} lies on it)", s.label)
-            };
-        }
+        let name = series[first]
+            .label
+            .split([':', '(', ','])
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        let name = match (name.is_empty(), above.len()) {
+            (true, 1) => "a line lies".to_string(),
+            (true, n) => format!("{n} lines lie"),
+            (false, 1) => format!("{name} lies"),
+            (false, n) => format!("{name} and {} more lie", n - 1),
+        };
+        let s = &mut series[i];
+        s.covered = depth.min(MAX_DEPTH);
+        s.label = format!("{} (banded: {name} on it)", s.label);
     }
 }
 
@@ -443,6 +517,59 @@ fn draw_line_plot<DB: DrawingBackend>(
     }
     draw_axes(&mut chart, &xa, &ya, &p.x_label, &p.y_label, true)?;
 
+    // Bands first, the widest first, under every line (a band drawn in
+    // its series' turn would cover the lines drawn before it).
+    let mut banded: Vec<&SeriesData> = data.series.iter().filter(|s| s.covered > 0).collect();
+    banded.sort_by_key(|s| std::cmp::Reverse(s.covered));
+    for s in banded {
+        let band = s.band();
+        // Separate segments in a bitmap (no joins: see `Joins`), with a disc
+        // where the curve turns by more than BAND_TURN (a round join: bare
+        // segments leave notches there).
+        let disc = ShapeStyle {
+            filled: true,
+            ..band
+        };
+        let r = band.stroke_width.div_ceil(2) as i32;
+        let unit = |q: (f64, f64)| ((q.0 - xa.lo) / xa.span(), (q.1 - ya.lo) / ya.span());
+        for run in s.runs.iter().filter(|r| r.len() >= 2) {
+            let turns: Vec<(f64, f64)> = run
+                .iter()
+                .enumerate()
+                .filter(|&(k, _)| {
+                    k == 0 || k + 1 == run.len() || {
+                        let (a, b, c) = (unit(run[k - 1]), unit(run[k]), unit(run[k + 1]));
+                        let (u, v) = ((b.0 - a.0, b.1 - a.1), (c.0 - b.0, c.1 - b.1));
+                        let cos = (u.0 * v.0 + u.1 * v.1) / (u.0.hypot(u.1) * v.0.hypot(v.1));
+                        // A NaN (a repeated point) counts as a turn.
+                        cos.is_nan() || cos < BAND_TURN.cos()
+                    }
+                })
+                .map(|(_, &(x, y))| (xa.value(x), ya.value(y)))
+                .collect();
+            let run: Vec<(f64, f64)> = run
+                .iter()
+                .map(|&(x, y)| (xa.value(x), ya.value(y)))
+                .collect();
+            if joins == Joins::Segments {
+                chart
+                    .draw_series(
+                        run.windows(2)
+                            .map(|w| PathElement::new(vec![w[0], w[1]], band)),
+                    )
+                    .map_err(draw_err)?;
+            } else {
+                // One polyline keeps the file small (a path per segment made
+                // the densest SVG five times larger); viewers bound its miters.
+                chart
+                    .draw_series(LineSeries::new(run.iter().copied(), band))
+                    .map_err(draw_err)?;
+            }
+            chart
+                .draw_series(turns.iter().map(|&q| Circle::new(q, r, disc)))
+                .map_err(draw_err)?;
+        }
+    }
     for s in &data.series {
         let colour = s.pen.rgb();
         let style = colour.stroke_width(LINE_PX);
@@ -451,32 +578,6 @@ fn draw_line_plot<DB: DrawingBackend>(
                 .iter()
                 .map(|&(x, y)| (xa.value(x), ya.value(y)))
                 .collect();
-            if run.len() >= 2 && s.covered > 0 {
-                if joins == Joins::Segments {
-                    // Separate segments (see `Joins`), with a disc at every
-                    // point for a round join: a wide band of bare segments
-                    // shows notches wherever the curve turns.
-                    let band = s.band();
-                    let disc = ShapeStyle {
-                        filled: true,
-                        ..band
-                    };
-                    let r = band.stroke_width as i32 / 2;
-                    chart
-                        .draw_series(
-                            run.windows(2)
-                                .map(|w| PathElement::new(vec![w[0], w[1]], band)),
-                        )
-                        .map_err(draw_err)?;
-                    chart
-                        .draw_series(run.iter().map(|&q| Circle::new(q, r, disc)))
-                        .map_err(draw_err)?;
-                } else {
-                    chart
-                        .draw_series(LineSeries::new(run.iter().copied(), s.band()))
-                        .map_err(draw_err)?;
-                }
-            }
             if run.len() >= 2 {
                 if let Some((dash, gap)) = s.pen.dash.on_plot() {
                     chart
@@ -733,7 +834,10 @@ mod tests {
         .unwrap();
         let covered: Vec<u32> = d.series.iter().map(|s| s.covered).collect();
         assert_eq!(covered, [2, 1, 0]);
-        assert_eq!(d.series[0].label, "mass: compliance (banded: C lies on it)");
+        assert_eq!(
+            d.series[0].label,
+            "mass: compliance (banded: C and 1 more lie on it)"
+        );
         assert_eq!(
             d.series[1].label,
             "C: vakonomic (order 8.6) (banded: B lies on it)"
@@ -747,6 +851,16 @@ mod tests {
         (end.x, end.y) = (vec![10.0, 10.0], vec![1e-6, 1e-6]);
         let d = LineData::new(&plot(vec![end, line("a", 4, 0.0)])).unwrap();
         assert_eq!(d.series[0].covered, 0);
+        // A band is one width wider than the widest band above it, and a
+        // banded series of the same colour counts.
+        let d = LineData::new(&plot(vec![
+            line("a", 2, 0.0),
+            line("b", 2, 0.0),
+            line("c", 0, 0.0),
+        ]))
+        .unwrap();
+        let covered: Vec<u32> = d.series.iter().map(|s| s.covered).collect();
+        assert_eq!(covered, [2, 1, 0]);
         // Under a series of the same colour, or unnamed, nothing changes.
         let d = LineData::new(&plot(vec![line("a", 2, 0.0), line("b", 2, 0.0)])).unwrap();
         assert_eq!(d.series[0].covered, 0);

@@ -776,7 +776,14 @@ fn legend_position<DB: DrawingBackend>(
         (mid_x, top),
         (mid_x, bottom),
     ];
-    let pad = 6.0;
+    // Clear of the curves' lines, and of half the widest band around them.
+    let band = data
+        .series
+        .iter()
+        .map(|s| s.band().stroke_width)
+        .max()
+        .unwrap_or(0);
+    let pad = 6.0 + band as f64 / 2.0;
     let best = candidates
         .iter()
         .map(|&(x, y)| {

@@ -88,20 +88,11 @@ struct SeriesData {
     /// Maximal runs of drawable points, in plot coordinates (see [`Axis`]).
     runs: Vec<Vec<(f64, f64)>>,
     markers: bool,
-    /// How many later series of another colour cover every point of this
-    /// one (at most [`MAX_DEPTH`] counted): it is drawn with a band beneath
-    /// it, [`COVERED_EXTRA_PX`] wider per such series, so that all of them
-    /// show.
+    /// The height of the stack of later series that coincide with this one
+    /// ([`mark_covered`]): it is drawn with a band beneath it,
+    /// [`COVERED_EXTRA_PX`] wider per level, so that all of them show.
     covered: u32,
 }
-
-/// Coinciding series beyond this many are not widened further.
-const MAX_DEPTH: u32 = 3;
-
-/// A band gets a round join (a disc) where its curve turns by more than
-/// this angle (radians, in units of the axes' spans): below it the notch
-/// between bare segments is about a pixel for the widest band.
-const BAND_TURN: f64 = 0.1;
 
 /// The band beneath a covered series is its colour mixed with white in this
 /// proportion: lighter than the line, so that the line over it stays
@@ -346,7 +337,7 @@ fn mark_covered(series: &mut [SeriesData], x: &Axis, y: &Axis) {
             (false, n) => format!("{name} and {} more lie", n - 1),
         };
         let s = &mut series[i];
-        s.covered = depth.min(MAX_DEPTH);
+        s.covered = depth;
         s.label = format!("{} (banded: {name} on it)", s.label);
     }
 }
@@ -524,29 +515,14 @@ fn draw_line_plot<DB: DrawingBackend>(
     for s in banded {
         let band = s.band();
         // Separate segments in a bitmap (no joins: see `Joins`), with a disc
-        // where the curve turns by more than BAND_TURN (a round join: bare
-        // segments leave notches there).
+        // at every point for a round join (bare segments leave notches
+        // wherever the curve turns).
         let disc = ShapeStyle {
             filled: true,
             ..band
         };
         let r = band.stroke_width.div_ceil(2) as i32;
-        let unit = |q: (f64, f64)| ((q.0 - xa.lo) / xa.span(), (q.1 - ya.lo) / ya.span());
         for run in s.runs.iter().filter(|r| r.len() >= 2) {
-            let turns: Vec<(f64, f64)> = run
-                .iter()
-                .enumerate()
-                .filter(|&(k, _)| {
-                    k == 0 || k + 1 == run.len() || {
-                        let (a, b, c) = (unit(run[k - 1]), unit(run[k]), unit(run[k + 1]));
-                        let (u, v) = ((b.0 - a.0, b.1 - a.1), (c.0 - b.0, c.1 - b.1));
-                        let cos = (u.0 * v.0 + u.1 * v.1) / (u.0.hypot(u.1) * v.0.hypot(v.1));
-                        // A NaN (a repeated point) counts as a turn.
-                        cos.is_nan() || cos < BAND_TURN.cos()
-                    }
-                })
-                .map(|(_, &(x, y))| (xa.value(x), ya.value(y)))
-                .collect();
             let run: Vec<(f64, f64)> = run
                 .iter()
                 .map(|&(x, y)| (xa.value(x), ya.value(y)))
@@ -558,16 +534,17 @@ fn draw_line_plot<DB: DrawingBackend>(
                             .map(|w| PathElement::new(vec![w[0], w[1]], band)),
                     )
                     .map_err(draw_err)?;
+                chart
+                    .draw_series(run.iter().map(|&q| Circle::new(q, r, disc)))
+                    .map_err(draw_err)?;
             } else {
-                // One polyline keeps the file small (a path per segment made
-                // the densest SVG five times larger); viewers bound its miters.
+                // One polyline keeps the file small (a path per segment and
+                // a disc per point made the densest SVG five times larger);
+                // viewers round off its joins' miters.
                 chart
                     .draw_series(LineSeries::new(run.iter().copied(), band))
                     .map_err(draw_err)?;
             }
-            chart
-                .draw_series(turns.iter().map(|&q| Circle::new(q, r, disc)))
-                .map_err(draw_err)?;
         }
     }
     for s in &data.series {

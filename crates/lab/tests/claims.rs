@@ -92,6 +92,17 @@ fn num(row: &HashMap<String, String>, key: &str) -> f64 {
         .unwrap_or_else(|_| panic!("{key} = {:?} in {row:?}", row[key]))
 }
 
+/// The rows of one line of a work-precision table (those `keep` selects),
+/// loosest tolerance first.
+fn ladder(
+    rows: &[HashMap<String, String>],
+    keep: impl Fn(&HashMap<String, String>) -> bool,
+) -> Vec<&HashMap<String, String>> {
+    let mut v: Vec<_> = rows.iter().filter(|r| keep(r)).collect();
+    v.sort_by(|a, b| num(b, "tolerance").total_cmp(&num(a, "tolerance")));
+    v
+}
+
 fn find<'a>(
     rows: &'a [HashMap<String, String>],
     point: &str,
@@ -788,15 +799,12 @@ fn wp_mass_as_figures_md_states() {
     let rows = table("wp-mass", "work_precision.csv");
     // The banded line of the cited figure (N = 1e6): C's evaluations at
     // every rung, errors within 0.003 %.
-    let ladder = |label: &str| {
-        let mut v: Vec<_> = rows
-            .iter()
-            .filter(|r| r["option.N"] == "1000000.0" && r["label"] == label)
-            .collect();
-        v.sort_by(|a, b| num(a, "tolerance").total_cmp(&num(b, "tolerance")));
-        v
+    let line = |label: &str| {
+        ladder(&rows, |r| {
+            r["option.N"] == "1000000.0" && r["label"] == label
+        })
     };
-    let (mass, c) = (ladder("compliance-dop853"), ladder("C"));
+    let (mass, c) = (line("compliance-dop853"), line("C"));
     assert_eq!(mass.len(), 8);
     assert_eq!(mass.len(), c.len());
     for (m, c) in mass.iter().zip(&c) {
@@ -2346,8 +2354,7 @@ fn wp_train_dae_as_figures_md_states() {
     /// tolerance first, six rungs each.
     fn lines(rows: &[HashMap<String, String>]) -> (Line<'_>, Line<'_>, Line<'_>) {
         let line = |label: &str| {
-            let mut v: Vec<_> = rows.iter().filter(|r| r["label"] == label).collect();
-            v.sort_by(|a, b| num(b, "tolerance").total_cmp(&num(a, "tolerance")));
+            let v = ladder(rows, |r| r["label"] == label);
             assert_eq!(v.len(), 6, "{label}");
             v
         };

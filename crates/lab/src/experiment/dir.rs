@@ -113,7 +113,8 @@ impl ResultsDir {
 
 impl Drop for ResultsDir {
     /// Removes the lock file if nonholo's manifest, which marks the
-    /// directory as nonholo's, is there, and releases the lock.
+    /// directory as nonholo's, is there; the lock itself is released when
+    /// the file handle drops after this.
     fn drop(&mut self) {
         let path = self.path.join(LOCK);
         let ours = self.lock.as_ref().is_some_and(|f| same_file(f, &path));
@@ -123,7 +124,6 @@ impl Drop for ResultsDir {
             // starts again on a new one.
             let _ = fs::remove_file(&path);
         }
-        self.lock.take();
     }
 }
 

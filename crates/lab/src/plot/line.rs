@@ -21,10 +21,10 @@ use super::write_outputs;
 /// Points that cannot be drawn (NaN, ±inf, or non-positive on a log axis)
 /// break the curve into separate pieces; the legend then says how many
 /// points were left out. Series with at most 40 points, and isolated points
-/// between gaps, are also drawn as dots. A series every point of which a
-/// later series of another colour covers (two formulations that take the
-/// same steps to the same errors) gets a band beneath it, and its legend
-/// entry says so.
+/// between gaps, are also drawn as dots. A named series that a later one of
+/// another colour coincides with (two formulations that take the same steps
+/// to the same errors) gets a band beneath it, and its legend entry says so
+/// (`mark_covered` has the rule).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Series {
     /// Legend text; a series with an empty label has no legend entry
@@ -110,14 +110,22 @@ const COVER_FRACTION: f64 = 0.004;
 impl SeriesData {
     /// The band drawn beneath a covered series (solid, its colour made
     /// lighter); nothing for one that no other covers.
+    /// Width of the band (0: none).
+    fn band_px(&self) -> u32 {
+        if self.covered > 0 {
+            LINE_PX + COVERED_EXTRA_PX * self.covered
+        } else {
+            0
+        }
+    }
+
     fn band(&self) -> ShapeStyle {
         if self.covered > 0 {
             // Mixed with white, opaque: overlapping pieces of the band
             // (segments and the discs at their joins) do not darken.
             let RGBColor(r, g, b) = self.pen.rgb();
             let light = |c: u8| (c as f64 * BAND_SHADE + 255.0 * (1.0 - BAND_SHADE)).round() as u8;
-            RGBColor(light(r), light(g), light(b))
-                .stroke_width(LINE_PX + COVERED_EXTRA_PX * self.covered)
+            RGBColor(light(r), light(g), light(b)).stroke_width(self.band_px())
         } else {
             TRANSPARENT.stroke_width(0)
         }
@@ -222,34 +230,16 @@ impl LineData {
 struct Cells {
     points: Vec<(f64, f64)>,
     grid: HashMap<(i64, i64), Vec<(f64, f64)>>,
-    /// Bounding box: `(x_lo, x_hi, y_lo, y_hi)`.
-    bounds: (f64, f64, f64, f64),
 }
 
 impl Cells {
     fn new(s: &SeriesData, cell: (f64, f64)) -> Cells {
         let points: Vec<(f64, f64)> = s.runs.iter().flatten().copied().collect();
         let mut grid: HashMap<(i64, i64), Vec<(f64, f64)>> = HashMap::new();
-        let mut bounds = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
         for &p in &points {
             grid.entry(Cells::key(p, cell)).or_default().push(p);
-            bounds = (
-                bounds.0.min(p.0),
-                bounds.1.max(p.0),
-                bounds.2.min(p.1),
-                bounds.3.max(p.1),
-            );
         }
-        Cells {
-            points,
-            grid,
-            bounds,
-        }
+        Cells { points, grid }
     }
 
     fn key(p: (f64, f64), cell: (f64, f64)) -> (i64, i64) {
@@ -277,15 +267,11 @@ impl Cells {
 
     /// Each series within the other: a line through the points of another
     /// series (the common end of many curves) does not hide it.
+    /// (`within` stops at the first point without a neighbour, so series
+    /// that part cost little.)
     fn coincide(&self, other: &Cells, cell: (f64, f64)) -> bool {
-        let (a, b) = (self.bounds, other.bounds);
-        let apart = (a.0 - b.0).abs() > cell.0
-            || (a.1 - b.1).abs() > cell.0
-            || (a.2 - b.2).abs() > cell.1
-            || (a.3 - b.3).abs() > cell.1;
         !self.points.is_empty()
             && !other.points.is_empty()
-            && !apart
             && self.within(other, cell)
             && other.within(self, cell)
     }
@@ -757,7 +743,7 @@ fn legend_position<DB: DrawingBackend>(
     let band = data
         .series
         .iter()
-        .map(|s| s.band().stroke_width)
+        .map(SeriesData::band_px)
         .max()
         .unwrap_or(0);
     let pad = 6.0 + band as f64 / 2.0;
@@ -786,10 +772,11 @@ mod tests {
     use super::super::style::{Dash, Pen};
     use super::{LineData, LinePlot, Series, clip_run};
 
-    /// A series whose every point a later series of another colour covers
-    /// is banded, once per such series, and its legend names the first by
-    /// its label up to a colon; series of the same colour, unnamed ones and
-    /// ones that part anywhere are not.
+    /// A named series that later series of another colour (or banded ones)
+    /// coincide with is banded one level above the highest of them, and its
+    /// legend names the first by its label up to a colon, a parenthesis or a
+    /// comma; series under one of the same colour, unnamed ones, ones that
+    /// part anywhere and a point on a longer line are not.
     #[test]
     fn covered_series_are_banded_and_say_by_whom() {
         let line = |label: &str, colour: usize, shift: f64| Series {

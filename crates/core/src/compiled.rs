@@ -49,6 +49,10 @@ pub struct Compiled {
     /// The field's type, checked by [`crate::kkt::Kkt`] in debug builds.
     pub(crate) field: &'static str,
     graph_nodes: usize,
+    /// The KKT system with ideal rows as native code ([`crate::jit`]):
+    /// systems of at most [`crate::linalg::BLOCK_MAX`] unknowns.
+    #[cfg(feature = "jit")]
+    kkt_native: Option<(Arc<crate::jit::KktNative>, crate::jit::KktDims)>,
 }
 
 /// The structural nonzeros of the compiled matrices, as `(row, column)`
@@ -280,7 +284,7 @@ impl Compiled {
             outputs.push(rate(&mut g, r, &q_vars, &qd_node, t_var));
         }
         let deps = outputs.iter().map(|&o| g.deps(o).to_vec()).collect();
-        Ok(Compiled {
+        let mut c = Compiled {
             program: Program::new(&g, &outputs, inputs),
             layout: pattern.layout(n, s, k),
             pattern,
@@ -291,7 +295,44 @@ impl Compiled {
             np,
             field: std::any::type_name::<F>(),
             graph_nodes: g.len(),
-        })
+            #[cfg(feature = "jit")]
+            kkt_native: None,
+        };
+        #[cfg(feature = "jit")]
+        {
+            c.kkt_native = c.compile_kkt();
+        }
+        Ok(c)
+    }
+
+    /// The KKT system with ideal rows as native code, where it is small
+    /// enough and Cranelift compiled it.
+    #[cfg(feature = "jit")]
+    fn compile_kkt(&self) -> Option<(Arc<crate::jit::KktNative>, crate::jit::KktDims)> {
+        let (ops, outputs, inputs, constants) = self.program.parts();
+        let dim = self.n + self.s + self.k;
+        let at = self.rhs_at();
+        let dims = crate::jit::KktDims {
+            n: self.n,
+            s: self.s,
+            k: self.k,
+            np: self.np,
+            constants: constants.len(),
+            outputs: outputs.len(),
+            rhs_at: [at.force, at.g, at.g_rate0, at.f, at.f_rate, at.f_accel0],
+            entries: (self.kkt_entries().into_iter())
+                .map(|(r, c, src)| (r as usize + c as usize * dim, src.0))
+                .collect(),
+        };
+        let native = crate::jit::kkt(ops, outputs, inputs, dims.clone())?;
+        Some((native, dims))
+    }
+
+    /// The KKT system with ideal rows as native code ([`crate::jit`]), if
+    /// it was compiled.
+    #[cfg(feature = "jit")]
+    pub(crate) fn kkt_native(&self) -> Option<&(Arc<crate::jit::KktNative>, crate::jit::KktDims)> {
+        self.kkt_native.as_ref()
     }
 
     /// Checks (in debug builds) that the program was compiled for the field
@@ -486,6 +527,17 @@ impl<T> Workspace<T> {
     /// All outputs of the last evaluation, in the order of [`Pieces`].
     pub fn outputs(&self) -> &[T] {
         &self.out
+    }
+
+    /// The program's constants (the registers after the inputs, where
+    /// [`crate::graph::Program::registers`] put them) and the outputs, for
+    /// code that evaluates the program itself ([`crate::jit`]).
+    pub(crate) fn constants_and_outputs(&mut self, c: &Compiled) -> (&[T], &mut [T]) {
+        let inputs = 1 + 2 * c.n + c.np;
+        (
+            &self.regs[inputs..inputs + c.program.constants()],
+            &mut self.out,
+        )
     }
 }
 

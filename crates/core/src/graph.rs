@@ -990,13 +990,41 @@ impl Scalar for Tracer {
 /// constants (written once, by [`Program::registers`]), then one register
 /// per instruction: an evaluation copies the inputs and runs only the
 /// instructions.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Program {
     /// The instructions: nodes whose operands are register numbers.
     ops: Vec<Node>,
     constants: Vec<f64>,
     outputs: Vec<u32>,
     inputs: usize,
+    /// The same instructions as native code over `f64` and over `Dual64`
+    /// ([`crate::jit`]), compiled where first run over that type; `None`:
+    /// the interpreter runs them.
+    #[cfg(feature = "jit")]
+    native: Native,
+}
+
+#[cfg(feature = "jit")]
+type NativeCell = std::sync::OnceLock<Option<std::sync::Arc<crate::jit::ProgramNative>>>;
+
+#[cfg(feature = "jit")]
+#[derive(Debug, Clone, Default)]
+struct Native {
+    /// Whether native code was on ([`crate::jit::enabled`]) when the
+    /// program was built: a program built while it was off stays in the
+    /// interpreter.
+    allowed: bool,
+    real: NativeCell,
+    dual: NativeCell,
+}
+
+/// Two programs are equal when their instructions, constants and outputs
+/// are (native code or not).
+impl PartialEq for Program {
+    fn eq(&self, other: &Program) -> bool {
+        (&self.ops, &self.constants, &self.outputs, self.inputs)
+            == (&other.ops, &other.constants, &other.outputs, other.inputs)
+    }
 }
 
 impl Program {
@@ -1043,12 +1071,55 @@ impl Program {
             register[id] = (base + ops.len()) as u32;
             ops.push(op);
         }
+        let outputs: Vec<u32> = outputs.iter().map(|&o| register[o as usize]).collect();
         Program {
-            outputs: outputs.iter().map(|&o| register[o as usize]).collect(),
+            #[cfg(feature = "jit")]
+            native: Native {
+                allowed: crate::jit::enabled(),
+                ..Native::default()
+            },
+            outputs,
             ops,
             constants,
             inputs,
         }
+    }
+
+    /// The instructions, the outputs' registers, the number of inputs and
+    /// the constants (for compiling the program into something larger,
+    /// [`crate::jit::kkt`]).
+    #[cfg(feature = "jit")]
+    pub(crate) fn parts(&self) -> (&[Node], &[u32], usize, &[f64]) {
+        (&self.ops, &self.outputs, self.inputs, &self.constants)
+    }
+
+    /// Whether the program runs as native code over `f64` ([`crate::jit`];
+    /// compiled now if it was not yet).
+    pub fn is_native(&self) -> bool {
+        #[cfg(feature = "jit")]
+        return self.real_native().is_some();
+        #[cfg(not(feature = "jit"))]
+        false
+    }
+
+    #[cfg(feature = "jit")]
+    fn real_native(&self) -> Option<&crate::jit::ProgramNative> {
+        let base = self.inputs + self.constants.len();
+        let allowed = self.native.allowed;
+        (self.native.real)
+            .get_or_init(|| allowed.then(|| crate::jit::program(&self.ops, &self.outputs, base))?)
+            .as_deref()
+    }
+
+    #[cfg(feature = "jit")]
+    fn dual_native(&self) -> Option<&crate::jit::ProgramNative> {
+        let base = self.inputs + self.constants.len();
+        let allowed = self.native.allowed;
+        (self.native.dual)
+            .get_or_init(|| {
+                allowed.then(|| crate::jit::dual_program(&self.ops, &self.outputs, base))?
+            })
+            .as_deref()
     }
 
     /// Number of instructions (the cost of one evaluation, in operations;
@@ -1082,6 +1153,11 @@ impl Program {
             .count()
     }
 
+    /// Number of constants (registers after the inputs).
+    pub fn constants(&self) -> usize {
+        self.constants.len()
+    }
+
     /// Number of inputs and of outputs.
     pub fn shape(&self) -> (usize, usize) {
         (self.inputs, self.outputs.len())
@@ -1109,6 +1185,31 @@ impl Program {
     /// [`Program::eval`] with the inputs already in `regs[..inputs]` (the
     /// first registers), where a caller can write them without a copy.
     pub fn run<T: Scalar>(&self, regs: &mut [T], out: &mut [T]) {
+        let base = self.inputs + self.constants.len();
+        assert_eq!(regs.len(), base + self.ops.len(), "program registers");
+        assert_eq!(out.len(), self.outputs.len(), "program outputs");
+        #[cfg(feature = "jit")]
+        if let Some(regs) = T::as_real_mut(regs)
+            && let Some(native) = self.real_native()
+        {
+            let out = T::as_real_mut(out).expect("the outputs have the registers' type");
+            native.run(regs, out);
+            return;
+        }
+        #[cfg(feature = "jit")]
+        if let Some(regs) = T::as_pairs_mut(regs)
+            && let Some(native) = self.dual_native()
+        {
+            let out = T::as_pairs_mut(out).expect("the outputs have the registers' type");
+            native.run(regs, out);
+            return;
+        }
+        self.run_interpreted(regs, out);
+    }
+
+    /// [`Program::run`] by the interpreter, whatever native code the
+    /// program has: the definition native code is tested against.
+    pub fn run_interpreted<T: Scalar>(&self, regs: &mut [T], out: &mut [T]) {
         let base = self.inputs + self.constants.len();
         assert_eq!(regs.len(), base + self.ops.len(), "program registers");
         assert_eq!(out.len(), self.outputs.len(), "program outputs");

@@ -313,18 +313,12 @@ impl<T: Scalar> Kkt<T> {
         self.dense();
         let n = self.n;
         let (s, k) = (self.cs.s, self.cs.k);
-        self.matrix.as_mut_slice().fill(T::from(0.0));
         if let (Some(alpha), Some(_)) = (rows.ideal_gain(), &self.compiled) {
             self.eval_ideal::<F, R>(p, rows, alpha, t, q, qd);
-            let Some((_, w)) = &self.compiled else {
-                unreachable!("the ideal path needs a program");
-            };
-            let (m, out) = (self.matrix.as_mut_slice(), w.outputs());
-            for &(at, src) in &self.entries {
-                m[at] = *src.value(out);
-            }
+            self.scatter_entries();
             return;
         }
+        self.matrix.as_mut_slice().fill(T::from(0.0));
         if let Some((c, w)) = &mut self.compiled {
             c.check_field::<F>();
             c.eval(w, t, q, qd, p);
@@ -402,8 +396,63 @@ impl<T: Scalar> Kkt<T> {
             };
             return sparse.solve(&w.pieces(c), &mut self.sol);
         }
+        #[cfg(feature = "jit")]
+        if let Some(alpha) = rows.ideal_gain()
+            && let Some(done) = self.solve_native::<F, R>(p, rows, alpha, t, q, qd)
+        {
+            return done;
+        }
         self.assemble(ell, p, scene, rows, t, q, qd);
         self.solve_in_place()
+    }
+
+    /// Ideal rows over `f64` by the KKT system's native code
+    /// ([`crate::jit`]): the program, the assembly and the block
+    /// elimination of [`solve_saddle`] in one call, the same arithmetic.
+    /// Where the elimination declines, the system is assembled from the
+    /// program's outputs and solved as [`Kkt::solve_assembled`] does.
+    /// `None` where there is no such code (`T` is not `f64`, the system is
+    /// larger than [`crate::linalg::BLOCK_MAX`], native code is off).
+    #[cfg(feature = "jit")]
+    fn solve_native<F, R: GRows>(
+        &mut self,
+        p: &[T],
+        rows: &R,
+        alpha: f64,
+        t: T,
+        q: &[T],
+        qd: &[T],
+    ) -> Option<Result<(), Singular>> {
+        let Kkt { compiled, sol, .. } = self;
+        let (c, w) = compiled.as_mut()?;
+        let (native, dims) = c.kkt_native()?;
+        c.check_field::<F>();
+        let (q, qd, p) = (T::as_real(q)?, T::as_real(qd)?, T::as_real(p)?);
+        let (alpha_f, beta) = rows.holonomic_gains();
+        let (constants, out) = w.constants_and_outputs(c);
+        let inputs = crate::jit::KktInputs {
+            t: t.re(),
+            q,
+            qd,
+            p,
+            constants: T::as_real(constants)?,
+        };
+        let gains = [alpha, alpha_f, beta];
+        let solved = native.solve(
+            dims,
+            &inputs,
+            gains,
+            T::as_real_mut(out)?,
+            T::as_real_mut(sol)?,
+        );
+        self.load_constraints();
+        if solved {
+            return Some(self.finite());
+        }
+        self.dense();
+        self.ideal_rhs(rows, alpha);
+        self.scatter_entries();
+        Some(self.solve_in_place())
     }
 
     /// Ideal rows from the compiled program: evaluates it at `(t, q, q̇)`,
@@ -419,27 +468,58 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) {
-        let (n, s) = (self.n, self.cs.s);
         let Some((c, w)) = &mut self.compiled else {
             unreachable!("the ideal path needs a program");
         };
         c.check_field::<F>();
         c.eval(w, t, q, qd, p);
+        self.load_constraints();
+        self.ideal_rhs(rows, alpha);
+    }
+
+    /// The constraint values of the program's last outputs into [`Kkt::cs`].
+    fn load_constraints(&mut self) {
+        let Some((c, w)) = &self.compiled else {
+            unreachable!("the ideal path needs a program");
+        };
         // Index by index rather than by `load`: these pieces hold a few
         // values each, and a copy per piece costs more than the values.
         let (at, out, cs) = (c.rhs_at(), w.outputs(), &mut self.cs);
-        self.sol[..n].copy_from_slice(&out[at.force..at.force + n]);
-        for i in 0..s {
-            let (g, g_rate0) = (out[at.g + i], out[at.g_rate0 + i]);
-            (cs.g[i], cs.g_rate0[i]) = (g, g_rate0);
-            self.sol[n + i] = -g_rate0 - g * (2.0 * alpha);
+        for i in 0..cs.s {
+            cs.g[i] = out[at.g + i];
+            cs.g_rate0[i] = out[at.g_rate0 + i];
         }
         for i in 0..cs.k {
             cs.f[i] = out[at.f + i];
             cs.f_rate[i] = out[at.f_rate + i];
             cs.f_accel0[i] = out[at.f_accel0 + i];
         }
+    }
+
+    /// The right-hand side of ideal rows from the program's last outputs
+    /// and [`Kkt::cs`] ([`Kkt::load_constraints`]).
+    fn ideal_rhs<R: GRows>(&mut self, rows: &R, alpha: f64) {
+        let Some((c, w)) = &self.compiled else {
+            unreachable!("the ideal path needs a program");
+        };
+        let (n, at, out, cs) = (self.n, c.rhs_at(), w.outputs(), &self.cs);
+        self.sol[..n].copy_from_slice(&out[at.force..at.force + n]);
+        for i in 0..cs.s {
+            self.sol[n + i] = -cs.g_rate0[i] - cs.g[i] * (2.0 * alpha);
+        }
         self.holonomic_rhs(rows);
+    }
+
+    /// The matrix from the program's entries (ideal rows), zero elsewhere.
+    fn scatter_entries(&mut self) {
+        let Some((_, w)) = &self.compiled else {
+            unreachable!("the ideal path needs a program");
+        };
+        let (m, out) = (self.matrix.as_mut_slice(), w.outputs());
+        m.fill(T::from(0.0));
+        for &(at, src) in &self.entries {
+            m[at] = *src.value(out);
+        }
     }
 
     /// Solves the system of the last [`Kkt::assemble`] in place.
@@ -462,13 +542,19 @@ impl<T: Scalar> Kkt<T> {
             &mut self.scale,
             &mut self.sol,
         )?;
-        if let Some(column) = self.sol.iter().position(|x| !x.re().is_finite()) {
-            return Err(Singular {
+        self.finite()
+    }
+
+    /// A [`Singular`] with a NaN pivot at the first non-finite entry of the
+    /// solution, if any.
+    fn finite(&self) -> Result<(), Singular> {
+        match self.sol.iter().position(|x| !x.re().is_finite()) {
+            Some(column) => Err(Singular {
                 column,
                 pivot: f64::NAN,
                 scale: f64::NAN,
-            });
+            }),
+            None => Ok(()),
         }
-        Ok(())
     }
 }

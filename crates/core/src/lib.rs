@@ -9,7 +9,8 @@
 //! * [`graph`], [`compiled`]: the same pieces from the scene's functions
 //!   traced once into an expression graph, differentiated on the graph and
 //!   evaluated as one straight-line program (B and C use it where the
-//!   trace holds at every state).
+//!   trace holds at every state); [`jit`] compiles such programs to native
+//!   code (feature `jit`, on by default).
 //! * [`constraints`], [`project`]: constraint pieces at a state; projection
 //!   onto the constraint manifold.
 //! * [`kkt`]: the constrained-acceleration system of the formulations with
@@ -29,6 +30,8 @@ mod error;
 pub mod graph;
 pub mod guard;
 pub mod init;
+#[cfg(feature = "jit")]
+pub mod jit;
 pub mod kkt;
 pub mod linalg;
 pub mod model;

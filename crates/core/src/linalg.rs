@@ -249,36 +249,43 @@ pub const BLOCK_MAX: usize = 8;
 /// definite). Below it — `M` nearly singular, indefinite, or a NaN — the
 /// pivoted LU solves instead: block elimination would lose up to the
 /// inverse of this fraction in accuracy where the LU loses nothing.
-const PRIMAL_PIVOT: f64 = 1e-2;
+pub(crate) const PRIMAL_PIVOT: f64 = 1e-2;
 
 /// Largest componentwise backward error of a solution [`block_core`]
 /// accepts: the residual of every row against the size of its terms
 /// (`|b_i − Σ a_ij x_j| ≤ BACKWARD (|b_i| + Σ |a_ij x_j|)`), a few hundred
 /// units of round-off.
-const BACKWARD: f64 = 1e-13;
+pub(crate) const BACKWARD: f64 = 1e-13;
 
 /// `block_core` refuses a Schur complement pivot below this many times
 /// `m ε max|S|` (the form of [`Lu::factor`]'s singularity threshold, on the
 /// unscaled `m × m` complement), so that a nearly singular system goes to
 /// the LU, which then decides whether it is singular. A heuristic margin,
 /// not a proof that the two paths draw the line at the same place.
-const SCHUR_MARGIN: f64 = 1e3;
+pub(crate) const SCHUR_MARGIN: f64 = 1e3;
 
-/// [`block_core`] with the size a constant, up to [`BLOCK_MAX`]; `false`
-/// beyond.
-fn block<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool {
-    n <= size
-        && match size {
-            1 => block_core::<T, 1, 1>(a, n, rhs),
-            2 => block_core::<T, 2, 4>(a, n, rhs),
-            3 => block_core::<T, 3, 9>(a, n, rhs),
-            4 => block_core::<T, 4, 16>(a, n, rhs),
-            5 => block_core::<T, 5, 25>(a, n, rhs),
-            6 => block_core::<T, 6, 36>(a, n, rhs),
-            7 => block_core::<T, 7, 49>(a, n, rhs),
-            8 => block_core::<T, 8, 64>(a, n, rhs),
-            _ => false,
-        }
+/// [`block_core`] with the size and the primal block constants, up to
+/// [`BLOCK_MAX`] (so that every loop has constant bounds and unrolls);
+/// `false` beyond.
+pub(crate) fn block<T: Scalar>(a: &[T], n: usize, rhs: &mut [T], size: usize) -> bool {
+    macro_rules! sizes {
+        ($(($size:literal, $area:literal: $($n:literal)*))*) => {
+            match (size, n) {
+                $($(($size, $n) => block_core::<T, $size, $area, $n>(a, rhs),)*)*
+                _ => false,
+            }
+        };
+    }
+    sizes! {
+        (1, 1: 0 1)
+        (2, 4: 0 1 2)
+        (3, 9: 0 1 2 3)
+        (4, 16: 0 1 2 3 4)
+        (5, 25: 0 1 2 3 4 5)
+        (6, 36: 0 1 2 3 4 5 6)
+        (7, 49: 0 1 2 3 4 5 6 7)
+        (8, 64: 0 1 2 3 4 5 6 7 8)
+    }
 }
 
 /// One step of Gaussian elimination on the column-major `size × size`
@@ -313,15 +320,14 @@ fn eliminate<T: Scalar>(w: &mut [T], k: usize, size: usize) -> T {
 /// instructions per solve this way against 986 equilibrated and pivoted
 /// (callgrind, residual check included).
 ///
-/// `SIZE` is `size`, and `AREA` its square (the scratch on the stack holds
-/// exactly the matrix).
+/// `SIZE` is `size`, `AREA` its square (the scratch on the stack holds
+/// exactly the matrix) and `N` is `n`.
 #[inline(always)]
-fn block_core<T: Scalar, const SIZE: usize, const AREA: usize>(
+fn block_core<T: Scalar, const SIZE: usize, const AREA: usize, const N: usize>(
     a: &[T],
-    n: usize,
     rhs: &mut [T],
 ) -> bool {
-    let size = SIZE;
+    let (size, n) = (SIZE, N);
     let zero = T::from(0.0);
     let mut w = [zero; AREA];
     let mut inverse = [zero; SIZE];

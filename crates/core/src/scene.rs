@@ -16,7 +16,7 @@ use crate::param::{ParamSpec, Params};
 /// [`C64`], and every (nested) num-dual number over them (`Dual`, `Dual2`,
 /// `Dual3`, `HyperDual`, `HyperHyperDual`, `Real`; the vector duals need
 /// num-dual's `nalgebra` feature, which the workspace does not enable).
-pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
+pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
     /// The size of the value, for branch decisions (which formula, which
     /// pivot): `|x|` for `f64`, `|z|` for [`C64`], and for a dual number
     /// the modulus of its value part (the derivative parts never decide).
@@ -47,10 +47,39 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {
     fn from_tangent(re: f64, _eps: f64) -> Self {
         Self::from(re)
     }
+
+    /// The slice as `f64` values if the type is `f64` ([`Scalar::REAL`]),
+    /// for code that runs native `f64` code on it
+    /// ([`crate::graph::Program::run`]).
+    fn as_real_mut(_x: &mut [Self]) -> Option<&mut [f64]> {
+        None
+    }
+
+    /// [`Scalar::as_real_mut`] for reading.
+    fn as_real(_x: &[Self]) -> Option<&[f64]> {
+        None
+    }
+
+    /// The slice as the pairs `(re, eps)` of its numbers, `2 len` values,
+    /// if the type is `Dual64` (laid out as two `f64`): for native code
+    /// over dual numbers ([`crate::graph::Program::run`]).
+    fn as_pairs_mut(_x: &mut [Self]) -> Option<&mut [f64]> {
+        None
+    }
 }
 
 impl Scalar for f64 {
     const REAL: bool = true;
+
+    #[inline]
+    fn as_real_mut(x: &mut [f64]) -> Option<&mut [f64]> {
+        Some(x)
+    }
+
+    #[inline]
+    fn as_real(x: &[f64]) -> Option<&[f64]> {
+        Some(x)
+    }
 
     #[inline]
     fn modulus(&self) -> f64 {
@@ -96,6 +125,21 @@ impl<T: Scalar> Scalar for Dual<T> {
     #[inline]
     fn from_tangent(re: f64, eps: f64) -> Self {
         Dual::new(T::from(re), T::from(eps))
+    }
+
+    #[inline]
+    fn as_pairs_mut(x: &mut [Self]) -> Option<&mut [f64]> {
+        use std::mem::{offset_of, size_of};
+        let pairs = std::any::TypeId::of::<Self>() == std::any::TypeId::of::<num_dual::Dual64>()
+            && size_of::<Self>() == 16
+            && offset_of!(Dual<T>, re) == 0
+            && offset_of!(Dual<T>, eps) == 8;
+        // SAFETY: `Self` is `Dual<f64>`, whose two `f64` fields lie at
+        // offsets 0 and 8 of its 16 bytes (checked above): a slice of `len`
+        // of them is `2 len` `f64` values, `re` first.
+        pairs.then(|| unsafe {
+            std::slice::from_raw_parts_mut(x.as_mut_ptr().cast::<f64>(), 2 * x.len())
+        })
     }
 }
 

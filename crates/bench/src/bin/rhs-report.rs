@@ -38,13 +38,28 @@ macro_rules! out {
 fn run() -> Result<(), String> {
     let mut report = String::new();
     let (batches, batch_ms) = batch_args("rhs-report [--batches N] [--batch-ms MS]")?;
-    let mut pairs = rhs_pairs().map_err(|e| e.to_string())?;
+    // Every case twice: with native code (the default), and built while
+    // it is off, so that its programs run in the interpreter and its KKT
+    // systems in the Rust solve.
+    let mut pairs: Vec<(RhsCase, RhsCase, &str)> = Vec::new();
+    for native in [true, false] {
+        nonholo_core::jit::set_enabled(native);
+        let suffix = if native { "" } else { ", interpreter" };
+        for (ad, hand) in rhs_pairs().map_err(|e| e.to_string())? {
+            if native || matches!(ad.name, "B" | "C" | "visc adapted") {
+                pairs.push((ad, hand, suffix));
+            }
+        }
+    }
+    nonholo_core::jit::set_enabled(true);
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     out!(
         report,
         "One evaluation at the generic sleigh state (a = 0.4, α = 0.3, potential = com); \
          AD and baseline timed in {} alternating batches of ~{} ms each, medians, and the \
-         median of the per-batch ratios; load average before: {}.\n",
+         median of the per-batch ratios; load average before: {}. Rows marked `interpreter` \
+         were built with native code off (`nonholo_core::jit`): their programs run in the \
+         interpreter and their KKT systems in the Rust solve.\n",
         batches,
         batch_ms,
         load.split_whitespace()
@@ -59,7 +74,7 @@ fn run() -> Result<(), String> {
     out!(report, "|---|---|---|---|---|---|---|");
     let ms = batch_ms;
     let mut jac_lines = Vec::new();
-    for (ad, hand) in pairs.iter_mut() {
+    for (ad, hand, suffix) in pairs.iter_mut() {
         let (mut dy_ad, mut dy_hand) = (vec![0.0; ad.dim()], vec![0.0; hand.dim()]);
         check(ad, &mut dy_ad)?;
         check(hand, &mut dy_hand)?;
@@ -75,7 +90,7 @@ fn run() -> Result<(), String> {
         );
         out!(
             report,
-            "| {} | {} | {t_ad:.0} | {} | {} | {t_hand:.1} | {ratio:.1} |",
+            "| {}{suffix} | {} | {t_ad:.0} | {} | {} | {t_hand:.1} | {ratio:.1} |",
             ad.what,
             ad.dim(),
             hand.what,
@@ -128,7 +143,7 @@ fn run() -> Result<(), String> {
             "— | — | —".to_string()
         };
         jac_lines.push(format!(
-            "| {} | {dim} | {t_jac:.0} | {per_rhs:.1} | {versus_hand} |",
+            "| {}{suffix} | {dim} | {t_jac:.0} | {per_rhs:.1} | {versus_hand} |",
             ad.what
         ));
     }

@@ -124,7 +124,7 @@ impl Equations for ChetaevEquations {
     ) -> Result<(), EvalError> {
         let (q, qd) = y.split_at(qdd.len());
         solve(kkt, scene, stab, t, q, qd)?;
-        qdd.copy_from_slice(kkt.qdd());
+        nonholo_core::linalg::copy_small(qdd, kkt.qdd());
         Ok(())
     }
 

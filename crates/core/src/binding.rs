@@ -127,7 +127,7 @@ pub trait Equations: Sized + Send + 'static {
         qd: &mut [T],
     ) -> Result<(), EvalError> {
         let n = qd.len();
-        qd.copy_from_slice(&y[n..2 * n]);
+        crate::linalg::copy_small(qd, &y[n..2 * n]);
         Ok(())
     }
 

@@ -120,10 +120,11 @@ pub(crate) struct KktInputs<'a> {
 }
 
 impl KktNative {
-    /// Evaluates the program into `out` and, where the block elimination
-    /// accepts the system, writes its solution `(q̈, μ)` into `sol` and
-    /// returns `true`; `false` (with `out` written, `sol` not) where it
-    /// declines. `gains` are `(α_g, α_f, β)`: the rows of `g` read
+    /// Evaluates the program and, where the block elimination accepts the
+    /// system, writes its solution `(q̈, μ)` into `sol` and the constraint
+    /// values `g`, `ġ₀`, `f`, `ḟ`, `f̈₀` into their places among the outputs
+    /// `out`, and returns `true`; where it declines, writes every output
+    /// (`sol` untouched) and returns `false`. `gains` are `(α_g, α_f, β)`: the rows of `g` read
     /// `−ġ₀ − 2α_g g`, those of `f` read `−f̈₀ − 2α_f ḟ − β² f`.
     ///
     /// # Panics
@@ -1014,10 +1015,12 @@ fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
         let (inputs, gains, out, sol) = (args[0], args[1], args[2], args[3]);
         let mut v = Program::emit(b, shape, inputs, ptr)?;
         let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
-        for (k, &value) in outputs.iter().enumerate() {
-            b.ins()
-                .store(MemFlagsData::trusted(), value, out, (8 * k) as i32);
-        }
+        let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
+            for k in range {
+                let at = (8 * k) as i32;
+                b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+            }
+        };
         let read = MemFlagsData::trusted().with_readonly();
         let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
         let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
@@ -1053,9 +1056,21 @@ fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
             b.ins()
                 .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
         }
+        // Solved: the constraint values, for the caller's constraint state.
+        for (start, len) in [
+            (g, d.s),
+            (g_rate0, d.s),
+            (f, d.k),
+            (f_rate, d.k),
+            (f_accel0, d.k),
+        ] {
+            store(b, start..start + len);
+        }
         let one = b.ins().iconst(I32, 1);
         b.ins().return_(&[one]);
+        // Declined: every output, for the caller's assembly and solve.
         b.switch_to_block(decline);
+        store(b, 0..outputs.len());
         let none = b.ins().iconst(I32, 0);
         b.ins().return_(&[none]);
         Ok(())
@@ -1475,7 +1490,16 @@ mod tests {
                 native_accepts, block_accepts,
                 "trial {trial}: n {n}, s {s}, k {k}"
             );
-            assert!(out.iter().zip(&values).all(|(a, b)| same(*a, *b)));
+            // Declined, every output; solved, the constraint values.
+            let written: Vec<usize> = if native_accepts {
+                [(g, s), (g_rate0, s), (f, k), (f_rate, k), (f_accel0, k)]
+                    .iter()
+                    .flat_map(|&(start, len)| start..start + len)
+                    .collect()
+            } else {
+                (0..dims.outputs).collect()
+            };
+            assert!(written.iter().all(|&i| same(out[i], values[i])));
             if native_accepts {
                 accepted += 1;
                 for (i, (a, b)) in sol.iter().zip(&rhs).enumerate() {

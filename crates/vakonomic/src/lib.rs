@@ -29,6 +29,7 @@ use nonholo_core::compiled::{Compiled, Programs};
 use nonholo_core::dae::{FORM, Field, KktDae};
 use nonholo_core::init::{ExtraName, lambda0};
 use nonholo_core::kkt::{Ideal, Kkt};
+use nonholo_core::linalg::copy_small;
 use nonholo_core::model::{FormulationInfo, Model};
 use nonholo_core::param::{ParamSpec, Params};
 use nonholo_core::scene::{Augmented, Scalar, Scene, SceneInfo};
@@ -143,8 +144,8 @@ impl Equations for VakonomicEquations {
         let info = scene.info();
         let (n, s) = (info.n(), info.s());
         solve(kkt, scene, stab, t, y)?;
-        rest[..n].copy_from_slice(kkt.qdd());
-        rest[n..].copy_from_slice(&kkt.mu()[..s]);
+        copy_small(&mut rest[..n], kkt.qdd());
+        copy_small(&mut rest[n..], &kkt.mu()[..s]);
         Ok(())
     }
 

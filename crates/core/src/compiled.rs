@@ -358,6 +358,21 @@ impl Compiled {
         }
     }
 
+    /// Compiles the program's native code over `f64` and `Dual64` now
+    /// ([`Program::prepare_native`]).
+    pub fn prepare_native(&self) {
+        self.program.prepare_native();
+    }
+
+    /// Whether the KKT system with ideal rows runs as native code over
+    /// `f64` ([`crate::jit`]).
+    pub fn has_native_kkt(&self) -> bool {
+        #[cfg(feature = "jit")]
+        return self.kkt_native.is_some();
+        #[cfg(not(feature = "jit"))]
+        false
+    }
+
     /// Instructions per evaluation, of them transcendental calls, and the
     /// size of the graph they were taken from.
     pub fn size(&self) -> (usize, usize, usize) {

@@ -1102,6 +1102,17 @@ impl Program {
         false
     }
 
+    /// Compiles the native code over `f64` and over `Dual64` now (where
+    /// allowed), instead of where the program first runs over each: for
+    /// measuring the cost of making it.
+    pub fn prepare_native(&self) {
+        #[cfg(feature = "jit")]
+        {
+            self.real_native();
+            self.dual_native();
+        }
+    }
+
     #[cfg(feature = "jit")]
     fn real_native(&self) -> Option<&crate::jit::ProgramNative> {
         let base = self.inputs + self.constants.len();

@@ -31,7 +31,7 @@
 //! a one the trace folds away) gets its own.
 
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use cranelift_codegen::Context;
@@ -209,18 +209,41 @@ enum Made {
     Kkt(Option<Arc<KktNative>>),
 }
 
-/// Native code is made for programs of at most this many instructions.
-/// Cranelift takes a few microseconds per instruction and keeps every
-/// value of a straight-line function live in a machine register or a stack
-/// slot until its last use; beyond this size the interpreter, which needs
-/// neither, runs instead.
+/// Native code is made for programs of at most this many instructions
+/// (about 0.4 s of Cranelift's time over `f64` at this size,
+/// [`CAREFUL_UP_TO`]); larger ones, which would take longer to compile
+/// than most runs take to evaluate them, and whose values would fill
+/// large stack frames, run in the interpreter.
 pub const MAX_INSTRUCTIONS: usize = 20_000;
+
+/// Programs of at most this many instructions get Cranelift's careful
+/// register allocator (backtracking), larger ones its single-pass one.
+/// Measured (f64 and `Dual64` code of B's program together): the careful
+/// one takes 1.6 ms for the sleigh's 31 instructions, 37 ms for 700, 0.20 s
+/// for 2180 and 2.5 s for 7360 (the train of 100) — time growing about like
+/// the square of the size — where the single-pass one takes about 20 µs per
+/// instruction (0.14 s for 7360); but its code is slower: the sleigh's
+/// right-hand side 213 ns against 139 ns, the coin's KKT solve 717 ns
+/// against 458 ns, the bicycle's 5.2 µs against 4.2 µs.
+pub const CAREFUL_UP_TO: usize = 1000;
 
 /// The cache is emptied (programs keep their code) when the shapes it
 /// holds exceed this many instructions together.
 const CACHE_INSTRUCTIONS: usize = 1 << 21;
 
 static ENABLED: AtomicBool = AtomicBool::new(true);
+
+/// Functions compiled, the instructions they held and the nanoseconds
+/// Cranelift took, since the process started ([`compile_stats`]).
+static COMPILED: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
+
+/// How many functions were compiled, of how many program instructions
+/// together, in how many seconds, since the process started (cache hits
+/// compile nothing): for measuring what native code costs to make.
+pub fn compile_stats() -> (u64, u64, f64) {
+    let [count, ops, nanos] = COMPILED.each_ref().map(|c| c.load(Ordering::Relaxed));
+    (count, ops, nanos as f64 * 1e-9)
+}
 
 type Cache = Mutex<(HashMap<Key, Made>, usize)>;
 
@@ -249,7 +272,12 @@ fn cached(key: Key, size: usize, make: impl FnOnce() -> Made) -> Made {
     if let Some(found) = guard.0.get(&key) {
         return found.clone();
     }
+    let start = std::time::Instant::now();
     let made = make();
+    let nanos = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+    for (c, v) in COMPILED.iter().zip([1, size as u64, nanos]) {
+        c.fetch_add(v, Ordering::Relaxed);
+    }
     if guard.1 + size > CACHE_INSTRUCTIONS {
         *guard = Default::default();
     }
@@ -388,10 +416,16 @@ fn text(e: impl std::fmt::Display) -> String {
 fn compile_with(
     params: &[Type],
     returns: &[Type],
+    instructions: usize,
     body: impl FnOnce(&mut FunctionBuilder, &[Value], Type) -> Result<(), String>,
 ) -> Result<(*const u8, JITModule), String> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").map_err(text)?;
+    if instructions > CAREFUL_UP_TO {
+        flags
+            .set("regalloc_algorithm", "single_pass")
+            .map_err(text)?;
+    }
     let isa = cranelift_native::builder()
         .map_err(text)?
         .finish(settings::Flags::new(flags))
@@ -438,32 +472,38 @@ enum Lanes {
 }
 
 fn compile_program(shape: &Shape, lanes: Lanes) -> Result<ProgramNative, String> {
-    let (code, module) = compile_with(&[pointer_type(), pointer_type()], &[], |b, args, ptr| {
-        let (inputs, out) = (args[0], args[1]);
-        let store = |b: &mut FunctionBuilder, value, at: usize| {
-            b.ins()
-                .store(MemFlagsData::trusted(), value, out, (8 * at) as i32);
-        };
-        match lanes {
-            Lanes::Real => {
-                let mut v = Program::emit(b, shape, inputs, ptr)?;
-                for (k, &r) in shape.outputs.iter().enumerate() {
-                    let value = v.get(b, r);
-                    store(b, value, k);
+    let size = shape.ops.len() * if lanes == Lanes::Dual { 2 } else { 1 };
+    let (code, module) = compile_with(
+        &[pointer_type(), pointer_type()],
+        &[],
+        size,
+        |b, args, ptr| {
+            let (inputs, out) = (args[0], args[1]);
+            let store = |b: &mut FunctionBuilder, value, at: usize| {
+                b.ins()
+                    .store(MemFlagsData::trusted(), value, out, (8 * at) as i32);
+            };
+            match lanes {
+                Lanes::Real => {
+                    let mut v = Program::emit(b, shape, inputs, ptr)?;
+                    for (k, &r) in shape.outputs.iter().enumerate() {
+                        let value = v.get(b, r);
+                        store(b, value, k);
+                    }
+                }
+                Lanes::Dual => {
+                    let mut v = DualProgram::emit(b, shape, inputs, ptr)?;
+                    for (k, &r) in shape.outputs.iter().enumerate() {
+                        let (re, eps) = v.get(b, r);
+                        store(b, re, 2 * k);
+                        store(b, eps, 2 * k + 1);
+                    }
                 }
             }
-            Lanes::Dual => {
-                let mut v = DualProgram::emit(b, shape, inputs, ptr)?;
-                for (k, &r) in shape.outputs.iter().enumerate() {
-                    let (re, eps) = v.get(b, r);
-                    store(b, re, 2 * k);
-                    store(b, eps, 2 * k + 1);
-                }
-            }
-        }
-        b.ins().return_(&[]);
-        Ok(())
-    })?;
+            b.ins().return_(&[]);
+            Ok(())
+        },
+    )?;
     // SAFETY: `code` is the function compiled above, with the signature
     // (pointer, pointer) -> () in the host's calling convention.
     let entry = unsafe { std::mem::transmute::<*const u8, ProgramFn>(code) };
@@ -1011,70 +1051,75 @@ fn sign_positive(b: &mut FunctionBuilder, x: Value) -> Value {
 
 fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
     let ptr = pointer_type();
-    let (code, module) = compile_with(&[ptr, ptr, ptr, ptr], &[I32], |b, args, ptr| {
-        let (inputs, gains, out, sol) = (args[0], args[1], args[2], args[3]);
-        let mut v = Program::emit(b, shape, inputs, ptr)?;
-        let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
-        let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
-            for k in range {
-                let at = (8 * k) as i32;
-                b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+    let (code, module) = compile_with(
+        &[ptr, ptr, ptr, ptr],
+        &[I32],
+        shape.ops.len(),
+        |b, args, ptr| {
+            let (inputs, gains, out, sol) = (args[0], args[1], args[2], args[3]);
+            let mut v = Program::emit(b, shape, inputs, ptr)?;
+            let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
+            let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
+                for k in range {
+                    let at = (8 * k) as i32;
+                    b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+                }
+            };
+            let read = MemFlagsData::trusted().with_readonly();
+            let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
+            let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
+            // The matrix, zero where no entry is (Kkt::assemble), and the
+            // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
+            let size = d.n + d.s + d.k;
+            let zero = b.ins().f64const(0.0);
+            let mut a = vec![zero; size * size];
+            for &(at, src) in &d.entries {
+                a[at] = outputs[src as usize];
             }
-        };
-        let read = MemFlagsData::trusted().with_readonly();
-        let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
-        let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
-        // The matrix, zero where no entry is (Kkt::assemble), and the
-        // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
-        let size = d.n + d.s + d.k;
-        let zero = b.ins().f64const(0.0);
-        let mut a = vec![zero; size * size];
-        for &(at, src) in &d.entries {
-            a[at] = outputs[src as usize];
-        }
-        let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
-        let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
-        let two = b.ins().f64const(2.0);
-        let two_alpha_g = b.ins().fmul(two, alpha_g);
-        for i in 0..d.s {
-            let minus = b.ins().fneg(outputs[g_rate0 + i]);
-            let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
-            rhs.push(b.ins().fsub(minus, damp));
-        }
-        let two_alpha_f = b.ins().fmul(two, alpha_f);
-        let beta2 = b.ins().fmul(beta, beta);
-        for i in 0..d.k {
-            let minus = b.ins().fneg(outputs[f_accel0 + i]);
-            let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
-            let x = b.ins().fsub(minus, damp);
-            let spring = b.ins().fmul(outputs[f + i], beta2);
-            rhs.push(b.ins().fsub(x, spring));
-        }
-        let decline = b.create_block();
-        let x = block_elimination(b, &a, rhs, d.n, decline);
-        for (i, &xi) in x.iter().enumerate() {
-            b.ins()
-                .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
-        }
-        // Solved: the constraint values, for the caller's constraint state.
-        for (start, len) in [
-            (g, d.s),
-            (g_rate0, d.s),
-            (f, d.k),
-            (f_rate, d.k),
-            (f_accel0, d.k),
-        ] {
-            store(b, start..start + len);
-        }
-        let one = b.ins().iconst(I32, 1);
-        b.ins().return_(&[one]);
-        // Declined: every output, for the caller's assembly and solve.
-        b.switch_to_block(decline);
-        store(b, 0..outputs.len());
-        let none = b.ins().iconst(I32, 0);
-        b.ins().return_(&[none]);
-        Ok(())
-    })?;
+            let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
+            let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
+            let two = b.ins().f64const(2.0);
+            let two_alpha_g = b.ins().fmul(two, alpha_g);
+            for i in 0..d.s {
+                let minus = b.ins().fneg(outputs[g_rate0 + i]);
+                let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
+                rhs.push(b.ins().fsub(minus, damp));
+            }
+            let two_alpha_f = b.ins().fmul(two, alpha_f);
+            let beta2 = b.ins().fmul(beta, beta);
+            for i in 0..d.k {
+                let minus = b.ins().fneg(outputs[f_accel0 + i]);
+                let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
+                let x = b.ins().fsub(minus, damp);
+                let spring = b.ins().fmul(outputs[f + i], beta2);
+                rhs.push(b.ins().fsub(x, spring));
+            }
+            let decline = b.create_block();
+            let x = block_elimination(b, &a, rhs, d.n, decline);
+            for (i, &xi) in x.iter().enumerate() {
+                b.ins()
+                    .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
+            }
+            // Solved: the constraint values, for the caller's constraint state.
+            for (start, len) in [
+                (g, d.s),
+                (g_rate0, d.s),
+                (f, d.k),
+                (f_rate, d.k),
+                (f_accel0, d.k),
+            ] {
+                store(b, start..start + len);
+            }
+            let one = b.ins().iconst(I32, 1);
+            b.ins().return_(&[one]);
+            // Declined: every output, for the caller's assembly and solve.
+            b.switch_to_block(decline);
+            store(b, 0..outputs.len());
+            let none = b.ins().iconst(I32, 0);
+            b.ins().return_(&[none]);
+            Ok(())
+        },
+    )?;
     // SAFETY: `code` is the function compiled above, with the signature
     // (pointer, pointer, pointer, pointer) -> i32 in the host's calling
     // convention.

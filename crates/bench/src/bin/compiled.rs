@@ -2,10 +2,12 @@
 //! (`Jet`, one evaluation of the Lagrangian per derivative direction)
 //! against the compiled program (`nonholo_core::compiled`: the Lagrangian
 //! and constraints traced once, differentiated on the graph, common
-//! subexpressions shared), for every scene: assembly and LU solve of one
-//! right-hand side, over `f64` and over `Dual64` (one Jacobian column),
-//! timed in alternating batches; the program's size and the time to build
-//! it.
+//! subexpressions shared), run as native code (`nonholo_core::jit`, the
+//! default) and in the interpreter, for every scene: assembly and solve of
+//! one right-hand side, over `f64` and over `Dual64` (one Jacobian column),
+//! timed in alternating batches (passes against native code, interpreter
+//! against native code); the program's size, the time to build it and the
+//! time Cranelift takes to make its native code.
 //!
 //! `cargo run --release -p nonholo-bench --bin compiled [-- --batches N --batch-ms MS]`,
 //! from the repository root: the table is also written to
@@ -37,9 +39,12 @@ struct Line {
     passes_ns: f64,
     compiled_ns: f64,
     ratio: f64,
+    interpreted_ns: f64,
+    native_ratio: f64,
     ops: usize,
     transcendentals: usize,
     build_us: f64,
+    native_us: f64,
 }
 
 fn time<T: Scalar, F: ScalarField, S: Scene>(
@@ -63,19 +68,39 @@ fn time<T: Scalar, F: ScalarField, S: Scene>(
     let t = lift(0.3, false);
     let rows = Ideal(Stabilisation::None);
     let mut passes: Kkt<T> = Kkt::for_scene(info);
+    // The program built with native code off: the trace, the derivatives
+    // on the graph and the straight-line program.
+    nonholo_core::jit::set_enabled(false);
     let start = Instant::now();
+    let mut interpreted: Kkt<T> = Kkt::for_scene(info);
+    let built = interpreted.compile(ell, np, scene);
+    let build_us = start.elapsed().as_secs_f64() * 1e6;
+    nonholo_core::jit::set_enabled(true);
+    built.map_err(|e| format!("{}: {e}", info.name))?;
+    // The same with native code, and Cranelift's time for it (nothing
+    // where an earlier line compiled the same shape).
+    let before = nonholo_core::jit::compile_stats().2;
     let mut compiled: Kkt<T> = Kkt::for_scene(info);
     compiled
         .compile(ell, np, scene)
         .map_err(|e| format!("{}: {e}", info.name))?;
-    let build_us = start.elapsed().as_secs_f64() * 1e6;
-    let (ops, transcendentals, _) = compiled.compiled().map(|c| c.size()).unwrap_or_default();
+    let c = compiled.compiled().ok_or("compiled")?;
+    c.prepare_native();
+    let native_us = (nonholo_core::jit::compile_stats().2 - before) * 1e6;
+    let (ops, transcendentals, _) = c.size();
     let solve = |k: &mut Kkt<T>| {
         let r = k.solve(ell, keep(&p), scene, &rows, keep(t), keep(&q), keep(&qd));
         keep(&r);
     };
     solve(&mut passes);
     solve(&mut compiled);
+    solve(&mut interpreted);
+    if compiled.sol != interpreted.sol {
+        return Err(format!(
+            "{} {formulation}: native code and the interpreter differ",
+            info.name
+        ));
+    }
     let worst = passes
         .qdd()
         .iter()
@@ -94,6 +119,12 @@ fn time<T: Scalar, F: ScalarField, S: Scene>(
         batches,
         batch_ms,
     );
+    let (interpreted_ns, _, native_ratio) = paired_ns(
+        || solve(&mut interpreted),
+        || solve(&mut compiled),
+        batches,
+        batch_ms,
+    );
     Ok(Line {
         scene: info.name,
         formulation,
@@ -101,9 +132,12 @@ fn time<T: Scalar, F: ScalarField, S: Scene>(
         passes_ns,
         compiled_ns,
         ratio,
+        interpreted_ns,
+        native_ratio,
         ops,
         transcendentals,
         build_us,
+        native_us,
     })
 }
 
@@ -129,9 +163,11 @@ fn run() -> Result<(), String> {
     let b = batch_args("compiled [--batches N] [--batch-ms MS]")?;
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "One KKT assembly and solve (M, Q, G, ġ₀, F, ḟ, f̈₀; LU) per line, passes and program \
-         timed in {} alternating batches of ~{} ms, medians and the median per-batch ratio; \
-         load average before: {}.\n",
+        "One KKT assembly and solve (M, Q, G, ġ₀, F, ḟ, f̈₀; block elimination or LU) per \
+         line, the passes against the program as native code and the interpreted program \
+         against it, timed in {} alternating batches of ~{} ms, medians and the median \
+         per-batch ratio; build: the trace and the program; native: Cranelift's time for its \
+         code; load average before: {}.\n",
         b.0,
         b.1,
         load.split_whitespace()
@@ -140,11 +176,11 @@ fn run() -> Result<(), String> {
             .join(" ")
     );
     println!(
-        "| scene | formulation | scalar | passes (ns) | compiled (ns) | speed-up | instructions | of them sin, cos, ... | build (µs) |"
+        "| scene | formulation | scalar | passes (ns) | interpreted (ns) | native (ns) | speed-up over passes | over interpreter | instructions | of them sin, cos, ... | build (µs) | native (µs) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut csv = String::from(
-        "scene,formulation,scalar,passes_ns,compiled_ns,speedup,instructions,transcendentals,build_us\n",
+        "scene,formulation,scalar,passes_ns,compiled_ns,speedup,instructions,transcendentals,build_us,interpreted_ns,native_speedup,native_us\n",
     );
     for info in nonholo_scenes::ALL {
         let scene = build(info.name, &[]).map_err(|e| e.to_string())?;
@@ -160,19 +196,25 @@ fn run() -> Result<(), String> {
                 l.ops.to_string(),
                 l.transcendentals.to_string(),
                 format!("{:.1}", l.build_us),
+                format!("{:.1}", l.interpreted_ns),
+                format!("{:.3}", l.native_ratio),
+                format!("{:.1}", l.native_us),
             ];
             csv.push_str(&format!("{}\n", cells.join(",")));
             println!(
-                "| {} | {} | {} | {:.0} | {:.0} | {:.1} | {} | {} | {:.0} |",
+                "| {} | {} | {} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {} | {} | {:.0} | {:.0} |",
                 cells[0],
                 cells[1],
                 cells[2],
                 l.passes_ns,
+                l.interpreted_ns,
                 l.compiled_ns,
                 l.ratio,
+                l.native_ratio,
                 cells[6],
                 cells[7],
-                l.build_us
+                l.build_us,
+                l.native_us
             );
         }
     }

@@ -54,9 +54,11 @@ use crate::linalg::{BACKWARD, BLOCK_MAX, PRIMAL_PIVOT, SCHUR_MARGIN};
 /// one pointer per input segment.
 type ProgramFn = unsafe extern "C" fn(*const *const f64, *mut f64);
 
-/// A KKT system's function: `entry(inputs, gains, outputs, solution)`,
-/// 1 where it solved, 0 where it declined.
-type KktFn = unsafe extern "C" fn(*const *const f64, *const f64, *mut f64, *mut f64) -> i32;
+/// A KKT system's function: `entry(inputs, gains, outputs, solution,
+/// constraint values)`, 1 where it solved, 0 where it declined; the last
+/// points to one pointer per piece `g`, `ġ₀`, `f`, `ḟ`, `f̈₀`.
+type KktFn =
+    unsafe extern "C" fn(*const *const f64, *const f64, *mut f64, *mut f64, *const *mut f64) -> i32;
 
 /// Compiled code, alive as long as a program or the cache holds it.
 pub(crate) struct Native<F> {
@@ -122,10 +124,12 @@ pub(crate) struct KktInputs<'a> {
 impl KktNative {
     /// Evaluates the program and, where the block elimination accepts the
     /// system, writes its solution `(q̈, μ)` into `sol` and the constraint
-    /// values `g`, `ġ₀`, `f`, `ḟ`, `f̈₀` into their places among the outputs
-    /// `out`, and returns `true`; where it declines, writes every output
-    /// (`sol` untouched) and returns `false`. `gains` are `(α_g, α_f, β)`: the rows of `g` read
-    /// `−ġ₀ − 2α_g g`, those of `f` read `−f̈₀ − 2α_f ḟ − β² f`.
+    /// values into `pieces` (`g`, `ġ₀`, `f`, `ḟ`, `f̈₀`, as
+    /// [`crate::constraints::ConstraintState`] holds them), and returns
+    /// `true`; where it declines, writes every output into `out` (`sol`
+    /// and `pieces` untouched) and returns `false`. `gains` are
+    /// `(α_g, α_f, β)`: the rows of `g` read `−ġ₀ − 2α_g g`, those of `f`
+    /// read `−f̈₀ − 2α_f ḟ − β² f`.
     ///
     /// # Panics
     ///
@@ -138,14 +142,20 @@ impl KktNative {
         gains: [f64; 3],
         out: &mut [f64],
         sol: &mut [f64],
+        pieces: [&mut [f64]; 5],
     ) -> bool {
+        let (s, k) = (dims.s, dims.k);
         assert!(
             x.q.len() == dims.n
                 && x.qd.len() == dims.n
                 && x.p.len() == dims.np
                 && x.constants.len() == dims.constants
                 && out.len() == dims.outputs
-                && sol.len() == dims.n + dims.s + dims.k,
+                && sol.len() == dims.n + s + k
+                && pieces
+                    .iter()
+                    .zip([s, s, k, k, k])
+                    .all(|(p, len)| p.len() == len),
             "KKT code called with other lengths than it was compiled for"
         );
         let inputs = [
@@ -155,16 +165,18 @@ impl KktNative {
             x.p.as_ptr(),
             x.constants.as_ptr(),
         ];
+        let pieces = pieces.map(|p| p.as_mut_ptr());
         // SAFETY: compiled for these dimensions (the cache key), which the
         // assertion above checked; the code reads the five input segments
-        // and the three gains within those lengths and writes `out` and
-        // `sol` within theirs.
+        // and the three gains within those lengths and writes `out`, `sol`
+        // and the five pieces within theirs.
         unsafe {
             (self.entry)(
                 inputs.as_ptr(),
                 gains.as_ptr(),
                 out.as_mut_ptr(),
                 sol.as_mut_ptr(),
+                pieces.as_ptr(),
             ) == 1
         }
     }
@@ -1051,78 +1063,82 @@ fn sign_positive(b: &mut FunctionBuilder, x: Value) -> Value {
 
 fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
     let ptr = pointer_type();
-    let (code, module) = compile_with(
-        &[ptr, ptr, ptr, ptr],
-        &[I32],
-        shape.ops.len(),
-        |b, args, ptr| {
-            let (inputs, gains, out, sol) = (args[0], args[1], args[2], args[3]);
-            let mut v = Program::emit(b, shape, inputs, ptr)?;
-            let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
-            let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
-                for k in range {
-                    let at = (8 * k) as i32;
-                    b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
-                }
-            };
+    let (code, module) = compile_with(&[ptr; 5], &[I32], shape.ops.len(), |b, args, ptr| {
+        let (inputs, gains, out, sol, pieces) = (args[0], args[1], args[2], args[3], args[4]);
+        let mut v = Program::emit(b, shape, inputs, ptr)?;
+        let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
+        let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
+            for k in range {
+                let at = (8 * k) as i32;
+                b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+            }
+        };
+        let read = MemFlagsData::trusted().with_readonly();
+        let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
+        let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
+        // The matrix, zero where no entry is (Kkt::assemble), and the
+        // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
+        let size = d.n + d.s + d.k;
+        let zero = b.ins().f64const(0.0);
+        let mut a = vec![zero; size * size];
+        for &(at, src) in &d.entries {
+            a[at] = outputs[src as usize];
+        }
+        let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
+        let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
+        let two = b.ins().f64const(2.0);
+        let two_alpha_g = b.ins().fmul(two, alpha_g);
+        for i in 0..d.s {
+            let minus = b.ins().fneg(outputs[g_rate0 + i]);
+            let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
+            rhs.push(b.ins().fsub(minus, damp));
+        }
+        let two_alpha_f = b.ins().fmul(two, alpha_f);
+        let beta2 = b.ins().fmul(beta, beta);
+        for i in 0..d.k {
+            let minus = b.ins().fneg(outputs[f_accel0 + i]);
+            let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
+            let x = b.ins().fsub(minus, damp);
+            let spring = b.ins().fmul(outputs[f + i], beta2);
+            rhs.push(b.ins().fsub(x, spring));
+        }
+        let decline = b.create_block();
+        let x = block_elimination(b, &a, rhs, d.n, decline);
+        for (i, &xi) in x.iter().enumerate() {
+            b.ins()
+                .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
+        }
+        // Solved: the constraint values, into the caller's constraint state.
+        let lens = [
+            (g, d.s),
+            (g_rate0, d.s),
+            (f, d.k),
+            (f_rate, d.k),
+            (f_accel0, d.k),
+        ];
+        for (i, &(start, len)) in lens.iter().enumerate() {
+            if len == 0 {
+                continue;
+            }
             let read = MemFlagsData::trusted().with_readonly();
-            let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
-            let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
-            // The matrix, zero where no entry is (Kkt::assemble), and the
-            // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
-            let size = d.n + d.s + d.k;
-            let zero = b.ins().f64const(0.0);
-            let mut a = vec![zero; size * size];
-            for &(at, src) in &d.entries {
-                a[at] = outputs[src as usize];
-            }
-            let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
-            let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
-            let two = b.ins().f64const(2.0);
-            let two_alpha_g = b.ins().fmul(two, alpha_g);
-            for i in 0..d.s {
-                let minus = b.ins().fneg(outputs[g_rate0 + i]);
-                let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
-                rhs.push(b.ins().fsub(minus, damp));
-            }
-            let two_alpha_f = b.ins().fmul(two, alpha_f);
-            let beta2 = b.ins().fmul(beta, beta);
-            for i in 0..d.k {
-                let minus = b.ins().fneg(outputs[f_accel0 + i]);
-                let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
-                let x = b.ins().fsub(minus, damp);
-                let spring = b.ins().fmul(outputs[f + i], beta2);
-                rhs.push(b.ins().fsub(x, spring));
-            }
-            let decline = b.create_block();
-            let x = block_elimination(b, &a, rhs, d.n, decline);
-            for (i, &xi) in x.iter().enumerate() {
+            let to = b.ins().load(ptr, read, pieces, (8 * i) as i32);
+            for j in 0..len {
+                let at = (8 * j) as i32;
                 b.ins()
-                    .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
+                    .store(MemFlagsData::trusted(), outputs[start + j], to, at);
             }
-            // Solved: the constraint values, for the caller's constraint state.
-            for (start, len) in [
-                (g, d.s),
-                (g_rate0, d.s),
-                (f, d.k),
-                (f_rate, d.k),
-                (f_accel0, d.k),
-            ] {
-                store(b, start..start + len);
-            }
-            let one = b.ins().iconst(I32, 1);
-            b.ins().return_(&[one]);
-            // Declined: every output, for the caller's assembly and solve.
-            b.switch_to_block(decline);
-            store(b, 0..outputs.len());
-            let none = b.ins().iconst(I32, 0);
-            b.ins().return_(&[none]);
-            Ok(())
-        },
-    )?;
+        }
+        let one = b.ins().iconst(I32, 1);
+        b.ins().return_(&[one]);
+        // Declined: every output, for the caller's assembly and solve.
+        b.switch_to_block(decline);
+        store(b, 0..outputs.len());
+        let none = b.ins().iconst(I32, 0);
+        b.ins().return_(&[none]);
+        Ok(())
+    })?;
     // SAFETY: `code` is the function compiled above, with the signature
-    // (pointer, pointer, pointer, pointer) -> i32 in the host's calling
-    // convention.
+    // (pointer × 5) -> i32 in the host's calling convention.
     let entry = unsafe { std::mem::transmute::<*const u8, KktFn>(code) };
     Ok(Native {
         entry,
@@ -1530,21 +1546,32 @@ mod tests {
                 constants: &[1.0],
             };
             let (mut out, mut sol) = (vec![0.0; dims.outputs], vec![0.0; size]);
-            let native_accepts = native.solve(&dims, &x, gains, &mut out, &mut sol);
+            let mut pieces: Vec<Vec<f64>> = [s, s, k, k, k].iter().map(|&l| vec![0.0; l]).collect();
+            let [pg, pgr, pf, pfr, pfa] = &mut pieces[..] else {
+                unreachable!()
+            };
+            let native_accepts = native.solve(
+                &dims,
+                &x,
+                gains,
+                &mut out,
+                &mut sol,
+                [pg, pgr, pf, pfr, pfa],
+            );
             assert_eq!(
                 native_accepts, block_accepts,
                 "trial {trial}: n {n}, s {s}, k {k}"
             );
             // Declined, every output; solved, the constraint values.
-            let written: Vec<usize> = if native_accepts {
-                [(g, s), (g_rate0, s), (f, k), (f_rate, k), (f_accel0, k)]
-                    .iter()
-                    .flat_map(|&(start, len)| start..start + len)
-                    .collect()
+            if native_accepts {
+                let starts = [g, g_rate0, f, f_rate, f_accel0];
+                for (piece, start) in pieces.iter().zip(starts) {
+                    let expected = &values[start..start + piece.len()];
+                    assert!(piece.iter().zip(expected).all(|(a, b)| same(*a, *b)));
+                }
             } else {
-                (0..dims.outputs).collect()
-            };
-            assert!(written.iter().all(|&i| same(out[i], values[i])));
+                assert!(out.iter().zip(&values).all(|(a, b)| same(*a, *b)));
+            }
             if native_accepts {
                 accepted += 1;
                 for (i, (a, b)) in sol.iter().zip(&rhs).enumerate() {

@@ -423,7 +423,9 @@ impl<T: Scalar> Kkt<T> {
         q: &[T],
         qd: &[T],
     ) -> Option<Result<(), Singular>> {
-        let Kkt { compiled, sol, .. } = self;
+        let Kkt {
+            compiled, sol, cs, ..
+        } = self;
         let (c, w) = compiled.as_mut()?;
         let (native, dims) = c.kkt_native()?;
         c.check_field::<F>();
@@ -437,22 +439,21 @@ impl<T: Scalar> Kkt<T> {
             p,
             constants: T::as_real(constants)?,
         };
+        let pieces = [
+            T::as_real_mut(&mut cs.g)?,
+            T::as_real_mut(&mut cs.g_rate0)?,
+            T::as_real_mut(&mut cs.f)?,
+            T::as_real_mut(&mut cs.f_rate)?,
+            T::as_real_mut(&mut cs.f_accel0)?,
+        ];
         let gains = [alpha, alpha_f, beta];
-        let solved = native.solve(
-            dims,
-            &inputs,
-            gains,
-            T::as_real_mut(out)?,
-            T::as_real_mut(sol)?,
-        );
-        self.load_constraints();
-        if solved {
-            // Finite: the block elimination accepts only a solution whose
-            // residual is below a multiple of its terms in every row,
-            // which a NaN or an infinity fails.
-            debug_assert!(self.finite().is_ok());
-            return Some(Ok(()));
+        let (out, sol) = (T::as_real_mut(out)?, T::as_real_mut(sol)?);
+        if native.solve(dims, &inputs, gains, out, sol, pieces) {
+            // As after the Rust solve: an infinite solution can pass the
+            // backward-error test (∞ ≤ 1e-13·∞) where no term is 0·∞.
+            return Some(self.finite());
         }
+        self.load_constraints();
         self.dense();
         self.ideal_rhs(rows, alpha);
         self.scatter_entries();

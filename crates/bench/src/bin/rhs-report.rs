@@ -46,9 +46,7 @@ fn run() -> Result<(), String> {
         nonholo_core::jit::set_enabled(native);
         let suffix = if native { "" } else { ", interpreter" };
         for (ad, hand) in rhs_pairs().map_err(|e| e.to_string())? {
-            if native || matches!(ad.name, "B" | "C" | "visc adapted") {
-                pairs.push((ad, hand, suffix));
-            }
+            pairs.push((ad, hand, suffix));
         }
     }
     nonholo_core::jit::set_enabled(true);

@@ -33,6 +33,12 @@
 //!   no monitors), with the largest difference of its final `(q, q̇)` from
 //!   the DOP853 run's.
 //!
+//! Native code ([`nonholo_core::jit`]) is switched off for the whole
+//! report: it is made only for programs of up to
+//! [`nonholo_core::jit::MAX_INSTRUCTIONS`] instructions (`N` up to about
+//! 270), and one regime from `N = 1` to 1000 keeps the fitted exponents
+//! about the growth with `N`, not about where native code stops.
+//!
 //! The timings of one call are interleaved across the sizes, `R` rounds
 //! (default 3), medians reported; the compilation and the two runs are
 //! measured once per size.
@@ -354,6 +360,8 @@ impl Size {
 }
 
 fn run() -> Result<(), String> {
+    // One regime for every size: see the module docs.
+    nonholo_core::jit::set_enabled(false);
     let mut rounds = 3usize;
     let mut out = PathBuf::from("results/scale");
     let mut it = std::env::args().skip(1);

@@ -31,7 +31,7 @@
 //! a one the trace folds away) gets its own.
 
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use cranelift_codegen::Context;
@@ -243,7 +243,8 @@ pub const CAREFUL_UP_TO: usize = 1000;
 /// holds exceed this many instructions together.
 const CACHE_INSTRUCTIONS: usize = 1 << 21;
 
-static ENABLED: AtomicBool = AtomicBool::new(true);
+/// 0 until first read, then 1 (on) or 2 (off): see [`enabled`].
+static ENABLED: AtomicU8 = AtomicU8::new(0);
 
 /// Functions compiled, the instructions they held and the nanoseconds
 /// Cranelift took, since the process started ([`compile_stats`]).
@@ -270,12 +271,29 @@ fn cache() -> &'static Cache {
 /// after can run side by side). Programs already built keep what they
 /// have.
 pub fn set_enabled(on: bool) {
-    ENABLED.store(on, Ordering::Relaxed);
+    ENABLED.store(if on { 1 } else { 2 }, Ordering::Relaxed);
 }
 
-/// Whether programs built now get native code ([`set_enabled`]).
+/// Whether programs built now get native code ([`set_enabled`]); until
+/// that is called, on unless the environment variable `NONHOLO_NATIVE` is
+/// `0` or `off` (so a whole `nonholo` run can be timed without it; the
+/// results are the same bit for bit either way).
 pub fn enabled() -> bool {
-    ENABLED.load(Ordering::Relaxed)
+    match ENABLED.load(Ordering::Relaxed) {
+        1 => true,
+        2 => false,
+        _ => {
+            let on = !matches!(std::env::var("NONHOLO_NATIVE").as_deref(), Ok("0" | "off"));
+            // A racing set_enabled wins: store only over "unset".
+            let _ = ENABLED.compare_exchange(
+                0,
+                if on { 1 } else { 2 },
+                Ordering::Relaxed,
+                Ordering::Relaxed,
+            );
+            ENABLED.load(Ordering::Relaxed) == 1
+        }
+    }
 }
 
 /// The cached code of `key`, or `make`'s (cached as well, a refusal too).

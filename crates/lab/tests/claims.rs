@@ -1819,6 +1819,38 @@ fn compiled_kkt_as_performance_md_states() {
     };
     assert!(rows.iter().all(|r| num(r, "speedup") > 1.0));
     assert!(rows.iter().all(|r| num(r, "native_speedup") > 1.0));
+    // The prose under the table: native over the interpreter on Dual64
+    // (over the table's scenes), and the sleigh's Cranelift times.
+    let tabled = [
+        "sleigh-incline",
+        "rolling-disk",
+        "appell-hamel",
+        "pendulum",
+        "coin-incline",
+        "bicycle",
+    ];
+    let dual: Vec<f64> = rows
+        .iter()
+        .filter(|r| r["scalar"] == "Dual64" && tabled.contains(&r["scene"].as_str()))
+        .map(|r| num(r, "native_speedup"))
+        .collect();
+    let (lo, hi) = (
+        dual.iter().cloned().fold(f64::INFINITY, f64::min),
+        dual.iter().cloned().fold(0.0, f64::max),
+    );
+    for said in [
+        format!("native code gains less ({lo:.1}–{hi:.1}×)"),
+        format!(
+            "({:.1} ms, against {:.1} ms for C's larger program on the next line)",
+            get("sleigh-incline", "B", "f64", "native_us") / 1e3,
+            get("sleigh-incline", "C", "f64", "native_us") / 1e3
+        ),
+    ] {
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
     for (scene, label) in [
         ("sleigh-incline", "sleigh"),
         ("rolling-disk", "rolling disk"),
@@ -1909,8 +1941,56 @@ fn rhs_report_as_performance_md_states() {
             "docs/performance.md does not say `{said}`"
         );
     }
-    // The Jacobian table: its fifth cell is the Jacobian in right-hand sides.
+    // The prose under the table: B and C native, B's times, the baselines'
+    // range over the right-hand-side table, B's Jacobian.
     let b = "B (Chetaev): KKT solve";
+    let bi = format!("{b}, interpreter");
+    let hands: Vec<f64> = report
+        .lines()
+        .take_while(|l| !l.starts_with("| Jacobian"))
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| right-hand side"))
+        .filter_map(|l| l.split('|').map(str::trim).nth(6)?.parse().ok())
+        .collect();
+    let (lo, hi) = (
+        hands.iter().cloned().fold(f64::INFINITY, f64::min),
+        hands.iter().cloned().fold(0.0, f64::max),
+    );
+    for said in [
+        format!(
+            "({}× and {}× in the run above,",
+            cell(b, 0, 7),
+            cell("C (vakonomic): KKT solve", 0, 7)
+        ),
+        format!(
+            "B's right-hand side took {} ns native and {} ns interpreted, the hand-written baselines {lo:.1}–{hi:.1} ns; B's Jacobian took {} ns, {} right-hand sides of B ({} ns and {} interpreted)",
+            cell(b, 0, 3),
+            cell(&bi, 0, 3),
+            cell(b, 1, 3),
+            cell(b, 1, 4),
+            cell(&bi, 1, 3),
+            cell(&bi, 1, 4),
+        ),
+    ] {
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
+    // docs/peers.md points from its baseline of the passes to these.
+    let a_explicit: f64 = cell("A's explicit form: derivative array solved for q⁗", 0, 7)
+        .parse()
+        .unwrap();
+    let said = format!(
+        "(B {}× and C {}× the hand-written equations in its committed run, A's explicit form still ~{:.0}×)",
+        cell("B (Chetaev): KKT solve", 0, 7),
+        cell("C (vakonomic): KKT solve", 0, 7),
+        (a_explicit / 100.0).round() * 100.0
+    );
+    assert!(
+        doc_flat("peers.md").contains(&said),
+        "docs/peers.md does not say `{said}`"
+    );
+    // The Jacobian table: its fifth cell is the Jacobian in right-hand sides.
     let said = format!(
         "| Jacobian of B, in right-hand sides of B | ~9.5 | {} | {} |",
         cell(&format!("{b}, interpreter"), 1, 4),
@@ -1946,6 +2026,29 @@ fn sleigh_floor_against_scipy_as_performance_md_states() {
         flat.contains(&said),
         "docs/performance.md does not say `{said}`"
     );
+    // SciPy's time per evaluation over the rungs, and SciPy against the
+    // hand-written equations at matched error (their paired time).
+    let per: Vec<f64> = ladder
+        .iter()
+        .map(|r| num(r, "ms") * 1e3 / num(r, "evals"))
+        .collect();
+    let (plo, phi) = (
+        per.iter().cloned().fold(f64::INFINITY, f64::min),
+        per.iter().cloned().fold(0.0, f64::max),
+    );
+    let hand = timed_table("sleigh-floor", "matched.csv");
+    for said in [
+        format!("a whole run costs {plo:.1}–{phi:.1} µs per evaluation"),
+        format!(
+            "SciPy took {:.0}× (",
+            num(&matched[0], "ms_scipy") / num(&hand[0], "ms_hand")
+        ),
+    ] {
+        assert!(
+            flat.contains(&said),
+            "docs/performance.md does not say `{said}`"
+        );
+    }
     // SciPy computes the same motion: its error follows the tolerance
     // down to the reference's own floor (1e-12 m).
     for r in &ladder {
@@ -2013,6 +2116,19 @@ fn sleigh_floor_as_performance_md_states() {
     );
     let said =
         format!("{lo:.1}–{hi:.1}× rung by rung, with {elo:.1}–{ehi:.0} % more evaluations for B");
+    assert!(
+        flat.contains(&said),
+        "docs/performance.md does not say `{said}`"
+    );
+    let per: Vec<f64> = ladder
+        .iter()
+        .map(|r| num(r, "ms_b") * 1e3 / num(r, "evals_b"))
+        .collect();
+    let said = format!(
+        "B's time per evaluation moved between {:.2} and {:.2} µs",
+        per.iter().cloned().fold(f64::INFINITY, f64::min),
+        per.iter().cloned().fold(0.0, f64::max)
+    );
     assert!(
         flat.contains(&said),
         "docs/performance.md does not say `{said}`"

@@ -987,3 +987,41 @@ fn radau_dense_refuses_bad_names_and_implicit_forms() {
     let e = stderr(&o) + &String::from_utf8_lossy(&o.stdout);
     assert!(e.contains("dense_output = hermite"), "{e}");
 }
+
+/// `NONHOLO_NATIVE=0` (docs/cli.md) runs the programs interpreted, and the
+/// trajectory is the native run's, digit for digit: B and C, each by
+/// DOP853 (right-hand sides over `f64`) and by Radau IIA (Jacobians over
+/// `Dual64` as well).
+#[test]
+fn native_code_off_changes_no_digit() {
+    let dir = tmpdir("native");
+    for formulation in ["chetaev", "vakonomic"] {
+        for integrator in ["dop853", "radau5"] {
+            let mut args: Vec<String> = ISSUE_COMMAND.iter().map(|s| s.to_string()).collect();
+            for (flag, value) in [("--formulation", formulation), ("--integrator", integrator)] {
+                let at = args.iter().position(|a| a == flag).unwrap();
+                args[at + 1] = value.to_string();
+            }
+            if formulation == "vakonomic" {
+                args.extend(["--init".to_string(), "lambda=0.5".to_string()]);
+            }
+            let texts: Vec<String> = ["1", "0"]
+                .iter()
+                .map(|native| {
+                    let out = dir.join(format!("{formulation}-{integrator}-{native}.csv"));
+                    let mut a = args.clone();
+                    a.extend(["--out".to_string(), out.to_str().unwrap().to_string()]);
+                    let o = Command::new(env!("CARGO_BIN_EXE_nonholo"))
+                        .args(&a)
+                        .env("NONHOLO_NATIVE", native)
+                        .output()
+                        .expect("nonholo runs");
+                    assert!(o.status.success(), "{}", stderr(&o));
+                    std::fs::read_to_string(&out).unwrap()
+                })
+                .collect();
+            assert!(texts[0].lines().count() == 22, "{}", texts[0]);
+            assert_eq!(texts[0], texts[1], "{formulation} by {integrator}");
+        }
+    }
+}

@@ -10,8 +10,9 @@
 //! ...) is a call of the same Rust function the interpreter calls — `sin`
 //! and `cos` of one argument as one call of the C library's `sincos`,
 //! whose results are the separate calls' bit for bit. So native code
-//! computes what the interpreter computes, bit for bit (tests in
-//! `crates/core/tests/jit.rs`), and switching it on moves no result.
+//! computes what the interpreter computes, bit for bit (the tests below, and
+//! `crates/lab/tests/native.rs` for every formulation on every scene), and
+//! switching it on moves no result.
 //!
 //! **KKT systems.** For a system of at most [`crate::linalg::BLOCK_MAX`]
 //! unknowns with ideal rows ([`crate::kkt::Ideal`]), [`KktNative`] is the
@@ -283,7 +284,7 @@ pub fn enabled() -> bool {
         1 => true,
         2 => false,
         _ => {
-            let on = !matches!(std::env::var("NONHOLO_NATIVE").as_deref(), Ok("0" | "off"));
+            let on = requested(std::env::var("NONHOLO_NATIVE").ok().as_deref());
             // A racing set_enabled wins: store only over "unset".
             let _ = ENABLED.compare_exchange(
                 0,
@@ -294,6 +295,11 @@ pub fn enabled() -> bool {
             ENABLED.load(Ordering::Relaxed) == 1
         }
     }
+}
+
+/// Whether `NONHOLO_NATIVE` asks for native code: unless it is `0` or `off`.
+fn requested(value: Option<&str>) -> bool {
+    !matches!(value, Some("0" | "off"))
 }
 
 /// The cached code of `key`, or `make`'s (cached as well, a refusal too).
@@ -1138,7 +1144,6 @@ fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
             if len == 0 {
                 continue;
             }
-            let read = MemFlagsData::trusted().with_readonly();
             let to = b.ins().load(ptr, read, pieces, (8 * i) as i32);
             for j in 0..len {
                 let at = (8 * j) as i32;
@@ -1382,6 +1387,21 @@ mod tests {
         all
     }
 
+    /// `NONHOLO_NATIVE` switches native code off with `0` or `off` only.
+    #[test]
+    fn environment_switch() {
+        for (value, on) in [
+            (None, true),
+            (Some("0"), false),
+            (Some("off"), false),
+            (Some("1"), true),
+            (Some("on"), true),
+            (Some(""), true),
+        ] {
+            assert_eq!(requested(value), on, "{value:?}");
+        }
+    }
+
     /// Native code computes what the interpreter computes, bit for bit,
     /// over `f64` and over `Dual64`, on every operation.
     #[test]
@@ -1564,17 +1584,14 @@ mod tests {
                 constants: &[1.0],
             };
             let (mut out, mut sol) = (vec![0.0; dims.outputs], vec![0.0; size]);
-            let mut pieces: Vec<Vec<f64>> = [s, s, k, k, k].iter().map(|&l| vec![0.0; l]).collect();
-            let [pg, pgr, pf, pfr, pfa] = &mut pieces[..] else {
-                unreachable!()
-            };
+            let mut pieces = [s, s, k, k, k].map(|l| vec![0.0; l]);
             let native_accepts = native.solve(
                 &dims,
                 &x,
                 gains,
                 &mut out,
                 &mut sol,
-                [pg, pgr, pf, pfr, pfa],
+                pieces.each_mut().map(|p| p.as_mut_slice()),
             );
             assert_eq!(
                 native_accepts, block_accepts,

@@ -991,7 +991,9 @@ fn radau_dense_refuses_bad_names_and_implicit_forms() {
 /// `NONHOLO_NATIVE=0` (docs/cli.md) runs the programs interpreted, and the
 /// trajectory is the native run's, digit for digit: B and C, each by
 /// DOP853 (right-hand sides over `f64`) and by Radau IIA (Jacobians over
-/// `Dual64` as well).
+/// `Dual64` as well). The output does not show whether the variable took
+/// effect; `nonholo_core::jit`'s tests check how it is read, and
+/// `tests/native.rs` compares the two paths within one process.
 #[test]
 fn native_code_off_changes_no_digit() {
     let dir = tmpdir("native");

@@ -65,6 +65,16 @@ pub enum Node {
     Abs(u32),
     /// `±1` by the sign of the operand (the derivative of `Abs`).
     Signum(u32),
+    /// `atan2(y, x)` of operands `(y, x)` on the branch of `arctan(y/x)`
+    /// nearest to a constant (by its bits; NaN: `atan2`'s own branch), as
+    /// [`crate::scene::atan2_near`] computes it.
+    Angle(u32, u32, u64),
+}
+
+/// The `near` of [`Node::Angle`] from its bits.
+fn near_of(bits: u64) -> Option<f64> {
+    let near = f64::from_bits(bits);
+    near.is_finite().then_some(near)
 }
 
 /// An expression graph under construction; see the [module docs](self).
@@ -389,6 +399,17 @@ impl Graph {
                 self.op(Mul(s, da))
             }
             Signum(_) => zero(self),
+            Angle(y, x, _) => {
+                // (x y′ − y x′) / (x² + y²)
+                let (dy, dx) = (d(self, y), d(self, x));
+                let a = self.op(Mul(x, dy));
+                let b = self.op(Mul(y, dx));
+                let num = self.op(Sub(a, b));
+                let xx = self.op(Mul(x, x));
+                let yy = self.op(Mul(y, y));
+                let den = self.op(Add(xx, yy));
+                self.op(Div(num, den))
+            }
         }
     }
 
@@ -450,7 +471,7 @@ fn operands(node: &Node) -> [Option<u32>; 2] {
     use Node::*;
     match *node {
         Const(_) | Input(_) => [None, None],
-        Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) => [Some(a), Some(b)],
+        Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) | Angle(a, b, _) => [Some(a), Some(b)],
         Neg(a)
         | Recip(a)
         | Powi(a, _)
@@ -504,6 +525,7 @@ fn apply<T: Scalar>(node: &Node, x: impl Fn(u32) -> T) -> T {
         Tanh(a) => x(a).tanh(),
         Abs(a) => x(a).abs(),
         Signum(a) => x(a).signum(),
+        Angle(y, a, near) => crate::scene::atan2_near(x(y), x(a), near_of(near)),
     }
 }
 
@@ -534,6 +556,7 @@ fn remap(node: Node, r: impl Fn(u32) -> u32) -> Node {
         Tanh(a) => Tanh(r(a)),
         Abs(a) => Abs(r(a)),
         Signum(a) => Signum(r(a)),
+        Angle(y, x, near) => Angle(r(y), r(x), near),
     }
 }
 
@@ -976,8 +999,20 @@ impl DualNum for Tracer {
 }
 
 impl Scalar for Tracer {
+    const TRACED: bool = true;
+
     fn modulus(&self) -> f64 {
         self.read("modulus()").abs()
+    }
+
+    fn value_part(&self) -> Self {
+        *self
+    }
+
+    /// One operation, [`Node::Angle`]: no branch is decided in the trace.
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+        let bits = near.filter(|r| r.is_finite()).unwrap_or(f64::NAN).to_bits();
+        Tracer::op(Node::Angle(y.id, x.id, bits))
     }
 }
 
@@ -1242,10 +1277,16 @@ mod tests {
     use super::*;
     use num_dual::{Dual64, HyperDual64};
 
-    /// A function using every operation the graph represents.
+    /// A function using every operation the graph represents. The angle
+    /// `atan2(c, a − 1)` lies in another quadrant at each of [`POINTS`],
+    /// where [`crate::scene::atan2`]'s value takes other branches.
     fn f<D: Scalar>(x: &[D]) -> D {
         let (a, b, c) = (x[0], x[1], x[2]);
-        let s = a.sin() * b.cos() + (a * b).tan() - c.asin() + c.acos() * 0.5 + (a / b).atan();
+        let s = a.sin() * b.cos() + (a * b).tan() - c.asin()
+            + c.acos() * 0.5
+            + (a / b).atan()
+            + crate::scene::atan2(c, a - 1.0) * b
+            + crate::scene::atan2_near(a * c, b - 1.5, Some(7.0));
         let h = b.sinh() * c.cosh() - (a * c).tanh() + (-b).abs() * b.signum();
         let p =
             a.powi(3) - b.powf(2.5) + a.recip() + (b * b + 1.0).sqrt() + c.exp() * (a + 2.0).ln();

@@ -424,6 +424,23 @@ macro_rules! unary {
 }
 unary!(exp, ln, sin, cos, tan, asin, acos, atan, sinh, cosh, tanh);
 
+/// [`Node::Angle`] over `f64`: the interpreter's function.
+extern "C" fn angle(y: f64, x: f64, near: f64) -> f64 {
+    crate::scene::atan2_near(y, x, near.is_finite().then_some(near))
+}
+
+/// [`Node::Angle`] over `Dual64` into `out[0]`, `out[1]` (value and
+/// derivative part): the interpreter's function, so the same bits.
+extern "C" fn angle_dual(y: f64, dy: f64, x: f64, dx: f64, near: f64, out: *mut f64) {
+    let (y, x) = (num_dual::Dual64::new(y, dy), num_dual::Dual64::new(x, dx));
+    let a = crate::scene::atan2_near(y, x, near.is_finite().then_some(near));
+    // SAFETY: `out` is the code's 16-byte stack slot.
+    unsafe {
+        *out = a.re;
+        *out.add(1) = a.eps;
+    }
+}
+
 extern "C" fn signum(x: f64) -> f64 {
     num_traits::Signed::signum(&x)
 }
@@ -665,6 +682,10 @@ impl Program {
                 Node::Cosh(a) => unary(b, &mut v, a, cosh),
                 Node::Tanh(a) => unary(b, &mut v, a, tanh),
                 Node::Signum(a) => unary(b, &mut v, a, signum),
+                Node::Angle(y, x, near) => {
+                    let (y, x) = binary(b, &mut v, y, x);
+                    calls.angle(b, y, x, f64::from_bits(near))
+                }
                 Node::Const(_) | Node::Input(_) => {
                     return Err("a constant or an input among the instructions".into());
                 }
@@ -735,7 +756,9 @@ struct Calls {
     powi: SigRef,
     powf: SigRef,
     sin_cos: SigRef,
-    /// The 16 bytes `sin_cos` writes into.
+    angle: SigRef,
+    angle_dual: SigRef,
+    /// The 16 bytes `sin_cos` and `angle_dual` write into.
     slot: StackSlot,
 }
 
@@ -755,6 +778,8 @@ impl Calls {
             sig(&[F64, F64], true),
         );
         let sin_cos = sig(&[F64, pointer], false);
+        let angle = sig(&[F64, F64, F64], true);
+        let angle_dual = sig(&[F64, F64, F64, F64, F64, pointer], false);
         let slot =
             b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16, 3));
         Calls {
@@ -763,6 +788,8 @@ impl Calls {
             powi,
             powf,
             sin_cos,
+            angle,
+            angle_dual,
             slot,
         }
     }
@@ -794,6 +821,24 @@ impl Calls {
         let p = b.ins().f64const(p);
         self.call(b, powf as *const (), self.powf, &[x, p])
             .expect("a result")
+    }
+
+    /// [`Node::Angle`] of `(y, x)` over `f64`.
+    fn angle(&self, b: &mut FunctionBuilder, y: Value, x: Value, near: f64) -> Value {
+        let near = b.ins().f64const(near);
+        self.call(b, angle as *const (), self.angle, &[y, x, near])
+            .expect("a result")
+    }
+
+    /// [`Node::Angle`] of `(y, x)` over `Dual64`.
+    fn angle_dual(&self, b: &mut FunctionBuilder, y: Pair, x: Pair, near: f64) -> Pair {
+        let near = b.ins().f64const(near);
+        let at = b.ins().stack_addr(self.pointer, self.slot, 0);
+        let args = [y.0, y.1, x.0, x.1, near, at];
+        self.call(b, angle_dual as *const (), self.angle_dual, &args);
+        let re = b.ins().stack_load(self.pointer, F64, self.slot, 0);
+        let eps = b.ins().stack_load(self.pointer, F64, self.slot, 8);
+        (re, eps)
     }
 
     /// `(sin x, cos x)` by one `sincos`.
@@ -1021,6 +1066,10 @@ impl DualProgram {
                     let eps = b.ins().select(is_zero, zero, m0);
                     let eps = b.ins().select(positive, zero, eps);
                     (re, eps)
+                }
+                Node::Angle(y, x, near) => {
+                    let (y, x) = (v.get(b, y), v.get(b, x));
+                    calls.angle_dual(b, y, x, f64::from_bits(near))
                 }
                 Node::Const(_) | Node::Input(_) => {
                     return Err("a constant or an input among the instructions".into());
@@ -1326,7 +1375,9 @@ mod tests {
         let (a, b, c) = (x[0], x[1], x[2]);
         let s = a.sin() * a.cos() + b.cos() + (a * b).tan() - c.asin()
             + c.acos() * 0.5
-            + (a / b).atan();
+            + (a / b).atan()
+            + crate::scene::atan2(c, a - 0.3) * b
+            + crate::scene::atan2_near(a, b - 1.0, Some(-7.0));
         let h = b.sinh() * c.cosh() - (a * c).tanh() + (-b).abs() * b.signum() + c.abs();
         let p = a.powi(3) - b.powf(2.5)
             + a.powi(-2)

@@ -25,6 +25,22 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync + 'static {
     /// bit for bit.
     fn modulus(&self) -> f64;
 
+    /// The number with this one's value part and every derivative part
+    /// zero (itself for `f64`, [`C64`] and a traced number).
+    fn value_part(&self) -> Self;
+
+    /// The angle `atan2(y, x)` of the value parts of `y` and `x`, on the
+    /// branch nearest to `near` (see [`atan2_near`]), with every derivative
+    /// part zero: the branch decisions of [`atan2_near`], in one place (a
+    /// traced number records it as one operation, [`crate::graph`]).
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self;
+
+    /// Whether the type records operations into a graph instead of
+    /// computing ([`crate::graph::Tracer`], and dual numbers over it): code
+    /// that would let a value choose between formulas takes a form without
+    /// the choice ([`atan2_near`]).
+    const TRACED: bool = false;
+
     /// Whether the type is plain `f64` (no derivative parts): code that
     /// must leave automatic differentiation (a call into a numerical
     /// library) branches on it.
@@ -85,6 +101,15 @@ impl Scalar for f64 {
     fn modulus(&self) -> f64 {
         self.abs()
     }
+
+    #[inline]
+    fn value_part(&self) -> Self {
+        *self
+    }
+
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+        angle_of_values(y, x, near)
+    }
 }
 
 impl Scalar for C64 {
@@ -92,15 +117,35 @@ impl Scalar for C64 {
     fn modulus(&self) -> f64 {
         self.norm()
     }
+
+    #[inline]
+    fn value_part(&self) -> Self {
+        *self
+    }
+
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+        angle_of_values(y, x, near)
+    }
 }
 
 macro_rules! scalar_over_inner {
     ($($dual:ident),*) => {
         $(
             impl<T: Scalar> Scalar for $dual<T> {
+                const TRACED: bool = T::TRACED;
+
                 #[inline]
                 fn modulus(&self) -> f64 {
                     self.re.modulus()
+                }
+
+                #[inline]
+                fn value_part(&self) -> Self {
+                    Self::from_re(self.re.value_part())
+                }
+
+                fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+                    Self::from_re(T::angle(y.re, x.re, near))
                 }
             }
         )*
@@ -111,10 +156,20 @@ scalar_over_inner!(Real, Dual2, Dual3, HyperDual, HyperHyperDual);
 
 impl<T: Scalar> Scalar for Dual<T> {
     const FIRST_ORDER: bool = T::REAL;
+    const TRACED: bool = T::TRACED;
 
     #[inline]
     fn modulus(&self) -> f64 {
         self.re.modulus()
+    }
+
+    #[inline]
+    fn value_part(&self) -> Self {
+        Self::from_re(self.re.value_part())
+    }
+
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+        Self::from_re(T::angle(y.re, x.re, near))
     }
 
     #[inline]
@@ -153,41 +208,87 @@ impl<const M: usize, const N: usize> Scalar
     fn modulus(&self) -> f64 {
         self.re.abs()
     }
+
+    #[inline]
+    fn value_part(&self) -> Self {
+        Self::from_re(self.re)
+    }
+
+    fn angle(y: Self, x: Self, near: Option<f64>) -> Self {
+        Self::from_re(f64::angle(y.re, x.re, near))
+    }
 }
 
-/// `atan2(y, x)` whose derivatives stay accurate in every quadrant.
+/// `atan2(y, x)` whose derivatives stay accurate in every quadrant:
+/// [`atan2_near`] on `atan2`'s own branch `(−π, π]`.
+pub fn atan2<D: Scalar>(y: D, x: D) -> D {
+    atan2_near(y, x, None)
+}
+
+/// `atan2(y, x)` on the branch of `arctan(y/x)` nearest to `near` (its
+/// branches differ by multiples of π; `atan2`'s own branch `(−π, π]` if
+/// `near` is `None` or not finite), with derivatives accurate in every
+/// quadrant. A heading continued through a reversal of the motion (where
+/// `atan2` turns it by π) is the branch nearest to its last value.
 ///
 /// num-dual 0.15 differentiates `atan2` through `y/x`; its high-order
 /// derivatives then lose accuracy like `(√(x² + y²)/x)ᵏ` as `x → 0` (the
 /// sleigh's heading through ±π/2: formulation A's fourth-order jets failed
-/// there at `ẋ ≈ 0.002 m/s`). This evaluates `atan(y/x)` where `|x| ≥ |y|`
-/// and `±π/2 − atan(x/y)` elsewhere, plus the constant that puts the value
-/// on `atan2`'s branch `(−π, π]`: the same function, with a ratio of at most
-/// one inside the arctangent.
+/// there at `ẋ ≈ 0.002 m/s`). Numbers that compute (`f64`, [`C64`] and dual
+/// numbers over them) evaluate `atan(y/x)` where `|x| ≥ |y|` and
+/// `±π/2 − atan(x/y)` elsewhere, plus the constants that put the value on
+/// the branch (see [`Scalar::angle`], which is that formula): a ratio of at
+/// most one inside the arctangent, the cheapest accurate form.
+///
+/// A traced number ([`Scalar::TRACED`]) may not let a value choose the
+/// formula (the trace must hold at every state), and takes the form that is
+/// accurate everywhere without a choice: with `(x₀, y₀)` the value parts of
+/// `(x, y)` (derivative parts zero),
+///
+/// ```text
+/// atan2(y, x) = θ₀ + atan((x₀ y − y₀ x) / (x₀ x + y₀ y)),   θ₀ = Scalar::angle(y₀, x₀)
+/// ```
+///
+/// (the arctangent is the angle from `(x₀, y₀)` to `(x, y)`: its argument
+/// has value zero and derivatives with the denominator `x₀² + y₀²`). The
+/// branch decisions are all in `θ₀`, which the trace records as one
+/// operation ([`crate::graph::Node::Angle`]). The two forms are the same
+/// function; their derivatives differ by round-off.
+pub fn atan2_near<D: Scalar>(y: D, x: D, near: Option<f64>) -> D {
+    if D::TRACED {
+        let (y0, x0) = (y.value_part(), x.value_part());
+        return D::angle(y0, x0, near) + ((x0 * y - y0 * x) / (x0 * x + y0 * y)).atan();
+    }
+    angle_of_values(y, x, near)
+}
+
+/// [`atan2_near`] for numbers that compute, and [`Scalar::angle`] for those
+/// without derivative parts (`f64`, [`C64`]): `atan(y/x)` where `|x| ≥ |y|` and `±π/2 − atan(x/y)` elsewhere, plus the
+/// constant that puts the value on `atan2`'s branch `(−π, π]`, then the
+/// multiple of π that brings its real part nearest to `near` (if finite).
 ///
 /// The formula is chosen by [`Scalar::modulus`] of `x` and `y`, the
 /// constant by signs of real parts (`re()`): of `x`, then where `|x| ≥ |y|`
 /// and `Re x < 0` of `atan(y/x)`, and elsewhere of `y`. For real arguments
-/// (`f64` and dual numbers over it) these are the comparisons above (with
-/// `x < 0`, `atan(y/x)` has the opposite sign of `y`, signed zeros
-/// included), and the value is `f64::atan2`'s up to rounding.
+/// (`f64` and dual numbers over it) these are the comparisons above (with `x < 0`, `atan(y/x)` has the
+/// opposite sign of `y`, signed zeros included), and the value is
+/// `f64::atan2`'s up to rounding.
 ///
-/// For complex arguments ([`C64`] and dual numbers over it) the ratio
-/// inside the arctangent still has modulus at most one, so it stays off
-/// `atan`'s branch cuts `±i·[1, ∞)` (it reaches `±i` only where
-/// `x² + y² = 0`, where every `atan2` is singular). The result is an
-/// analytic function of `(x, y)` whose tangent is `y/x` and whose real part
-/// is in `[−π, π]`: it equals the principal value
+/// For complex arguments the ratio inside the arctangent has modulus at
+/// most one, so it stays off `atan`'s branch cuts `±i·[1, ∞)` (it reaches
+/// `±i` only where `x² + y² = 0`, where every `atan2` is singular). The
+/// result is an analytic function of `(x, y)` whose tangent is `y/x` and
+/// whose real part is in `[−π, π]`: it equals the principal value
 /// (`−i ln((x + iy)/√(x² + y²))`) up to a constant multiple of `π`, and that
 /// constant may change where the formula switches (`|x| = |y|`) or where a
 /// real part that picks it changes sign (`Re x` or `Re atan(y/x)` where
 /// `|x| ≥ |y|`, `Re y` elsewhere). A continuation along a path must track
 /// that multiple itself. The derivatives (dual parts) do not see the
 /// constant: they are exact everywhere off `x² + y² = 0`.
-pub fn atan2<D: Scalar>(y: D, x: D) -> D {
+fn angle_of_values<D: Scalar>(y: D, x: D, near: Option<f64>) -> D {
     use std::f64::consts::{FRAC_PI_2, PI};
     let (yr, xr) = (y.re(), x.re());
-    if x.modulus() >= y.modulus() {
+    let principal = if x.modulus() >= y.modulus() {
         let a = (y / x).atan();
         // For real arguments with x < 0, atan(y/x) has the opposite sign of
         // y (signed zeros included): the same offset as by the sign of y.
@@ -202,24 +303,14 @@ pub fn atan2<D: Scalar>(y: D, x: D) -> D {
     } else {
         let offset = if yr > 0.0 { FRAC_PI_2 } else { -FRAC_PI_2 };
         -(x / y).atan() + offset
-    }
-}
-
-/// The branch of `arctan(y/x)` nearest to `near` (its branches differ by
-/// multiples of π): [`atan2`]'s value plus the multiple of π that brings its
-/// real part nearest to `near`; `atan2`'s own branch `(−π, π]` if `near` is
-/// `None` or not finite. A heading continued through a reversal of the
-/// motion (where `atan2` turns it by π) is the branch nearest to its last
-/// value.
-pub fn atan2_near<D: Scalar>(y: D, x: D, near: Option<f64>) -> D {
-    let principal = atan2(y, x);
+    };
     match near {
         Some(r) if r.is_finite() => {
-            let k = ((r - principal.re()) / std::f64::consts::PI).round();
+            let k = ((r - principal.re()) / PI).round();
             if k == 0.0 {
                 principal
             } else {
-                principal + k * std::f64::consts::PI
+                principal + k * PI
             }
         }
         _ => principal,

@@ -69,6 +69,19 @@ impl<S: Scene> Explicit<S> {
         }
     }
 
+    /// Whether to evaluate the derivative array by traced programs (the
+    /// default) or by dual passes over the jets ([`Reduction::set_traced`]):
+    /// the same solve to round-off, for comparing the two.
+    pub fn set_traced(&mut self, on: bool) {
+        self.reduction.set_traced(on);
+    }
+
+    /// Why the derivative array could not be traced (`None`: it was, or
+    /// no solve has been made yet, or tracing is off).
+    pub fn trace_refused(&self) -> Option<&str> {
+        self.reduction.trace_refused()
+    }
+
     /// Follows the map's branch nearest to `near` from now on.
     pub fn follow_from(&mut self, near: &[f64]) {
         self.reduction.set_branch(near);

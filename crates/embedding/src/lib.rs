@@ -5,7 +5,8 @@
 //!   and consistent completion.
 //! * [`setup`]: initial data; [`implicit`] and [`explicit`]: the two forms
 //!   (the explicit one solves the derivative array per right-hand side,
-//!   [`ode`]); [`model`]: both as one model.
+//!   [`ode`], with the array traced into native code, [`traced`]);
+//!   [`model`]: both as one model.
 
 pub mod analysis;
 pub mod crossing;
@@ -17,6 +18,7 @@ pub mod model;
 pub mod ode;
 pub mod setup;
 mod shared;
+pub mod traced;
 
 pub use model::{Embedding, INFO, OPTIONS};
 pub use setup::InitReport;

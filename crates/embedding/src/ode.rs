@@ -47,15 +47,23 @@
 //!         [ V    2Q − ∂E/∂q⃛  W ]     V = ∂Ë/∂q⁗
 //! ```
 //!
-//! so a Jacobian costs `m` dual passes of the order-4 jet (the `q⁗` columns,
-//! which also give `D`) and `m` cheap order-2 passes for `∂E/∂q⃛`, instead of
-//! `3m` order-4 passes. Only `V` depends on `u` (through `q⁗`), so the
-//! iteration is a chord iteration: one Jacobian at the warm start per call,
-//! then plain evaluations of `D` (order-4 jet over `f64`), with a Newton
-//! restart if it contracts slowly. No allocation per call: the SVD of the
-//! equilibrated `∂D/∂u` is a one-sided Jacobi SVD in preallocated buffers
-//! (nalgebra's SVD allocates per call and measured 22 % slower per
-//! right-hand side, `docs/embedding.md` section 4).
+//! Only `V` depends on `u` (through `q⁗`), so the iteration is a chord
+//! iteration: one Jacobian at the warm start per call, then plain
+//! evaluations of `D`, with a Newton restart if it contracts slowly.
+//!
+//! `D` and the columns the Jacobian needs (`∂D/∂q⁗`, and `∂E/∂q⃛` for the
+//! structural columns; `∂D/∂q⃛` too in a projection) come from programs
+//! traced once per scene and branch of the map ([`crate::traced`]) and run
+//! as native code: one run for a Jacobian, one for an evaluation. Without
+//! a trace (over complex numbers, or a scene whose functions branch on
+//! values) they come from dual passes over the order-4 jet: `m` order-4
+//! passes for the `q⁗` columns (which also give `D`) and `m` order-2 passes
+//! for `∂E/∂q⃛`. The pseudo-inverse comes from a one-sided Jacobi SVD of
+//! the equilibrated `∂D/∂u` in preallocated buffers (nalgebra's SVD
+//! allocates per call and measured 22 % slower per right-hand side,
+//! `docs/embedding.md` section 4), warm-started from the right singular
+//! vectors of the previous solve (two sweeps instead of six along a run).
+//! No allocation per call. The costs are in `docs/performance.md`.
 //!
 //! **Accuracy.** The terms of `[E; Ė; Ë]` grow towards the map's singular
 //! set (for the sleigh like powers of the turning rate `|q̈|/|v|`) and
@@ -98,6 +106,7 @@ use num_dual::{Dual, Dual2};
 use crate::analysis::{LEVELS, derivative_array, relative, row_scales};
 use crate::elo::elo_array;
 use crate::jet::{Jet4, TimeJet};
+use crate::traced::{ArrayWorkspace, TracedArray};
 
 /// Relative accuracy to which the iteration determines `q⁗` (and, in the
 /// projection, `q⃛`): estimated remaining error of the chord iteration.
@@ -180,6 +189,9 @@ pub struct ReductionStats {
     pub evaluations: usize,
     /// Chord steps.
     pub iterations: usize,
+    /// Sweeps of the Jacobi SVDs behind the pseudo-inverses (the last one
+    /// of each rotates nothing).
+    pub sweeps: usize,
     /// Largest relative change of `q⃛` made by a projection.
     pub max_third_change: f64,
     /// Solves and projections that ended at their round-off level (steps
@@ -252,6 +264,10 @@ pub struct Reduction<T: Field = f64> {
     a: Vec<f64>,
     /// Right singular vectors (`cols × cols` realified, column-major).
     v: Vec<f64>,
+    /// Those of the last SVD of a solve (0) and of a projection (1), the
+    /// next one's starting point where `warm` says they are valid.
+    warm_v: [Vec<f64>; 2],
+    warm: [bool; 2],
     norms: Vec<f64>,
     order: Vec<usize>,
     /// Realified pseudo-inverse with the scalings folded in (`PARTS·cols ×
@@ -276,6 +292,16 @@ pub struct Reduction<T: Field = f64> {
     /// Reference values of the dependent coordinates: the map's branch in
     /// use ([`Scene::embedding`]; empty: its principal branch).
     near: Vec<f64>,
+    /// Over `f64`: the derivative array and its Jacobian columns traced
+    /// into programs ([`crate::traced`]), for the scene and branch in use
+    /// (built where first needed; `None` until then, after a change of
+    /// branch or scene, and where the trace was refused).
+    traced: Option<Box<(TracedArray, ArrayWorkspace)>>,
+    /// Whether to trace (on by default; off: the dual passes over the jets,
+    /// for comparing the two).
+    trace_on: bool,
+    /// The trace was refused for this scene and branch: why.
+    trace_refused: Option<String>,
     stats: ReductionStats,
 }
 
@@ -305,6 +331,11 @@ where
             e3: vec![zero; m * m],
             a: vec![0.0; p * rows * p * cols],
             v: vec![0.0; p * cols * p * cols],
+            warm_v: [
+                vec![0.0; p * cols * p * cols],
+                vec![0.0; p * cols * p * cols],
+            ],
+            warm: [false; 2],
             norms: vec![0.0; p * cols],
             order: vec![0; p * cols],
             pinv: vec![0.0; p * rows * p * cols],
@@ -317,7 +348,47 @@ where
             probe_base: vec![0.0; p * rows],
             probe_z: vec![zero; 4 * m],
             near: Vec::new(),
+            traced: None,
+            trace_on: true,
+            trace_refused: None,
             stats: ReductionStats::default(),
+        }
+    }
+
+    /// Whether to evaluate the derivative array by traced programs
+    /// ([`crate::traced`], over `f64` only; the default) or by dual passes
+    /// over the order-4 jets: the same functions to round-off, for
+    /// comparing the two.
+    pub fn set_traced(&mut self, on: bool) {
+        self.trace_on = on;
+        self.forget_trace();
+    }
+
+    /// Why the derivative array could not be traced for the scene and
+    /// branch in use (`None`: traced, or not tried yet, or not asked for).
+    pub fn trace_refused(&self) -> Option<&str> {
+        self.trace_refused.as_deref()
+    }
+
+    /// Drops the traced programs (a new scene or branch).
+    fn forget_trace(&mut self) {
+        self.traced = None;
+        self.trace_refused = None;
+    }
+
+    /// Traces the derivative array where it is asked for, over `f64`, and
+    /// not yet done or refused.
+    fn ensure_traced<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
+        if !(T::REAL && self.trace_on) || self.traced.is_some() || self.trace_refused.is_some() {
+            return;
+        }
+        let d: Vec<f64> = self.d.iter().map(|x| x.part(0)).collect();
+        match TracedArray::new(scene, e, t.part(0), &d, &self.near) {
+            Ok(a) => {
+                let w = a.workspace();
+                self.traced = Some(Box::new((a, w)));
+            }
+            Err(why) => self.trace_refused = Some(why),
         }
     }
 
@@ -339,6 +410,8 @@ where
         self.solved_at = None;
         self.probed = None;
         self.stats = ReductionStats::default();
+        self.warm = [false; 2];
+        self.forget_trace();
         self.jacobian(scene, e, t, 4 * m)?;
         self.rank_u = Some(self.kept_rank());
         Ok(())
@@ -357,6 +430,7 @@ where
         self.near.extend_from_slice(near);
         self.solved_at = None;
         self.probed = None;
+        self.forget_trace();
     }
 
     /// Work counters since [`Reduction::reset`].
@@ -609,6 +683,14 @@ where
 
     /// `D` at `d` into `value` (order-4 jet over `T`).
     fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
+        if let Some(traced) = self.traced.as_deref_mut() {
+            let (a, w) = (&traced.0, &mut traced.1);
+            let d = T::as_real(&self.d).expect("traced programs run over f64");
+            for (v, &x) in self.value.iter_mut().zip(a.value(w, t.part(0), d)) {
+                *v = T::from(x);
+            }
+            return;
+        }
         elo_array::<_, T, Jet4<T>>(scene, e, t, &self.d, &self.near, &mut self.value);
     }
 
@@ -627,57 +709,11 @@ where
         let cols = 7 * m - first;
         self.stats.jacobians += 1;
         let zero = T::from(0.0);
-        let tt = Dual::from_re(t);
-        // Order-4 dual passes for the columns that need them: q⃛ (projection
-        // only) and q⁗. The first pass also gives D.
-        let passes = 5 * m - first;
-        for k in 0..passes {
-            for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
-                *x = Dual::from_re(v);
-            }
-            self.d_dual[first + k].eps = T::from(1.0);
-            elo_array::<_, Dual<T>, Jet4<Dual<T>>>(
-                scene,
-                e,
-                tt,
-                &self.d_dual,
-                &self.near,
-                &mut self.out_dual,
-            );
-            for i in 0..rows {
-                self.jac[k * rows + i] = self.out_dual[i].eps;
-            }
-            if k == 0 {
-                for i in 0..rows {
-                    self.value[i] = self.out_dual[i].re;
-                }
-            }
-        }
-        // ∂E/∂q⃛: the top block of the q⃛ columns, or m order-2 passes.
-        if first == 3 * m {
-            for j in 0..m {
-                for mu in 0..m {
-                    self.e3[j * m + mu] = self.jac[j * rows + mu];
-                }
-            }
+        self.ensure_traced(scene, e, t);
+        if self.traced.is_some() {
+            self.traced_columns(t, first);
         } else {
-            for j in 0..m {
-                for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
-                    *x = Dual::from_re(v);
-                }
-                self.d_dual[3 * m + j].eps = T::from(1.0);
-                elo_array::<_, Dual<T>, Dual2<Dual<T>>>(
-                    scene,
-                    e,
-                    tt,
-                    &self.d_dual[..5 * m],
-                    &self.near,
-                    &mut self.out_dual[..m],
-                );
-                for mu in 0..m {
-                    self.e3[j * m + mu] = self.out_dual[mu].eps;
-                }
-            }
+            self.dual_columns(scene, e, t, first);
         }
         // Structural columns: q⁽⁵⁾ → [0; W; 2Q − ∂E/∂q⃛], q⁽⁶⁾ → [0; 0; W].
         let c4 = 4 * m - first;
@@ -758,6 +794,102 @@ where
         self.pseudo_inverse(first)
     }
 
+    /// `D` into `value`, the order-4 columns (`q⃛` for a projection, `q⁗`)
+    /// of `∂D/∂d[first..]` into `jac` and `∂E/∂q⃛` into `e3`, by dual
+    /// passes over the jets: `5m − first` order-4 passes (the first also
+    /// gives `D`) and, for a solve, `m` order-2 passes.
+    fn dual_columns<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T, first: usize) {
+        let m = self.m;
+        let rows = LEVELS * m;
+        let tt = Dual::from_re(t);
+        // Order-4 dual passes for the columns that need them: q⃛ (projection
+        // only) and q⁗. The first pass also gives D.
+        let passes = 5 * m - first;
+        for k in 0..passes {
+            for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
+                *x = Dual::from_re(v);
+            }
+            self.d_dual[first + k].eps = T::from(1.0);
+            elo_array::<_, Dual<T>, Jet4<Dual<T>>>(
+                scene,
+                e,
+                tt,
+                &self.d_dual,
+                &self.near,
+                &mut self.out_dual,
+            );
+            for i in 0..rows {
+                self.jac[k * rows + i] = self.out_dual[i].eps;
+            }
+            if k == 0 {
+                for i in 0..rows {
+                    self.value[i] = self.out_dual[i].re;
+                }
+            }
+        }
+        // ∂E/∂q⃛: the top block of the q⃛ columns, or m order-2 passes.
+        if first == 3 * m {
+            for j in 0..m {
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.jac[j * rows + mu];
+                }
+            }
+        } else {
+            for j in 0..m {
+                for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
+                    *x = Dual::from_re(v);
+                }
+                self.d_dual[3 * m + j].eps = T::from(1.0);
+                elo_array::<_, Dual<T>, Dual2<Dual<T>>>(
+                    scene,
+                    e,
+                    tt,
+                    &self.d_dual[..5 * m],
+                    &self.near,
+                    &mut self.out_dual[..m],
+                );
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.out_dual[mu].eps;
+                }
+            }
+        }
+    }
+
+    /// [`Reduction::dual_columns`] by the traced programs: one run.
+    fn traced_columns(&mut self, t: T, first: usize) {
+        let m = self.m;
+        let rows = LEVELS * m;
+        let traced = self.traced.as_deref_mut().expect("traced");
+        let (a, w) = (&traced.0, &mut traced.1);
+        let d = T::as_real(&self.d).expect("traced programs run over f64");
+        let out = if first == 4 * m {
+            a.solve(w, t.part(0), d)
+        } else {
+            a.project(w, t.part(0), d)
+        };
+        for (v, &x) in self.value.iter_mut().zip(&out[..rows]) {
+            *v = T::from(x);
+        }
+        let columns = (5 * m - first) * rows;
+        for (j, &x) in self.jac[..columns]
+            .iter_mut()
+            .zip(&out[rows..rows + columns])
+        {
+            *j = T::from(x);
+        }
+        if first == 4 * m {
+            for (j, &x) in self.e3.iter_mut().zip(&out[rows + columns..]) {
+                *j = T::from(x);
+            }
+        } else {
+            for j in 0..m {
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.jac[j * rows + mu];
+                }
+            }
+        }
+    }
+
     /// One-sided Jacobi SVD of the realified equilibrated Jacobian in `a`
     /// and the truncated pseudo-inverse (`rank_u` for a solve, numerical
     /// rank for a projection), scalings folded in.
@@ -766,15 +898,36 @@ where
         let p = T::PARTS;
         let rows = p * LEVELS * m;
         let cols = p * (7 * m - first);
+        // Warm start: the right singular vectors of the previous SVD of this
+        // kind (solve or projection) nearly diagonalise this one's matrix,
+        // so the sweeps start from A·V₀ (2 sweeps instead of 6 along a run).
+        let kind = usize::from(first != 4 * m);
+        let warm = self.warm[kind] && orthonormalize(&mut self.warm_v[kind][..cols * cols], cols);
         let (a, v) = (&mut self.a, &mut self.v);
-        v[..cols * cols].fill(0.0);
-        for c in 0..cols {
-            v[c * cols + c] = 1.0;
+        if warm {
+            let w = &self.warm_v[kind][..cols * cols];
+            let row = &mut self.norms[..cols];
+            for i in 0..rows {
+                for (c, r) in row.iter_mut().enumerate() {
+                    *r = (0..cols).map(|k| a[k * rows + i] * w[c * cols + k]).sum();
+                }
+                for (c, &r) in row.iter().enumerate() {
+                    a[c * rows + i] = r;
+                }
+            }
+            v[..cols * cols].copy_from_slice(w);
+        } else {
+            v[..cols * cols].fill(0.0);
+            for c in 0..cols {
+                v[c * cols + c] = 1.0;
+            }
         }
+        self.warm[kind] = false;
         let total: f64 = a[..rows * cols].iter().map(|x| x * x).sum();
         let negligible = (f64::EPSILON * f64::EPSILON) * total;
         let tol = f64::EPSILON * rows as f64 / p as f64;
         for _sweep in 0..60 {
+            self.stats.sweeps += 1;
             let mut rotated = false;
             for pc in 0..cols - 1 {
                 for qc in pc + 1..cols {
@@ -811,6 +964,10 @@ where
             if !rotated {
                 break;
             }
+        }
+        if v[..cols * cols].iter().all(|x| x.is_finite()) {
+            self.warm_v[kind][..cols * cols].copy_from_slice(&v[..cols * cols]);
+            self.warm[kind] = true;
         }
         for c in 0..cols {
             self.norms[c] = a[c * rows..(c + 1) * rows]
@@ -868,6 +1025,34 @@ where
     }
 }
 
+/// Makes the columns of the `n × n` column-major `v`, orthonormal up to
+/// the round-off of the rotations that made it, orthonormal again (one pass
+/// of modified Gram–Schmidt: the error does not grow from SVD to SVD);
+/// `false` (and `v` unusable) where a column has lost its direction or is
+/// not finite.
+fn orthonormalize(v: &mut [f64], n: usize) -> bool {
+    for c in 0..n {
+        for k in 0..c {
+            let dot: f64 = (0..n).map(|i| v[k * n + i] * v[c * n + i]).sum();
+            for i in 0..n {
+                v[c * n + i] -= dot * v[k * n + i];
+            }
+        }
+        let norm = v[c * n..(c + 1) * n]
+            .iter()
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt();
+        if norm.is_nan() || norm < 0.5 {
+            return false;
+        }
+        for x in &mut v[c * n..(c + 1) * n] {
+            *x /= norm;
+        }
+    }
+    true
+}
+
 impl Reduction<f64> {
     /// How far `z` is from A's hidden constraints: after solving for `u` as
     /// the right-hand side does, `max_l |D_l(z, u)| / (1 + Σ_j |∂D_l/∂d_j d_j|)`
@@ -920,7 +1105,10 @@ mod tests {
 
     /// The structural Jacobian (identities of the derivative array) equals
     /// the full AD Jacobian of `derivative_array` column by column, for the
-    /// solve (`u`) and the projection (`q⃛, u`).
+    /// solve (`u`) and the projection (`q⃛, u`), with the array from the
+    /// traced programs and from the dual passes (`D` to round-off of the
+    /// terms that cancel in it: 1e-13 of the largest term of its row,
+    /// `Σ_j |∂D/∂d_j d_j|`).
     #[test]
     fn structural_jacobian_matches_full_ad() {
         for potential in ["paper", "com"] {
@@ -939,20 +1127,28 @@ mod tests {
             let mut value = vec![0.0; 6];
             let mut full = DMatrix::zeros(6, 14);
             derivative_array(&s, &e, 0.0, &d, &[], &mut value, &mut full);
-            let mut r = Reduction::new(2);
-            for first in [8, 6] {
-                r.d.copy_from_slice(&d);
-                r.jacobian(&s, &e, 0.0, first).unwrap();
-                let jac = r.jacobian_matrix(first);
-                let want = full.columns(first, 14 - first);
-                let scale = want.amax();
-                assert!(
-                    (&jac - want).amax() <= 1e-13 * scale,
-                    "first = {first}:\n{jac:.6e}\n{want:.6e}"
-                );
-                for l in 0..6 {
-                    assert!((r.value[l] - value[l]).abs() <= 1e-13 * (1.0 + value[l].abs()));
+            let terms: Vec<f64> = (0..6)
+                .map(|l| (0..14).map(|j| (full[(l, j)] * d[j]).abs()).sum())
+                .collect();
+            for traced in [true, false] {
+                let mut r = Reduction::new(2);
+                r.set_traced(traced);
+                for first in [8, 6] {
+                    r.d.copy_from_slice(&d);
+                    r.jacobian(&s, &e, 0.0, first).unwrap();
+                    let jac = r.jacobian_matrix(first);
+                    let want = full.columns(first, 14 - first);
+                    let scale = want.amax();
+                    assert!(
+                        (&jac - want).amax() <= 1e-13 * scale,
+                        "traced {traced}, first = {first}:\n{jac:.6e}\n{want:.6e}"
+                    );
+                    for l in 0..6 {
+                        let err = (r.value[l] - value[l]).abs();
+                        assert!(err <= 1e-13 * terms[l], "traced {traced}, row {l}: {err:e}");
+                    }
                 }
+                assert_eq!(r.trace_refused(), None);
             }
         }
     }

@@ -350,16 +350,20 @@ pub fn residual_case() -> Result<ResidualCase, Error> {
 
 /// Formulation A's explicit right-hand side (`q⁗` from the derivative
 /// array) at the same state as [`residual_case`], solved afresh at every
-/// call (see [`Unremembered`]).
-pub fn embedding_explicit() -> Result<RhsCase, Error> {
+/// call (see [`Unremembered`]); the array by its traced programs, or by
+/// dual passes over the jets if `traced` is false.
+pub fn embedding_explicit(traced: bool) -> Result<RhsCase, Error> {
     let ResidualCase { sys, y, .. } = residual_case()?;
+    let mut inner = sys.into_explicit();
+    inner.set_traced(traced);
     Ok(RhsCase::new(
         "A explicit",
-        "A's explicit form: derivative array solved for q⁗",
-        Box::new(Unremembered {
-            inner: sys.into_explicit(),
-            flip: false,
-        }),
+        if traced {
+            "A's explicit form: derivative array solved for q⁗"
+        } else {
+            "A's explicit form: derivative array solved for q⁗, dual passes over the jets"
+        },
+        Box::new(Unremembered { inner, flip: false }),
         y,
     ))
 }

@@ -133,7 +133,8 @@ fn residual_of_a_allocates_nothing() {
 
 #[test]
 fn explicit_rhs_of_a_allocates_nothing() {
-    assert_rhs_allocates_nothing(&mut embedding_explicit().unwrap());
+    assert_rhs_allocates_nothing(&mut embedding_explicit(true).unwrap());
+    assert_rhs_allocates_nothing(&mut embedding_explicit(false).unwrap());
 }
 
 /// Every AD Jacobian (B again, C, visc in both forms — the adapted one by

@@ -169,27 +169,35 @@ fn run() -> Result<(), String> {
         reduced_c.what,
         reduced_c.dim(),
     );
-    let mut ae = embedding_explicit().map_err(|e| e.to_string())?;
-    let mut dy = vec![0.0; ae.dim()];
-    check(&mut ae, &mut dy)?;
-    let (t, t_c, ratio) = paired_ns(
-        || {
-            let _ = keep(ae.eval(keep(&mut dy)));
-        },
-        || {
-            let _ = keep(reduced_c.eval(keep(&mut dy_c)));
-        },
-        batches,
-        ms,
-    );
-    out!(
-        report,
-        "| {} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
-        ae.what,
-        ae.dim(),
-        reduced_c.what,
-        reduced_c.dim(),
-    );
+    // A's explicit form three ways: traced programs as native code (the
+    // default), the same programs in the interpreter (built with native
+    // code off), and the dual passes over the jets the programs replace.
+    for (traced, native) in [(true, true), (true, false), (false, true)] {
+        nonholo_core::jit::set_enabled(native);
+        let mut ae = embedding_explicit(traced).map_err(|e| e.to_string())?;
+        nonholo_core::jit::set_enabled(true);
+        let suffix = if native { "" } else { ", interpreter" };
+        let mut dy = vec![0.0; ae.dim()];
+        check(&mut ae, &mut dy)?;
+        let (t, t_c, ratio) = paired_ns(
+            || {
+                let _ = keep(ae.eval(keep(&mut dy)));
+            },
+            || {
+                let _ = keep(reduced_c.eval(keep(&mut dy_c)));
+            },
+            batches,
+            ms,
+        );
+        out!(
+            report,
+            "| {}{suffix} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
+            ae.what,
+            ae.dim(),
+            reduced_c.what,
+            reduced_c.dim(),
+        );
+    }
     out!(report);
     out!(
         report,

@@ -5,7 +5,8 @@
 //!   and consistent completion.
 //! * [`setup`]: initial data; [`implicit`] and [`explicit`]: the two forms
 //!   (the explicit one solves the derivative array per right-hand side,
-//!   [`ode`], with the array traced into native code, [`traced`]);
+//!   [`ode`], optionally with the array traced into native code,
+//!   [`traced`]);
 //!   [`model`]: both as one model.
 
 pub mod analysis;

@@ -63,7 +63,8 @@
 //! allocates per call and measured 22 % slower per right-hand side,
 //! `docs/embedding.md` section 4), warm-started from the right singular
 //! vectors of the previous solve (two sweeps instead of six along a run).
-//! No allocation per call. The costs are in `docs/performance.md`.
+//! Tracing and the warm start are off by default for now
+//! ([`Reduction::set_traced`]). No allocation per call.
 //!
 //! **Accuracy.** The terms of `[E; Ė; Ë]` grow towards the map's singular
 //! set (for the sleigh like powers of the turning rate `|q̈|/|v|`) and
@@ -297,8 +298,9 @@ pub struct Reduction<T: Field = f64> {
     /// (built where first needed; `None` until then, after a change of
     /// branch or scene, and where the trace was refused).
     traced: Option<Box<(TracedArray, ArrayWorkspace)>>,
-    /// Whether to trace (on by default; off: the dual passes over the jets,
-    /// for comparing the two).
+    /// Whether to trace and warm-start the SVDs (off by default until A's
+    /// committed results are regenerated with them; see
+    /// [`Reduction::set_traced`]).
     trace_on: bool,
     /// The trace was refused for this scene and branch: why.
     trace_refused: Option<String>,
@@ -349,18 +351,22 @@ where
             probe_z: vec![zero; 4 * m],
             near: Vec::new(),
             traced: None,
-            trace_on: true,
+            trace_on: false,
             trace_refused: None,
             stats: ReductionStats::default(),
         }
     }
 
     /// Whether to evaluate the derivative array by traced programs
-    /// ([`crate::traced`], over `f64` only; the default) or by dual passes
-    /// over the order-4 jets: the same functions to round-off, for
-    /// comparing the two.
+    /// ([`crate::traced`], over `f64` only) and warm-start the Jacobi SVDs
+    /// from the previous solve's right singular vectors, or (the default)
+    /// by dual passes over the order-4 jets with SVDs from the identity:
+    /// the same solve to round-off. Off by default for now: on, A's results
+    /// move in their last digits, and the committed results and the claims
+    /// tied to them are to be regenerated in the same change.
     pub fn set_traced(&mut self, on: bool) {
         self.trace_on = on;
+        self.warm = [false; 2];
         self.forget_trace();
     }
 
@@ -902,7 +908,9 @@ where
         // kind (solve or projection) nearly diagonalise this one's matrix,
         // so the sweeps start from A·V₀ (2 sweeps instead of 6 along a run).
         let kind = usize::from(first != 4 * m);
-        let warm = self.warm[kind] && orthonormalize(&mut self.warm_v[kind][..cols * cols], cols);
+        let warm = self.trace_on
+            && self.warm[kind]
+            && orthonormalize(&mut self.warm_v[kind][..cols * cols], cols);
         let (a, v) = (&mut self.a, &mut self.v);
         if warm {
             let w = &self.warm_v[kind][..cols * cols];

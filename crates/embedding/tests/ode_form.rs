@@ -207,8 +207,8 @@ fn explicit_form_reproduces_implicit_form_and_vakonomic() {
     assert!(vs_dae < 1e-7 && vs_c < 1e-7, "{vs_dae:e} {vs_c:e}");
 }
 
-/// The derivative array traced into programs (the default) and evaluated
-/// by dual passes over the jets give the same motion: DOP853 at 1e-10 to
+/// The derivative array traced into programs and evaluated by dual passes
+/// over the jets (the default) give the same motion: DOP853 at 1e-10 to
 /// t = 0.8 (projection on), positions equal to 1e-9, with the same number
 /// of steps; the sleigh is traced (no branch of its functions depends on
 /// values).
@@ -245,6 +245,7 @@ fn traced_and_dual_pass_derivative_arrays_give_one_motion() {
     assert!(diff < 1e-9, "{diff:e}");
     assert_eq!(a.steps, b.steps);
     let mut probe = embedding(s, &[]);
+    probe.explicit_form().set_traced(true);
     let z = probe.initial_state(&init).unwrap();
     probe.explicit_form().fourth_derivative(0.0, &z).unwrap();
     assert_eq!(probe.explicit_form().trace_refused(), None);

@@ -203,13 +203,9 @@ impl Compiled {
                 fv.iter().map(|x| x.id).collect::<Vec<_>>(),
             )
         });
-        if !g.is_exact() {
-            let mut what: Vec<&str> = g.leaks().iter().chain(g.unsupported()).copied().collect();
-            what.sort_unstable();
-            what.dedup();
+        if let Some(what) = g.inexact() {
             return Err(Refused(format!(
-                "the trace depends on values ({}): scalar passes",
-                what.join(", ")
+                "the trace depends on values ({what}): scalar passes"
             )));
         }
         let t_var = 0u32;

@@ -71,9 +71,8 @@ pub enum Node {
     Angle(u32, u32, u64),
 }
 
-/// The `near` of [`Node::Angle`] from its bits.
-fn near_of(bits: u64) -> Option<f64> {
-    let near = f64::from_bits(bits);
+/// The `near` of [`Node::Angle`] from its value (NaN: none).
+pub(crate) fn near_of(near: f64) -> Option<f64> {
     near.is_finite().then_some(near)
 }
 
@@ -121,6 +120,23 @@ impl Graph {
     /// Whether the trace holds at every state: no leak, nothing unsupported.
     pub fn is_exact(&self) -> bool {
         self.leaks.is_empty() && self.unsupported.is_empty()
+    }
+
+    /// Where the trace does not hold at every state: the leaks and the
+    /// unsupported functions, each named once, sorted (`None`: exact).
+    pub fn inexact(&self) -> Option<String> {
+        if self.is_exact() {
+            return None;
+        }
+        let mut what: Vec<&str> = self
+            .leaks
+            .iter()
+            .chain(&self.unsupported)
+            .copied()
+            .collect();
+        what.sort_unstable();
+        what.dedup();
+        Some(what.join(", "))
     }
 
     /// The node of a constant.
@@ -525,7 +541,7 @@ fn apply<T: Scalar>(node: &Node, x: impl Fn(u32) -> T) -> T {
         Tanh(a) => x(a).tanh(),
         Abs(a) => x(a).abs(),
         Signum(a) => x(a).signum(),
-        Angle(y, a, near) => crate::scene::atan2_near(x(y), x(a), near_of(near)),
+        Angle(y, a, near) => crate::scene::atan2_near(x(y), x(a), near_of(f64::from_bits(near))),
     }
 }
 

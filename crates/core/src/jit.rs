@@ -426,14 +426,14 @@ unary!(exp, ln, sin, cos, tan, asin, acos, atan, sinh, cosh, tanh);
 
 /// [`Node::Angle`] over `f64`: the interpreter's function.
 extern "C" fn angle(y: f64, x: f64, near: f64) -> f64 {
-    crate::scene::atan2_near(y, x, near.is_finite().then_some(near))
+    crate::scene::atan2_near(y, x, crate::graph::near_of(near))
 }
 
 /// [`Node::Angle`] over `Dual64` into `out[0]`, `out[1]` (value and
 /// derivative part): the interpreter's function, so the same bits.
 extern "C" fn angle_dual(y: f64, dy: f64, x: f64, dx: f64, near: f64, out: *mut f64) {
     let (y, x) = (num_dual::Dual64::new(y, dy), num_dual::Dual64::new(x, dx));
-    let a = crate::scene::atan2_near(y, x, near.is_finite().then_some(near));
+    let a = crate::scene::atan2_near(y, x, crate::graph::near_of(near));
     // SAFETY: `out` is the code's 16-byte stack slot.
     unsafe {
         *out = a.re;

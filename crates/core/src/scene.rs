@@ -263,16 +263,17 @@ pub fn atan2_near<D: Scalar>(y: D, x: D, near: Option<f64>) -> D {
 }
 
 /// [`atan2_near`] for numbers that compute, and [`Scalar::angle`] for those
-/// without derivative parts (`f64`, [`C64`]): `atan(y/x)` where `|x| ≥ |y|` and `±π/2 − atan(x/y)` elsewhere, plus the
-/// constant that puts the value on `atan2`'s branch `(−π, π]`, then the
-/// multiple of π that brings its real part nearest to `near` (if finite).
+/// without derivative parts (`f64`, [`C64`]): `atan(y/x)` where
+/// `|x| ≥ |y|` and `±π/2 − atan(x/y)` elsewhere, plus the constant that
+/// puts the value on `atan2`'s branch `(−π, π]`, then the multiple of π
+/// that brings its real part nearest to `near` (if finite).
 ///
 /// The formula is chosen by [`Scalar::modulus`] of `x` and `y`, the
 /// constant by signs of real parts (`re()`): of `x`, then where `|x| ≥ |y|`
 /// and `Re x < 0` of `atan(y/x)`, and elsewhere of `y`. For real arguments
-/// (`f64` and dual numbers over it) these are the comparisons above (with `x < 0`, `atan(y/x)` has the
-/// opposite sign of `y`, signed zeros included), and the value is
-/// `f64::atan2`'s up to rounding.
+/// (`f64` and dual numbers over it) these are the comparisons above (with
+/// `x < 0`, `atan(y/x)` has the opposite sign of `y`, signed zeros
+/// included), and the value is `f64::atan2`'s up to rounding.
 ///
 /// For complex arguments the ratio inside the arctangent has modulus at
 /// most one, so it stays off `atan`'s branch cuts `±i·[1, ∞)` (it reaches

@@ -62,7 +62,8 @@
 //! the equilibrated `∂D/∂u` in preallocated buffers (nalgebra's SVD
 //! allocates per call and measured 22 % slower per right-hand side,
 //! `docs/embedding.md` section 4), warm-started from the right singular
-//! vectors of the previous solve (two sweeps instead of six along a run).
+//! vectors of the previous solve (two sweeps instead of six for repeated
+//! solves at one state, measured by `rhs-report`).
 //! Tracing and the warm start are off by default for now
 //! ([`Reduction::set_traced`]). No allocation per call.
 //!
@@ -239,6 +240,17 @@ impl Field for f64 {
     }
 }
 
+/// The derivative array's traced programs ([`crate::traced`]) for the
+/// scene and branch in use.
+enum Trace {
+    /// Not tried yet (or not asked for, or dropped with a change of scene
+    /// or branch): built where a Jacobian first needs it.
+    NotYet,
+    Traced(Box<(TracedArray, ArrayWorkspace)>),
+    /// The scene's functions branch on values: why.
+    Refused(String),
+}
+
 /// Workspace and warm start of the derivative-array solve over the field
 /// `T` (see the module documentation). Everything is allocated once, in
 /// [`Reduction::new`].
@@ -293,17 +305,12 @@ pub struct Reduction<T: Field = f64> {
     /// Reference values of the dependent coordinates: the map's branch in
     /// use ([`Scene::embedding`]; empty: its principal branch).
     near: Vec<f64>,
-    /// Over `f64`: the derivative array and its Jacobian columns traced
-    /// into programs ([`crate::traced`]), for the scene and branch in use
-    /// (built where first needed; `None` until then, after a change of
-    /// branch or scene, and where the trace was refused).
-    traced: Option<Box<(TracedArray, ArrayWorkspace)>>,
     /// Whether to trace and warm-start the SVDs (off by default until A's
     /// committed results are regenerated with them; see
     /// [`Reduction::set_traced`]).
     trace_on: bool,
-    /// The trace was refused for this scene and branch: why.
-    trace_refused: Option<String>,
+    /// The derivative array traced for the scene and branch in use.
+    trace: Trace,
     stats: ReductionStats,
 }
 
@@ -350,9 +357,8 @@ where
             probe_base: vec![0.0; p * rows],
             probe_z: vec![zero; 4 * m],
             near: Vec::new(),
-            traced: None,
             trace_on: false,
-            trace_refused: None,
+            trace: Trace::NotYet,
             stats: ReductionStats::default(),
         }
     }
@@ -373,29 +379,31 @@ where
     /// Why the derivative array could not be traced for the scene and
     /// branch in use (`None`: traced, or not tried yet, or not asked for).
     pub fn trace_refused(&self) -> Option<&str> {
-        self.trace_refused.as_deref()
+        match &self.trace {
+            Trace::Refused(why) => Some(why),
+            _ => None,
+        }
     }
 
     /// Drops the traced programs (a new scene or branch).
     fn forget_trace(&mut self) {
-        self.traced = None;
-        self.trace_refused = None;
+        self.trace = Trace::NotYet;
     }
 
     /// Traces the derivative array where it is asked for, over `f64`, and
     /// not yet done or refused.
     fn ensure_traced<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
-        if !(T::REAL && self.trace_on) || self.traced.is_some() || self.trace_refused.is_some() {
+        if !(T::REAL && self.trace_on && matches!(self.trace, Trace::NotYet)) {
             return;
         }
-        let d: Vec<f64> = self.d.iter().map(|x| x.part(0)).collect();
-        match TracedArray::new(scene, e, t.part(0), &d, &self.near) {
+        let d = T::as_real(&self.d).expect("T is f64");
+        self.trace = match TracedArray::new(scene, e, t.part(0), d, &self.near) {
             Ok(a) => {
                 let w = a.workspace();
-                self.traced = Some(Box::new((a, w)));
+                Trace::Traced(Box::new((a, w)))
             }
-            Err(why) => self.trace_refused = Some(why),
-        }
+            Err(why) => Trace::Refused(why),
+        };
     }
 
     /// Starts from a consistent completion `d = (q_I⁽⁰⁾ … q_I⁽⁶⁾)` (7m
@@ -689,7 +697,7 @@ where
 
     /// `D` at `d` into `value` (order-4 jet over `T`).
     fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
-        if let Some(traced) = self.traced.as_deref_mut() {
+        if let Trace::Traced(traced) = &mut self.trace {
             let (a, w) = (&traced.0, &mut traced.1);
             let d = T::as_real(&self.d).expect("traced programs run over f64");
             for (v, &x) in self.value.iter_mut().zip(a.value(w, t.part(0), d)) {
@@ -716,10 +724,18 @@ where
         self.stats.jacobians += 1;
         let zero = T::from(0.0);
         self.ensure_traced(scene, e, t);
-        if self.traced.is_some() {
+        if matches!(self.trace, Trace::Traced(_)) {
             self.traced_columns(t, first);
         } else {
             self.dual_columns(scene, e, t, first);
+        }
+        // A projection has ∂E/∂q⃛ as the top block of its q⃛ columns.
+        if first == 3 * m {
+            for j in 0..m {
+                for mu in 0..m {
+                    self.e3[j * m + mu] = self.jac[j * rows + mu];
+                }
+            }
         }
         // Structural columns: q⁽⁵⁾ → [0; W; 2Q − ∂E/∂q⃛], q⁽⁶⁾ → [0; 0; W].
         let c4 = 4 * m - first;
@@ -801,9 +817,9 @@ where
     }
 
     /// `D` into `value`, the order-4 columns (`q⃛` for a projection, `q⁗`)
-    /// of `∂D/∂d[first..]` into `jac` and `∂E/∂q⃛` into `e3`, by dual
-    /// passes over the jets: `5m − first` order-4 passes (the first also
-    /// gives `D`) and, for a solve, `m` order-2 passes.
+    /// of `∂D/∂d[first..]` into `jac` and, for a solve, `∂E/∂q⃛` into `e3`,
+    /// by dual passes over the jets: `5m − first` order-4 passes (the first
+    /// also gives `D`) and, for a solve, `m` order-2 passes.
     fn dual_columns<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T, first: usize) {
         let m = self.m;
         let rows = LEVELS * m;
@@ -833,14 +849,8 @@ where
                 }
             }
         }
-        // ∂E/∂q⃛: the top block of the q⃛ columns, or m order-2 passes.
-        if first == 3 * m {
-            for j in 0..m {
-                for mu in 0..m {
-                    self.e3[j * m + mu] = self.jac[j * rows + mu];
-                }
-            }
-        } else {
+        // ∂E/∂q⃛ of a solve: m order-2 passes.
+        if first == 4 * m {
             for j in 0..m {
                 for (x, &v) in self.d_dual.iter_mut().zip(&self.d) {
                     *x = Dual::from_re(v);
@@ -865,7 +875,9 @@ where
     fn traced_columns(&mut self, t: T, first: usize) {
         let m = self.m;
         let rows = LEVELS * m;
-        let traced = self.traced.as_deref_mut().expect("traced");
+        let Trace::Traced(traced) = &mut self.trace else {
+            unreachable!("called with a trace")
+        };
         let (a, w) = (&traced.0, &mut traced.1);
         let d = T::as_real(&self.d).expect("traced programs run over f64");
         let out = if first == 4 * m {
@@ -887,12 +899,6 @@ where
             for (j, &x) in self.e3.iter_mut().zip(&out[rows + columns..]) {
                 *j = T::from(x);
             }
-        } else {
-            for j in 0..m {
-                for mu in 0..m {
-                    self.e3[j * m + mu] = self.jac[j * rows + mu];
-                }
-            }
         }
     }
 
@@ -908,9 +914,7 @@ where
         // kind (solve or projection) nearly diagonalise this one's matrix,
         // so the sweeps start from A·V₀ (2 sweeps instead of 6 along a run).
         let kind = usize::from(first != 4 * m);
-        let warm = self.trace_on
-            && self.warm[kind]
-            && orthonormalize(&mut self.warm_v[kind][..cols * cols], cols);
+        let warm = self.warm[kind] && orthonormalize(&mut self.warm_v[kind][..cols * cols], cols);
         let (a, v) = (&mut self.a, &mut self.v);
         if warm {
             let w = &self.warm_v[kind][..cols * cols];
@@ -973,7 +977,7 @@ where
                 break;
             }
         }
-        if v[..cols * cols].iter().all(|x| x.is_finite()) {
+        if self.trace_on && v[..cols * cols].iter().all(|x| x.is_finite()) {
             self.warm_v[kind][..cols * cols].copy_from_slice(&v[..cols * cols]);
             self.warm[kind] = true;
         }

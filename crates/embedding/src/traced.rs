@@ -31,11 +31,9 @@ use crate::analysis::LEVELS;
 use crate::elo::elo_array;
 use crate::jet::Jet4;
 
-/// The three programs of the [module docs](self) for one scene, branch and
-/// number `m` of independent coordinates.
+/// The three programs of the [module docs](self) for one scene and branch.
 #[derive(Debug, Clone)]
 pub struct TracedArray {
-    m: usize,
     value: Program,
     solve: Program,
     project: Program,
@@ -76,14 +74,8 @@ impl TracedArray {
             elo_array::<_, Tracer, Jet4<Tracer>>(scene, e, t, &d, near, &mut out);
             out.iter().map(|x| x.id).collect::<Vec<u32>>()
         });
-        if !g.is_exact() {
-            let mut what: Vec<&str> = g.leaks().iter().chain(g.unsupported()).copied().collect();
-            what.sort_unstable();
-            what.dedup();
-            return Err(format!(
-                "the derivative array depends on values ({})",
-                what.join(", ")
-            ));
+        if let Some(what) = g.inexact() {
+            return Err(format!("the derivative array depends on values ({what})"));
         }
         // Input of q⁽ᵏ⁾_j.
         let var = |k: usize, j: usize| (1 + k * m + j) as u32;
@@ -99,7 +91,6 @@ impl TracedArray {
         let solve: Vec<u32> = [&outs[..], &fourth, &third_top].concat();
         let project: Vec<u32> = [&outs[..], &third, &fourth].concat();
         Ok(TracedArray {
-            m,
             value: Program::new(&g, &outs, inputs),
             solve: Program::new(&g, &solve, inputs),
             project: Program::new(&g, &project, inputs),
@@ -108,51 +99,45 @@ impl TracedArray {
 
     /// A workspace for this array's programs.
     pub fn workspace(&self) -> ArrayWorkspace {
-        let m = self.m;
+        let most = [&self.value, &self.solve, &self.project]
+            .iter()
+            .map(|p| p.shape().1)
+            .max()
+            .unwrap_or(0);
         ArrayWorkspace {
             value: self.value.registers(),
             solve: self.solve.registers(),
             project: self.project.registers(),
-            out: vec![0.0; LEVELS * m * (1 + 2 * m)],
+            out: vec![0.0; most],
         }
-    }
-
-    /// Instructions of the three programs (value, solve, project).
-    pub fn sizes(&self) -> [usize; 3] {
-        [self.value.len(), self.solve.len(), self.project.len()]
     }
 
     /// `D` at `(t, d)`: the `3m` values.
     pub fn value<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
-        let n = LEVELS * self.m;
-        run(&self.value, &mut w.value, &mut w.out[..n], t, d);
-        &w.out[..n]
+        run(&self.value, &mut w.value, &mut w.out, t, d)
     }
 
     /// `D` (`3m`), then `∂D/∂q⁗` column by column (`3m` each, `m` columns),
     /// then `∂E/∂q⃛` column by column (`m` each, `m` columns).
     pub fn solve<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
-        let m = self.m;
-        let n = LEVELS * m * (1 + m) + m * m;
-        run(&self.solve, &mut w.solve, &mut w.out[..n], t, d);
-        &w.out[..n]
+        run(&self.solve, &mut w.solve, &mut w.out, t, d)
     }
 
     /// `D` (`3m`), then `∂D/∂q⃛` and `∂D/∂q⁗` column by column (`3m` each,
     /// `2m` columns).
     pub fn project<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
-        let n = LEVELS * self.m * (1 + 2 * self.m);
-        run(&self.project, &mut w.project, &mut w.out[..n], t, d);
-        &w.out[..n]
+        run(&self.project, &mut w.project, &mut w.out, t, d)
     }
 }
 
-/// Runs `p` at `(t, d)` with the register file `regs` into `out`.
-fn run(p: &Program, regs: &mut [f64], out: &mut [f64], t: f64, d: &[f64]) {
-    let (inputs, _) = p.shape();
+/// Runs `p` at `(t, d)` with the register file `regs`; its outputs, at the
+/// start of `out`.
+fn run<'w>(p: &Program, regs: &mut [f64], out: &'w mut [f64], t: f64, d: &[f64]) -> &'w [f64] {
+    let (inputs, outputs) = p.shape();
     regs[0] = t;
     regs[1..inputs].copy_from_slice(&d[..inputs - 1]);
-    p.run(regs, out);
+    p.run(regs, &mut out[..outputs]);
+    &out[..outputs]
 }
 
 #[cfg(test)]
@@ -221,7 +206,10 @@ mod tests {
             .collect()
     }
 
-    fn check<S: Scene>(scene: &S, near: &[f64]) {
+    /// The largest difference, relative to the largest output at the
+    /// state, over [`states`]; each difference within `TOL` of it.
+    fn check<S: Scene>(scene: &S, near: &[f64]) -> f64 {
+        let mut worst = 0.0f64;
         let e = scene.info().embedding.expect("an embedding map");
         let m = e.independent.len();
         let all = states(m);
@@ -236,32 +224,36 @@ mod tests {
                 (
                     "value",
                     a.value(&mut w, 0.0, d).to_vec(),
-                    dual_value(&a, d, scene, &e, near),
+                    jet_value(scene, &e, d, near),
                 ),
             ] {
                 assert_eq!(traced.len(), dual.len(), "{what}");
                 for (k, (x, y)) in traced.iter().zip(&dual).enumerate() {
+                    worst = worst.max((x - y).abs() / scale);
                     assert!(
-                        (x - y).abs() <= 1e-12 * scale,
+                        (x - y).abs() <= TOL * scale,
                         "{} {what} output {k} at {d:?} near {near:?}: traced {x}, dual passes {y}",
                         scene.info().name
                     );
                 }
             }
         }
+        worst
     }
 
-    fn dual_value<S: Scene>(
-        a: &TracedArray,
-        d: &[f64],
-        scene: &S,
-        e: &EmbeddingInfo,
-        near: &[f64],
-    ) -> Vec<f64> {
-        let mut out = vec![0.0; LEVELS * a.m];
+    /// `D` by the order-4 jet over `f64`.
+    fn jet_value<S: Scene>(scene: &S, e: &EmbeddingInfo, d: &[f64], near: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; LEVELS * e.independent.len()];
         elo_array::<_, f64, Jet4<f64>>(scene, e, 0.0, d, near, &mut out);
         out
     }
+
+    /// The programs group the jets' operations differently: round-off,
+    /// measured at most 1.4e-15 of the largest output over these states
+    /// (about 6 ε); 1e-13 leaves room for another platform's `sin`, `atan`,
+    /// while a wrong branch (a multiple of π/2 in an angle) or a trace that
+    /// held only near its own state would differ by O(1).
+    const TOL: f64 = 1e-13;
 
     /// The sleigh (both potentials) and the rolling disk trace exactly
     /// (their arctangent is one operation), and the traced programs equal
@@ -269,15 +261,17 @@ mod tests {
     /// octant, on the principal branch and on another one.
     #[test]
     fn traced_programs_equal_the_dual_passes_at_every_heading() {
+        let mut worst = 0.0f64;
         for potential in ["paper", "com"] {
             let given = vec![("potential".to_string(), potential.to_string())];
             let params = Params::resolve(Sleigh::INFO.params, &given, "parameter").unwrap();
             let s = Sleigh::from_params(&params).unwrap();
-            check(&s, &[]);
-            check(&s, &[3.5]);
+            worst = worst.max(check(&s, &[])).max(check(&s, &[3.5]));
         }
         let disk = RollingDisk::from_params(&Params::defaults(RollingDisk::INFO.params)).unwrap();
-        check(&disk, &[]);
-        check(&disk, &[-3.0]);
+        worst = worst.max(check(&disk, &[])).max(check(&disk, &[-3.0]));
+        eprintln!(
+            "traced against dual passes: largest difference {worst:.1e} of the largest output"
+        );
     }
 }

@@ -79,7 +79,7 @@ fn rhs(c: &mut Criterion) {
         }
         Err(e) => eprintln!("A residual: skipped: {e}"),
     }
-    match embedding_explicit(true) {
+    match embedding_explicit(false) {
         Ok(mut a) => bench_rhs(c, "rhs", &mut a),
         Err(e) => eprintln!("A explicit: skipped: {e}"),
     }

@@ -152,37 +152,11 @@ fn run() -> Result<(), String> {
     let mut res = vec![0.0; a.dim()];
     a.eval(&mut res)
         .map_err(|e| format!("A residual: {}", e.message))?;
-    let (t_a, t_c, ratio) = paired_ns(
-        || {
-            let _ = keep(a.eval(keep(&mut res)));
-        },
-        || {
-            let _ = keep(reduced_c.eval(keep(&mut dy_c)));
-        },
-        batches,
-        ms,
-    );
-    out!(
-        report,
-        "| A (embedding), residual F(t, y, y′) of (19) | {} | {t_a:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
-        a.dim(),
-        reduced_c.what,
-        reduced_c.dim(),
-    );
-    // A's explicit form three ways: traced programs as native code (the
-    // default), the same programs in the interpreter (built with native
-    // code off), and the dual passes over the jets the programs replace.
-    for (traced, native) in [(true, true), (true, false), (false, true)] {
-        nonholo_core::jit::set_enabled(native);
-        let mut ae = embedding_explicit(traced).map_err(|e| e.to_string())?;
-        nonholo_core::jit::set_enabled(true);
-        let suffix = if native { "" } else { ", interpreter" };
-        let mut dy = vec![0.0; ae.dim()];
-        check(&mut ae, &mut dy)?;
+    // One row against the hand-written reduced C, timed in alternating
+    // batches with it.
+    let mut against_c = |report: &mut String, what: &str, dim: usize, ad: &mut dyn FnMut()| {
         let (t, t_c, ratio) = paired_ns(
-            || {
-                let _ = keep(ae.eval(keep(&mut dy)));
-            },
+            ad,
             || {
                 let _ = keep(reduced_c.eval(keep(&mut dy_c)));
             },
@@ -191,12 +165,35 @@ fn run() -> Result<(), String> {
         );
         out!(
             report,
-            "| {}{suffix} | {} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
-            ae.what,
-            ae.dim(),
+            "| {what} | {dim} | {t:.0} | {} | {} | {t_c:.1} | {ratio:.1} |",
             reduced_c.what,
             reduced_c.dim(),
         );
+    };
+    against_c(
+        &mut report,
+        "A (embedding), residual F(t, y, y′) of (19)",
+        a.dim(),
+        &mut || {
+            let _ = keep(a.eval(keep(&mut res)));
+        },
+    );
+    // A's explicit form three ways: by the dual passes over the jets (the
+    // default), by the traced programs as native code, and by the same
+    // programs in the interpreter (traced at the first solve, in `check`,
+    // while native code is off).
+    for (traced, native) in [(false, true), (true, true), (true, false)] {
+        nonholo_core::jit::set_enabled(native);
+        let mut ae = embedding_explicit(traced).map_err(|e| e.to_string())?;
+        let mut dy = vec![0.0; ae.dim()];
+        let checked = check(&mut ae, &mut dy);
+        nonholo_core::jit::set_enabled(true);
+        checked?;
+        let suffix = if native { "" } else { ", interpreter" };
+        let (what, dim) = (format!("{}{suffix}", ae.what), ae.dim());
+        against_c(&mut report, &what, dim, &mut || {
+            let _ = keep(ae.eval(keep(&mut dy)));
+        });
     }
     out!(report);
     out!(

@@ -69,8 +69,8 @@ impl<S: Scene> Explicit<S> {
         }
     }
 
-    /// Whether to evaluate the derivative array by traced programs or (the
-    /// default, for now) by dual passes over the jets
+    /// Whether to evaluate the derivative array by traced programs (the
+    /// default) or by dual passes over the jets
     /// ([`Reduction::set_traced`]): the same solve to round-off.
     pub fn set_traced(&mut self, on: bool) {
         self.reduction.set_traced(on);

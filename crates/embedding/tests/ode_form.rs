@@ -207,8 +207,8 @@ fn explicit_form_reproduces_implicit_form_and_vakonomic() {
     assert!(vs_dae < 1e-7 && vs_c < 1e-7, "{vs_dae:e} {vs_c:e}");
 }
 
-/// The derivative array traced into programs and evaluated by dual passes
-/// over the jets (the default) give the same motion: DOP853 at 1e-10 to
+/// The derivative array traced into programs (the default) and evaluated
+/// by dual passes over the jets give the same motion: DOP853 at 1e-10 to
 /// t = 0.8 (projection on), with the same steps and positions within 1e-12
 /// m (the two `q⁗` differ by round-off, ~1e-15 relative; measured 2e-15 m
 /// at the outputs, where a wrong derivative would move them by the runs'

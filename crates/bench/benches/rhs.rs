@@ -79,7 +79,7 @@ fn rhs(c: &mut Criterion) {
         }
         Err(e) => eprintln!("A residual: skipped: {e}"),
     }
-    match embedding_explicit(false) {
+    match embedding_explicit(true) {
         Ok(mut a) => bench_rhs(c, "rhs", &mut a),
         Err(e) => eprintln!("A explicit: skipped: {e}"),
     }

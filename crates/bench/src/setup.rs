@@ -350,8 +350,8 @@ pub fn residual_case() -> Result<ResidualCase, Error> {
 
 /// Formulation A's explicit right-hand side (`q⁗` from the derivative
 /// array) at the same state as [`residual_case`], solved afresh at every
-/// call (see [`Unremembered`]); the array by dual passes over the jets (the
-/// default), or by its traced programs if `traced`.
+/// call (see [`Unremembered`]); the array by its traced programs (the
+/// default) if `traced`, else by dual passes over the jets.
 pub fn embedding_explicit(traced: bool) -> Result<RhsCase, Error> {
     let ResidualCase { sys, y, .. } = residual_case()?;
     let mut inner = sys.into_explicit();
@@ -359,9 +359,9 @@ pub fn embedding_explicit(traced: bool) -> Result<RhsCase, Error> {
     Ok(RhsCase::new(
         "A explicit",
         if traced {
-            "A's explicit form: derivative array solved for q⁗, traced programs"
-        } else {
             "A's explicit form: derivative array solved for q⁗"
+        } else {
+            "A's explicit form: derivative array solved for q⁗, dual passes"
         },
         Box::new(Unremembered { inner, flip: false }),
         y,

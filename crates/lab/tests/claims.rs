@@ -115,14 +115,16 @@ fn find<'a>(
 
 /// figures.md, sleigh-reversals: C reverses 165 (paper) and 166 (centre of
 /// mass) times on the 1 ms grid; A's analytic continuation crosses as often
-/// and stays within 1e-6 m of C (5.3e-7, 5.0e-7 m); the literal map agrees
-/// with the paper's potential and parts from C after the first reversal
+/// and stays within 1e-6 m of C (the distances as figures.md writes them);
+/// the literal map agrees with the paper's potential (within 1e-6 m too)
+/// and parts from C after the first reversal
 /// with the centre of mass (1e-6 m exceeded at 1.41 s; 24 m away at 20 s
 /// after 169 crossings); B is hundreds of metres away at t = 20 s.
 #[test]
 fn sleigh_reversals_as_figures_md_states() {
     let rows = runs("sleigh-reversals");
-    for (point, reversals, a_max) in [("0", 165.0, 5.3e-7), ("1", 166.0, 5.0e-7)] {
+    let mut a_max = Vec::new();
+    for (point, reversals) in [("0", 165.0), ("1", 166.0)] {
         let c = find(&rows, point, "C");
         assert_eq!(c["status"], "completed");
         assert_eq!(num(c, "reversals"), reversals, "point {point}");
@@ -130,16 +132,15 @@ fn sleigh_reversals_as_figures_md_states() {
         assert_eq!(a["status"], "completed");
         assert_eq!(num(a, "crossings"), reversals, "point {point}");
         let d = num(a, "div_xy_max");
-        assert!(
-            d < 1e-6 && (d / a_max - 1.0).abs() < 0.05,
-            "point {point}: {d:e}"
-        );
+        assert!(d < 1e-6, "point {point}: {d:e}");
+        a_max.push(d);
         let b = find(&rows, point, "B");
         assert!(num(b, "div_xy_end") > 400.0, "point {point}");
     }
     let map_paper = find(&rows, "0", "A-map");
     assert_eq!(map_paper["status"], "completed");
-    assert!((num(map_paper, "div_xy_max") - 6.1e-7).abs() < 0.05e-7);
+    let map_d = num(map_paper, "div_xy_max");
+    assert!(map_d < 1e-6, "{map_d:e}");
     assert_eq!(num(map_paper, "reversals"), 0.0);
     let map_com = find(&rows, "1", "A-map");
     let parted = num(map_com, "t_exceed");
@@ -148,14 +149,18 @@ fn sleigh_reversals_as_figures_md_states() {
     assert_eq!(num(map_com, "crossings"), 169.0);
     assert!((num(map_com, "div_xy_end") - 24.2).abs() < 0.05);
     figures_md_says(&[
-        "within 5.3e-7 m (paper) and 5.0e-7 m (centre of mass) of C",
-        "with the paper's potential (6.1e-7 m;",
+        &format!(
+            "within {:.1e} m (paper) and {:.1e} m (centre of mass) of C",
+            a_max[0], a_max[1]
+        ),
+        &format!("with the paper's potential ({map_d:.1e} m,"),
         "is 24 m away at t = 20 s, after 169 crossings",
     ]);
 }
 
-/// figures.md and embedding.md §7, disk-embedding: A within 4.0e-10 m of C
-/// at every λ₂(0), through 3 to 7 crossings; B 6.3 to 9.4 m from C at
+/// figures.md and embedding.md §7, disk-embedding: A within 1e-9 m of C
+/// at every λ₂(0) (the largest distance as figures.md writes it), through
+/// 3 to 7 crossings; B 6.3 to 9.4 m from C at
 /// t = 10 s; at λ₂ = 0.5 one crossing more than ψ̇ sign changes.
 #[test]
 fn disk_embedding_as_figures_md_states() {
@@ -174,7 +179,10 @@ fn disk_embedding_as_figures_md_states() {
             assert_eq!(num(a, "crossings"), num(a, "reversals"), "point {p}");
         }
     }
-    assert!(a_worst < 4.05e-10, "{a_worst:e}");
+    assert!(a_worst < 1e-9, "{a_worst:e}");
+    figures_md_says(&[&format!(
+        "A stays within {a_worst:.1e} m of C at every output time"
+    )]);
     let (lo, hi) = crossings
         .iter()
         .fold((f64::MAX, 0.0f64), |(l, h), c| (l.min(*c), h.max(*c)));
@@ -413,16 +421,12 @@ fn at_error(
 }
 
 /// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8, A
-/// costs 296–647× C and 686–1551× B with DOPRI5 and DOP853, 1102–1819× C and
-/// 3456–7351× B with RK4, 80× C with Radau IIA (paper's potential; with
-/// gravity at the centre of mass A's implicit form does not reach 1e-8).
+/// costs several tens to a few hundred times C and B with DOPRI5, DOP853
+/// and RK4, and ~50–100× C with Radau IIA (paper's potential; with gravity
+/// at the centre of mass A's implicit form does not reach 1e-8): the
+/// ranges as the docs write them, recomputed from the timed table.
 #[test]
 fn wp_sleigh_cost_ratios_as_figures_md_states() {
-    figures_md_says(&[
-        "296–647× C and 686–1551× B with DOPRI5 and DOP853",
-        "1102–1819× C and 3456–7351× B with RK4",
-        "80× C with Radau IIA",
-    ]);
     let rows = timed_table("wp-sleigh", "work_precision.csv");
     // The ranges the prose quotes are the smallest and largest ratio over
     // both points and the integrators named (endpoints attained, rounded).
@@ -450,6 +454,29 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
         &format!("{radau:.0}× C with Radau IIA"),
     ]);
     assert!(time_at_error(&rows, "1", "A-radau5", 1e-8).is_none());
+    // performance.md section 1: the same ranges, and its table of the cost
+    // for 1e-8 (paper's potential, the centre of mass in parentheses; wall
+    // times to three significant digits).
+    let sig3 = |ms: f64| {
+        let digits = (2 - ms.log10().floor() as i32).max(0) as usize;
+        format!("{ms:.digits$} ms")
+    };
+    let mut said = vec![
+        format!("**{explicit}**"),
+        format!("({rk4} with RK4), and {radau:.0}× C with Radau IIA"),
+    ];
+    for f in ["A", "B", "C"] {
+        let mut line = format!("| {f} |");
+        for i in ["dopri5", "dop853", "radau5"] {
+            let label = format!("{f}-{i}");
+            let ms = |p: &str| time_at_error(&rows, p, &label, 1e-8).map(|t| sig3(t * 1e3));
+            let evals = at_error(&rows, "0", &label, 1e-8, "rhs_evals").unwrap();
+            let other = ms("1").unwrap_or_else(|| "floor ~1e-8".to_string());
+            line += &format!(" {}, {evals:.0} evals ({other}) |", ms("0").unwrap());
+        }
+        said.push(line);
+    }
+    performance_md_says(&said.iter().map(String::as_str).collect::<Vec<_>>());
 }
 
 fn t_ratio(rows: &[HashMap<String, String>], point: &str, a: &str, b: &str) -> f64 {
@@ -1529,6 +1556,22 @@ fn range(rows: &[&HashMap<String, String>], key: &str) -> (f64, f64) {
         })
 }
 
+/// The residuals at which the explicit map's Newton iterations of
+/// bvp-sleigh stopped (the last of the history in each failure), sorted.
+fn stall_residuals(rows: &[HashMap<String, String>]) -> Vec<f64> {
+    let mut stalls: Vec<f64> = solves(rows, "A-bvp-explicit")
+        .iter()
+        .filter(|r| r["status"] == "failed")
+        .map(|r| {
+            let history = r["error"].split("scaled residuals ").nth(1).unwrap();
+            let history = history.split(';').next().unwrap();
+            history.split(", ").last().unwrap().parse::<f64>().unwrap()
+        })
+        .collect();
+    stalls.sort_by(f64::total_cmp);
+    stalls
+}
+
 #[test]
 fn bvp_sleigh_as_figures_md_states() {
     let ivp = table("bvp-sleigh", "ivp.csv");
@@ -1563,7 +1606,18 @@ fn bvp_sleigh_as_figures_md_states() {
         .iter()
         .map(|r| (r["point"].as_str(), r["h"].as_str()))
         .collect();
-    assert_eq!(grids, [("0", "0.015"), ("0", "0.0075"), ("1", "0.015")]);
+    // Which grids converge moves with the last digits of the arithmetic
+    // (variational.md): the two coarsest with either potential in this
+    // regeneration.
+    assert_eq!(
+        grids,
+        [
+            ("0", "0.015"),
+            ("0", "0.0075"),
+            ("1", "0.015"),
+            ("1", "0.0075")
+        ]
+    );
     for e in &solved {
         let it = num(e, "iterations");
         assert!((8.0..=9.0).contains(&it), "{e:?}");
@@ -1574,22 +1628,16 @@ fn bvp_sleigh_as_figures_md_states() {
             .unwrap();
         assert!((num(a, "err_A") - num(e, "err_A")).abs() < 1e-12);
     }
-    let stalls: Vec<f64> = explicit
-        .iter()
-        .filter(|r| r["status"] == "failed")
-        .map(|r| {
-            // The last of the residual history in the message.
-            let history = r["error"].split("scaled residuals ").nth(1).unwrap();
-            let history = history.split(';').next().unwrap();
-            history.split(", ").last().unwrap().parse::<f64>().unwrap()
-        })
-        .collect();
-    assert_eq!(stalls.len(), 7);
-    let mut sorted = stalls.clone();
-    sorted.sort_by(f64::total_cmp);
-    assert!((1.95e-10..2.05e-10).contains(&sorted[0]), "{stalls:?}");
-    assert!((7.25e-8..7.35e-8).contains(&sorted[5]), "{stalls:?}");
-    assert!((sorted[6] - 7.3).abs() < 0.05, "{stalls:?}");
+    let sorted = stall_residuals(&rows);
+    let stalls = &sorted;
+    assert_eq!(stalls.len(), 6);
+    // All but one stall between the tolerance and 1e-7 N; one far off.
+    assert!(sorted[0] > 1e-10 && sorted[4] < 1e-7, "{stalls:?}");
+    assert!(sorted[5] > 1.0, "{stalls:?}");
+    let stalled = format!(
+        "stalls at {:.1e} to {:.1e} N, on one grid at {:.1} N",
+        sorted[0], sorted[4], sorted[5]
+    );
     for label in ["C-bvp", "A-bvp"] {
         let finest: Vec<&HashMap<String, String>> = solves(&rows, label)
             .into_iter()
@@ -1625,8 +1673,8 @@ fn bvp_sleigh_as_figures_md_states() {
     figures_md_says(&[
         "(at t = 1.19 s with the paper's potential, 1.30 s with the centre of mass)",
         "(observed 1.98 to 2.00 over five grids halving h from 15 ms to 0.94 ms, where they are 2.6e-6 to 1.3e-5 from it) in 3 to 4 Newton iterations",
-        "on the two coarsest grids with the paper's potential and on the coarsest with the centre of mass (errors equal to 1e-12) in 8 to 9 iterations, 2 to 4 of them damped",
-        "it does not reach the tolerance in 40 iterations (its residual stalls at 2.0e-10 to 7.3e-8 N, on one grid at 7.3 N)",
+        "on the two coarsest grids with either potential (errors equal to 1e-12) in 8 to 9 iterations, 2 to 4 of them damped",
+        &format!("it does not reach the tolerance in 40 iterations (its residual {stalled})"),
         "stays at 2.6 to 2.7 N m (paper) and 1.53 N m (centre of mass) on every grid while C's falls like h² to 4.1e-5 and 4.6e-5 N m",
     ]);
 }
@@ -1733,15 +1781,28 @@ fn bvp_estimates_as_variational_md_states() {
         .collect();
     assert!(ratios.len() >= 12);
     assert!(ratios.iter().all(|q| (q - 1.0).abs() < 0.015), "{ratios:?}");
-    assert!(rows.iter().all(|r| num(r, "reference_error") <= 2.75e-10));
+    // The reference's own error, below 1e-3 of the smallest error it
+    // measures.
+    let reference = rows
+        .iter()
+        .map(|r| num(r, "reference_error"))
+        .fold(0.0, f64::max);
+    let all: Vec<&HashMap<String, String>> = rows.iter().collect();
+    let smallest = range(&all, "err_A").0;
+    assert!(
+        reference > 0.0 && reference < 1e-3 * smallest,
+        "{reference:e} {smallest:e}"
+    );
+    let stalls = stall_residuals(&rows);
+    let n = stalls.len();
     doc_says(
         "variational.md",
         &[
             "are within 1.5 % of the errors against the reference",
-            "is 2.7e-10 m at most",
+            &format!("is {reference:.1e} m at most"),
             "0.022, 0.062 and 0.316 m from it",
             "2.6e-6 to 2.8e-6 m (C) and 1.0e-5 to 1.3e-5 m (A)",
-            "stalls at 2.0e-10 to 7.3e-8 N",
+            &format!("stalls at {:.1e} to {:.1e} N", stalls[0], stalls[n - 2]),
         ],
     );
 }
@@ -1929,18 +1990,21 @@ fn rhs_report_as_performance_md_states() {
     .iter()
     .map(|(what, doc)| format!("{doc} {}", both(what)))
     .collect();
-    for (what, doc) in [
-        (
-            "A (embedding), residual F(t, y, y′) of (19)",
-            "| A, implicit residual of (19) (passes) | 88 | — |",
-        ),
-        (
-            a_explicit,
-            "| A, explicit form (`q⁗` from the derivative array, passes) | ~2900 | — |",
-        ),
-    ] {
-        said.push(format!("{doc} {} |", cell(what, 0, 7)));
-    }
+    said.push(format!(
+        "| A, implicit residual of (19) (passes) | 88 | — | {} |",
+        cell("A (embedding), residual F(t, y, y′) of (19)", 0, 7)
+    ));
+    said.push(format!(
+        "| A, explicit form (`q⁗` from the derivative array, traced program) | ~2900 | {}",
+        both(a_explicit)
+    ));
+    // The prose on A: the traced program native, in the interpreter and
+    // the dual passes, in the same run.
+    said.push(format!(
+        "costs {}× the hand-written reduced C in the run above, against {}× by the dual passes",
+        cell(a_explicit, 0, 7),
+        cell(&format!("{a_explicit}, dual passes"), 0, 7)
+    ));
     // The Jacobian table: its fifth cell is the Jacobian in right-hand sides.
     said.push(format!(
         "| Jacobian of B, in right-hand sides of B | ~9.5 | {} | {} |",
@@ -1960,7 +2024,7 @@ fn rhs_report_as_performance_md_states() {
         hands.iter().cloned().fold(0.0, f64::max),
     );
     said.push(format!(
-        "({}× and {}× in the run above,",
+        "not clearly within it: {}× and {}× in the run above,",
         cell(b, 0, 7),
         cell(c, 0, 7)
     ));
@@ -1974,16 +2038,14 @@ fn rhs_report_as_performance_md_states() {
         cell(&bi, 1, 4),
     ));
     performance_md_says(&said.iter().map(String::as_str).collect::<Vec<_>>());
-    // docs/peers.md points from its baseline of the passes to these (A's
-    // explicit form to the hundred: the sentence says "~").
-    let a: f64 = cell(a_explicit, 0, 7).parse().unwrap();
+    // docs/peers.md points from its baseline of the passes to these.
     doc_says(
         "peers.md",
         &[&format!(
-            "(B {}× and C {}× the hand-written equations in its committed run, A's explicit form still ~{:.0}×)",
+            "(B {}× and C {}× the hand-written equations in its committed run, A's explicit form {}×)",
             cell(b, 0, 7),
             cell(c, 0, 7),
-            (a / 100.0).round() * 100.0
+            cell(a_explicit, 0, 7)
         )],
     );
 }

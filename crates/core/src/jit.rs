@@ -240,6 +240,15 @@ pub const MAX_INSTRUCTIONS: usize = 20_000;
 /// against 458 ns, the bicycle's 5.2 µs against 4.2 µs.
 pub const CAREFUL_UP_TO: usize = 1000;
 
+/// The same bound for programs over `f64` alone, which run at every
+/// evaluation where their `Dual64` code runs once per Jacobian column.
+/// Measured on A's explicit form (the sleigh's traced derivative array,
+/// whose `f64` programs hold 2003 and 2958 instructions; `rhs-report`'s
+/// state, solves repeated, best of 40 batches, interleaved): the careful
+/// allocator took one right-hand side from 1.64–1.71 µs to 1.40 µs, for
+/// about 0.1 s of Cranelift's time once per process instead of 0.02 s.
+pub const CAREFUL_REAL_UP_TO: usize = 3000;
+
 /// The cache is emptied (programs keep their code) when the shapes it
 /// holds exceed this many instructions together.
 const CACHE_INSTRUCTIONS: usize = 1 << 21;
@@ -470,11 +479,12 @@ fn compile_with(
     params: &[Type],
     returns: &[Type],
     instructions: usize,
+    careful_up_to: usize,
     body: impl FnOnce(&mut FunctionBuilder, &[Value], Type) -> Result<(), String>,
 ) -> Result<(*const u8, JITModule), String> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").map_err(text)?;
-    if instructions > CAREFUL_UP_TO {
+    if instructions > careful_up_to {
         flags
             .set("regalloc_algorithm", "single_pass")
             .map_err(text)?;
@@ -525,11 +535,15 @@ enum Lanes {
 }
 
 fn compile_program(shape: &Shape, lanes: Lanes) -> Result<ProgramNative, String> {
-    let size = shape.ops.len() * if lanes == Lanes::Dual { 2 } else { 1 };
+    let (size, careful_up_to) = match lanes {
+        Lanes::Real => (shape.ops.len(), CAREFUL_REAL_UP_TO),
+        Lanes::Dual => (2 * shape.ops.len(), CAREFUL_UP_TO),
+    };
     let (code, module) = compile_with(
         &[pointer_type(), pointer_type()],
         &[],
         size,
+        careful_up_to,
         |b, args, ptr| {
             let (inputs, out) = (args[0], args[1]);
             let store = |b: &mut FunctionBuilder, value, at: usize| {
@@ -1136,79 +1150,85 @@ fn sign_positive(b: &mut FunctionBuilder, x: Value) -> Value {
 
 fn compile_kkt(shape: &Shape, d: &KktDims) -> Result<KktNative, String> {
     let ptr = pointer_type();
-    let (code, module) = compile_with(&[ptr; 5], &[I32], shape.ops.len(), |b, args, ptr| {
-        let (inputs, gains, out, sol, pieces) = (args[0], args[1], args[2], args[3], args[4]);
-        let mut v = Program::emit(b, shape, inputs, ptr)?;
-        let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
-        let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
-            for k in range {
-                let at = (8 * k) as i32;
-                b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+    let (code, module) = compile_with(
+        &[ptr; 5],
+        &[I32],
+        shape.ops.len(),
+        CAREFUL_UP_TO,
+        |b, args, ptr| {
+            let (inputs, gains, out, sol, pieces) = (args[0], args[1], args[2], args[3], args[4]);
+            let mut v = Program::emit(b, shape, inputs, ptr)?;
+            let outputs: Vec<Value> = shape.outputs.iter().map(|&r| v.get(b, r)).collect();
+            let store = |b: &mut FunctionBuilder, range: std::ops::Range<usize>| {
+                for k in range {
+                    let at = (8 * k) as i32;
+                    b.ins().store(MemFlagsData::trusted(), outputs[k], out, at);
+                }
+            };
+            let read = MemFlagsData::trusted().with_readonly();
+            let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
+            let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
+            // The matrix, zero where no entry is (Kkt::assemble), and the
+            // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
+            let size = d.n + d.s + d.k;
+            let zero = b.ins().f64const(0.0);
+            let mut a = vec![zero; size * size];
+            for &(at, src) in &d.entries {
+                a[at] = outputs[src as usize];
             }
-        };
-        let read = MemFlagsData::trusted().with_readonly();
-        let gain = |b: &mut FunctionBuilder, i: i32| b.ins().load(F64, read, gains, 8 * i);
-        let (alpha_g, alpha_f, beta) = (gain(b, 0), gain(b, 1), gain(b, 2));
-        // The matrix, zero where no entry is (Kkt::assemble), and the
-        // right-hand side (Kkt::eval_ideal, Kkt::holonomic_rhs).
-        let size = d.n + d.s + d.k;
-        let zero = b.ins().f64const(0.0);
-        let mut a = vec![zero; size * size];
-        for &(at, src) in &d.entries {
-            a[at] = outputs[src as usize];
-        }
-        let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
-        let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
-        let two = b.ins().f64const(2.0);
-        let two_alpha_g = b.ins().fmul(two, alpha_g);
-        for i in 0..d.s {
-            let minus = b.ins().fneg(outputs[g_rate0 + i]);
-            let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
-            rhs.push(b.ins().fsub(minus, damp));
-        }
-        let two_alpha_f = b.ins().fmul(two, alpha_f);
-        let beta2 = b.ins().fmul(beta, beta);
-        for i in 0..d.k {
-            let minus = b.ins().fneg(outputs[f_accel0 + i]);
-            let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
-            let x = b.ins().fsub(minus, damp);
-            let spring = b.ins().fmul(outputs[f + i], beta2);
-            rhs.push(b.ins().fsub(x, spring));
-        }
-        let decline = b.create_block();
-        let x = block_elimination(b, &a, rhs, d.n, decline);
-        for (i, &xi) in x.iter().enumerate() {
-            b.ins()
-                .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
-        }
-        // Solved: the constraint values, into the caller's constraint state.
-        let lens = [
-            (g, d.s),
-            (g_rate0, d.s),
-            (f, d.k),
-            (f_rate, d.k),
-            (f_accel0, d.k),
-        ];
-        for (i, &(start, len)) in lens.iter().enumerate() {
-            if len == 0 {
-                continue;
+            let [force, g, g_rate0, f, f_rate, f_accel0] = d.rhs_at;
+            let mut rhs: Vec<Value> = outputs[force..force + d.n].to_vec();
+            let two = b.ins().f64const(2.0);
+            let two_alpha_g = b.ins().fmul(two, alpha_g);
+            for i in 0..d.s {
+                let minus = b.ins().fneg(outputs[g_rate0 + i]);
+                let damp = b.ins().fmul(outputs[g + i], two_alpha_g);
+                rhs.push(b.ins().fsub(minus, damp));
             }
-            let to = b.ins().load(ptr, read, pieces, (8 * i) as i32);
-            for j in 0..len {
-                let at = (8 * j) as i32;
+            let two_alpha_f = b.ins().fmul(two, alpha_f);
+            let beta2 = b.ins().fmul(beta, beta);
+            for i in 0..d.k {
+                let minus = b.ins().fneg(outputs[f_accel0 + i]);
+                let damp = b.ins().fmul(outputs[f_rate + i], two_alpha_f);
+                let x = b.ins().fsub(minus, damp);
+                let spring = b.ins().fmul(outputs[f + i], beta2);
+                rhs.push(b.ins().fsub(x, spring));
+            }
+            let decline = b.create_block();
+            let x = block_elimination(b, &a, rhs, d.n, decline);
+            for (i, &xi) in x.iter().enumerate() {
                 b.ins()
-                    .store(MemFlagsData::trusted(), outputs[start + j], to, at);
+                    .store(MemFlagsData::trusted(), xi, sol, (8 * i) as i32);
             }
-        }
-        let one = b.ins().iconst(I32, 1);
-        b.ins().return_(&[one]);
-        // Declined: every output, for the caller's assembly and solve.
-        b.switch_to_block(decline);
-        store(b, 0..outputs.len());
-        let none = b.ins().iconst(I32, 0);
-        b.ins().return_(&[none]);
-        Ok(())
-    })?;
+            // Solved: the constraint values, into the caller's constraint state.
+            let lens = [
+                (g, d.s),
+                (g_rate0, d.s),
+                (f, d.k),
+                (f_rate, d.k),
+                (f_accel0, d.k),
+            ];
+            for (i, &(start, len)) in lens.iter().enumerate() {
+                if len == 0 {
+                    continue;
+                }
+                let to = b.ins().load(ptr, read, pieces, (8 * i) as i32);
+                for j in 0..len {
+                    let at = (8 * j) as i32;
+                    b.ins()
+                        .store(MemFlagsData::trusted(), outputs[start + j], to, at);
+                }
+            }
+            let one = b.ins().iconst(I32, 1);
+            b.ins().return_(&[one]);
+            // Declined: every output, for the caller's assembly and solve.
+            b.switch_to_block(decline);
+            store(b, 0..outputs.len());
+            let none = b.ins().iconst(I32, 0);
+            b.ins().return_(&[none]);
+            Ok(())
+        },
+    )?;
     // SAFETY: `code` is the function compiled above, with the signature
     // (pointer × 5) -> i32 in the host's calling convention.
     let entry = unsafe { std::mem::transmute::<*const u8, KktFn>(code) };

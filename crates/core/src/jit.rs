@@ -229,8 +229,10 @@ enum Made {
 /// large stack frames, run in the interpreter.
 pub const MAX_INSTRUCTIONS: usize = 20_000;
 
-/// Programs of at most this many instructions get Cranelift's careful
-/// register allocator (backtracking), larger ones its single-pass one.
+/// `Dual64` programs (an instruction counted twice) and KKT functions of at
+/// most this many instructions get Cranelift's careful register allocator
+/// (backtracking), larger ones its single-pass one ([`CAREFUL_REAL_UP_TO`]
+/// for programs over `f64`).
 /// Measured (f64 and `Dual64` code of B's program together): the careful
 /// one takes 1.6 ms for the sleigh's 31 instructions, 37 ms for 700, 0.20 s
 /// for 2180 and 2.5 s for 7360 (the train of 100) — time growing about like
@@ -246,7 +248,8 @@ pub const CAREFUL_UP_TO: usize = 1000;
 /// whose `f64` programs hold 2003 and 2958 instructions; `rhs-report`'s
 /// state, solves repeated, best of 40 batches, interleaved): the careful
 /// allocator took one right-hand side from 1.64–1.71 µs to 1.40 µs, for
-/// about 0.1 s of Cranelift's time once per process instead of 0.02 s.
+/// 0.08–0.13 s of Cranelift's time once per process instead of 0.02 s
+/// ([`compile_stats`], the four functions of that run).
 pub const CAREFUL_REAL_UP_TO: usize = 3000;
 
 /// The cache is emptied (programs keep their code) when the shapes it

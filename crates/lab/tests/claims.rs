@@ -420,11 +420,12 @@ fn at_error(
     })
 }
 
-/// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8, A
-/// costs several tens to a few hundred times C and B with DOPRI5, DOP853
-/// and RK4, and ~50–100× C with Radau IIA (paper's potential; with gravity
-/// at the centre of mass A's implicit form does not reach 1e-8): the
-/// ranges as the docs write them, recomputed from the timed table.
+/// figures.md and performance.md, wp-sleigh: at a largest error of 1e-8,
+/// A's cost over C's and B's with DOPRI5 and DOP853, with RK4, and over
+/// C's with Radau IIA (paper's potential; with gravity at the centre of
+/// mass A's implicit form does not reach 1e-8), and performance.md's
+/// table of the cost for 1e-8: as the docs write them, recomputed from
+/// the timed table.
 #[test]
 fn wp_sleigh_cost_ratios_as_figures_md_states() {
     let rows = timed_table("wp-sleigh", "work_precision.csv");

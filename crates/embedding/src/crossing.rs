@@ -126,6 +126,11 @@ pub struct Path<'a, S: Scene> {
     /// The branch reference (the real parts of the dependent coordinates at
     /// the last accepted step), updated as the path turns.
     pub near: Vec<f64>,
+    /// The resolution of `q⁗` at which the path stops: [`ODE_RESOLUTION`],
+    /// or [`APPROACH_FACTOR`] times the resolution where it leaves the
+    /// real axis if that is worse (the real integration may leave at
+    /// `ODE_RESOLUTION` itself, [`Path::start_at`]).
+    limit: f64,
     z: Vec<C64>,
     /// Scratch for the map's value and the cyclic rates.
     dep: Vec<C64>,
@@ -149,10 +154,26 @@ impl<'a, S: Scene> Path<'a, S> {
             c,
             reduction,
             near,
+            limit: ODE_RESOLUTION,
             z: vec![C64::from(0.0); 4 * m + c],
             dep: vec![C64::from(0.0); e.dependent.len()],
             rates: vec![C64::from(0.0); c],
         }
+    }
+
+    /// Fixes the path's limit ([`Path::limit`]) from the resolution at its
+    /// start `y` (parts): a path stops where `q⁗` is resolved
+    /// [`APPROACH_FACTOR`] times worse than where it left the real axis
+    /// (another singular point), and never before [`ODE_RESOLUTION`].
+    pub fn start_at(&mut self, y: &[f64]) -> Result<(), String> {
+        self.load(y);
+        let t = self.path.at(0.0);
+        let rho = self
+            .reduction
+            .resolution(self.scene, self.e, t, &self.z)?
+            .rho;
+        self.limit = ODE_RESOLUTION.max(APPROACH_FACTOR * rho);
+        Ok(())
     }
 
     /// `z` from its parts `y`.
@@ -257,15 +278,15 @@ impl<S: Scene> OdeSystem for Path<'_, S> {
         Ok(true)
     }
 
-    /// Positive while `q⁗` is resolved better than where the real explicit
-    /// form stops ([`ODE_RESOLUTION`]): a path that meets a poorly resolved
-    /// region (another singular point) stops instead of carrying its
-    /// round-off across.
+    /// Positive while `q⁗` is resolved better than the path's limit
+    /// ([`Path::start_at`]): a path that meets a poorly resolved region
+    /// (another singular point) stops instead of carrying its round-off
+    /// across.
     fn guard(&mut self, s: f64, y: &[f64]) -> Option<f64> {
         self.load(y);
         let t = self.path.at(s);
         match self.reduction.resolution(self.scene, self.e, t, &self.z) {
-            Ok(r) => Some((ODE_RESOLUTION / r.rho).ln()),
+            Ok(r) => Some((self.limit / r.rho).ln()),
             Err(_) => Some(-1.0),
         }
     }
@@ -276,8 +297,9 @@ impl<S: Scene> OdeSystem for Path<'_, S> {
         match self.reduction.resolution(self.scene, self.e, t, &self.z) {
             Ok(r) => format!(
                 "the path met a region where the derivative array resolves q⁗ only to {:.2e} \
-                 (limit {ODE_RESOLUTION:.0e}) at t = {:.6} + {:.6}i",
+                 (limit {:.1e}) at t = {:.6} + {:.6}i",
                 r.rho,
+                self.limit,
                 t.re(),
                 t.im()
             ),
@@ -460,6 +482,7 @@ pub fn cross<S: Scene>(
     for (k, &v) in stop.z.iter().enumerate() {
         y0[2 * k] = v;
     }
+    sys.start_at(&y0)?;
     let method = if method == Method::Dopri5 {
         Method::Dopri5
     } else {

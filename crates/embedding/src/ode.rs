@@ -54,8 +54,9 @@
 //! `D` and the columns the Jacobian needs (`∂D/∂q⁗`, and `∂E/∂q⃛` for the
 //! structural columns; `∂D/∂q⃛` too in a projection) come from programs
 //! traced once per scene and branch of the map ([`crate::traced`]) and run
-//! as native code: one run for a Jacobian, one for an evaluation. Without
-//! a trace (over complex numbers, or a scene whose functions branch on
+//! as native code over `f64`, in the interpreter over complex numbers (the
+//! continuation's paths, [`crate::crossing`]): one run for a Jacobian, one
+//! for an evaluation. Without a trace (a scene whose functions branch on
 //! values) they come from dual passes over the order-4 jet: `m` order-4
 //! passes for the `q⁗` columns (which also give `D`) and `m` order-2 passes
 //! for `∂E/∂q⃛`. The pseudo-inverse comes from a one-sided Jacobi SVD of
@@ -269,11 +270,11 @@ impl Field for f64 {
 
 /// The derivative array's traced programs ([`crate::traced`]) for the
 /// scene and branch in use.
-enum Trace {
+enum Trace<T> {
     /// Not tried yet (or not asked for, or dropped with a change of scene
     /// or branch): built where a Jacobian first needs it.
     NotYet,
-    Traced(Box<(TracedArray, ArrayWorkspace)>),
+    Traced(Box<(TracedArray, ArrayWorkspace<T>)>),
     /// The scene's functions branch on values: why.
     Refused(String),
 }
@@ -339,7 +340,7 @@ pub struct Reduction<T: Field = f64> {
     /// [`Reduction::set_traced`]).
     trace_on: bool,
     /// The derivative array traced for the scene and branch in use.
-    trace: Trace,
+    trace: Trace<T>,
     stats: ReductionStats,
 }
 
@@ -394,7 +395,8 @@ where
     }
 
     /// Whether to evaluate the derivative array by traced programs
-    /// ([`crate::traced`], over `f64` only) and warm-start the Jacobi SVDs
+    /// ([`crate::traced`]; native code over `f64`, the interpreter over
+    /// complex numbers) and warm-start the Jacobi SVDs
     /// from the previous solve's right singular vectors (the default), or
     /// by dual passes over the order-4 jets with SVDs from the identity:
     /// the same solve to round-off. Off, it is the definition the traced
@@ -419,16 +421,18 @@ where
         self.trace = Trace::NotYet;
     }
 
-    /// Traces the derivative array where it is asked for, over `f64`, and
-    /// not yet done or refused.
+    /// Traces the derivative array where it is asked for and not yet done
+    /// or refused. The trace is taken at the real parts of the state (its
+    /// values only label the graph's nodes; a trace that holds is the same
+    /// function everywhere) and its programs then run over `T`.
     fn ensure_traced<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
-        if !(T::REAL && self.trace_on && matches!(self.trace, Trace::NotYet)) {
+        if !(self.trace_on && matches!(self.trace, Trace::NotYet)) {
             return;
         }
-        let d = T::as_real(&self.d).expect("T is f64");
-        self.trace = match TracedArray::new(scene, e, t.part(0), d, &self.near) {
+        let d: Vec<f64> = self.d.iter().map(|x| x.part(0)).collect();
+        self.trace = match TracedArray::new(scene, e, t.part(0), &d, &self.near) {
             Ok(a) => {
-                let w = a.workspace();
+                let w = a.workspace::<T>();
                 Trace::Traced(Box::new((a, w)))
             }
             Err(why) => Trace::Refused(why),
@@ -728,10 +732,7 @@ where
     fn evaluate<S: Scene>(&mut self, scene: &S, e: &EmbeddingInfo, t: T) {
         if let Trace::Traced(traced) = &mut self.trace {
             let (a, w) = (&traced.0, &mut traced.1);
-            let d = T::as_real(&self.d).expect("traced programs run over f64");
-            for (v, &x) in self.value.iter_mut().zip(a.value(w, t.part(0), d)) {
-                *v = T::from(x);
-            }
+            self.value.copy_from_slice(a.value(w, t, &self.d));
             return;
         }
         elo_array::<_, T, Jet4<T>>(scene, e, t, &self.d, &self.near, &mut self.value);
@@ -908,26 +909,18 @@ where
             unreachable!("called with a trace")
         };
         let (a, w) = (&traced.0, &mut traced.1);
-        let d = T::as_real(&self.d).expect("traced programs run over f64");
         let out = if first == 4 * m {
-            a.solve(w, t.part(0), d)
+            a.solve(w, t, &self.d)
         } else {
-            a.project(w, t.part(0), d)
+            a.project(w, t, &self.d)
         };
-        for (v, &x) in self.value.iter_mut().zip(&out[..rows]) {
-            *v = T::from(x);
-        }
+        self.value.copy_from_slice(&out[..rows]);
         let columns = (5 * m - first) * rows;
-        for (j, &x) in self.jac[..columns]
-            .iter_mut()
-            .zip(&out[rows..rows + columns])
-        {
-            *j = T::from(x);
-        }
+        self.jac[..columns].copy_from_slice(&out[rows..rows + columns]);
         if first == 4 * m {
-            for (j, &x) in self.e3.iter_mut().zip(&out[rows + columns..]) {
-                *j = T::from(x);
-            }
+            let e3 = self.e3.len();
+            self.e3
+                .copy_from_slice(&out[rows + columns..rows + columns + e3]);
         }
     }
 
@@ -1202,6 +1195,63 @@ mod tests {
                     }
                 }
                 assert_eq!(r.trace_refused(), None);
+            }
+        }
+    }
+
+    /// Over complex numbers (the continuation's half circles) the traced
+    /// programs, run in the interpreter over `C64`, give `D` and the
+    /// Jacobian's columns of the dual passes over `Dual<C64>` to round-off
+    /// (1e-13 of the largest entry), for the solve and the projection, on
+    /// the principal branch and on the next one, at a state whose
+    /// imaginary parts are a tenth of its real parts and at one with the
+    /// velocity nearly imaginary (near the singular set, where a reversal
+    /// is passed).
+    #[test]
+    fn traced_programs_over_complex_numbers_match_the_dual_passes() {
+        use nonholo_core::complex::C64;
+        for potential in ["paper", "com"] {
+            let given = vec![("potential".to_string(), potential.to_string())];
+            let s = Sleigh::from_params(
+                &Params::resolve(Sleigh::INFO.params, &given, "parameter").unwrap(),
+            )
+            .unwrap();
+            let e = Sleigh::INFO.embedding.unwrap();
+            let d = consistent(&s);
+            let tilted: Vec<C64> = d
+                .iter()
+                .enumerate()
+                .map(|(j, &x)| C64::new(x, 0.1 * x * if j % 2 == 0 { 1.0 } else { -1.0 }))
+                .collect();
+            let mut turning = tilted.clone();
+            // ẋ, ẏ: a small real part and a larger imaginary one.
+            turning[2] = C64::new(0.02, 0.3);
+            turning[3] = C64::new(-0.01, 0.2);
+            for (state, near) in [(&tilted, vec![]), (&turning, vec![]), (&tilted, vec![8.0])] {
+                let t = C64::new(0.1, 0.05);
+                let mut runs = Vec::new();
+                for traced in [true, false] {
+                    let mut r = Reduction::<C64>::new(2);
+                    r.set_traced(traced);
+                    r.set_branch(&near);
+                    let mut out = Vec::new();
+                    for first in [8, 6] {
+                        r.d.copy_from_slice(state);
+                        r.jacobian(&s, &e, t, first).unwrap();
+                        out.extend_from_slice(&r.value);
+                        out.extend_from_slice(&r.jac[..6 * (14 - first)]);
+                    }
+                    assert_eq!(r.trace_refused(), None);
+                    assert_eq!(r.stats().jacobians, 2);
+                    runs.push(out);
+                }
+                let scale = runs[1].iter().fold(0.0f64, |s, x| s.max(x.norm()));
+                for (k, (a, b)) in runs[0].iter().zip(&runs[1]).enumerate() {
+                    assert!(
+                        (*a - *b).norm() <= 1e-13 * scale,
+                        "{potential}, near {near:?}, entry {k}: traced {a}, dual passes {b}"
+                    );
+                }
             }
         }
     }

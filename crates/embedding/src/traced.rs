@@ -23,9 +23,9 @@
 //! passes stay. The branch of the map nearest to `near` is part of the
 //! trace: a change of branch needs a new one.
 
-use nonholo_core::Scene;
 use nonholo_core::graph::{Graph, Program, Tracer, trace};
 use nonholo_core::scene::EmbeddingInfo;
+use nonholo_core::{Scalar, Scene};
 
 use crate::analysis::LEVELS;
 use crate::elo::elo_array;
@@ -39,15 +39,17 @@ pub struct TracedArray {
     project: Program,
 }
 
-/// Register files and outputs of the programs of a [`TracedArray`]:
-/// allocated once, reused by every evaluation.
+/// Register files and outputs of the programs of a [`TracedArray`] over
+/// `T` (`f64` on the real line, where the programs run as native code;
+/// [`nonholo_core::complex::C64`] along a path in complex time, in the
+/// interpreter): allocated once, reused by every evaluation.
 #[derive(Debug, Clone)]
-pub struct ArrayWorkspace {
-    value: Vec<f64>,
-    solve: Vec<f64>,
-    project: Vec<f64>,
+pub struct ArrayWorkspace<T = f64> {
+    value: Vec<T>,
+    solve: Vec<T>,
+    project: Vec<T>,
     /// The outputs of the last program run.
-    out: Vec<f64>,
+    out: Vec<T>,
 }
 
 impl TracedArray {
@@ -97,8 +99,8 @@ impl TracedArray {
         })
     }
 
-    /// A workspace for this array's programs.
-    pub fn workspace(&self) -> ArrayWorkspace {
+    /// A workspace for this array's programs over `T`.
+    pub fn workspace<T: Scalar>(&self) -> ArrayWorkspace<T> {
         let most = [&self.value, &self.solve, &self.project]
             .iter()
             .map(|p| p.shape().1)
@@ -108,31 +110,31 @@ impl TracedArray {
             value: self.value.registers(),
             solve: self.solve.registers(),
             project: self.project.registers(),
-            out: vec![0.0; most],
+            out: vec![T::from(0.0); most],
         }
     }
 
     /// `D` at `(t, d)`: the `3m` values.
-    pub fn value<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
+    pub fn value<'w, T: Scalar>(&self, w: &'w mut ArrayWorkspace<T>, t: T, d: &[T]) -> &'w [T] {
         run(&self.value, &mut w.value, &mut w.out, t, d)
     }
 
     /// `D` (`3m`), then `∂D/∂q⁗` column by column (`3m` each, `m` columns),
     /// then `∂E/∂q⃛` column by column (`m` each, `m` columns).
-    pub fn solve<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
+    pub fn solve<'w, T: Scalar>(&self, w: &'w mut ArrayWorkspace<T>, t: T, d: &[T]) -> &'w [T] {
         run(&self.solve, &mut w.solve, &mut w.out, t, d)
     }
 
     /// `D` (`3m`), then `∂D/∂q⃛` and `∂D/∂q⁗` column by column (`3m` each,
     /// `2m` columns).
-    pub fn project<'w>(&self, w: &'w mut ArrayWorkspace, t: f64, d: &[f64]) -> &'w [f64] {
+    pub fn project<'w, T: Scalar>(&self, w: &'w mut ArrayWorkspace<T>, t: T, d: &[T]) -> &'w [T] {
         run(&self.project, &mut w.project, &mut w.out, t, d)
     }
 }
 
 /// Runs `p` at `(t, d)` with the register file `regs`; its outputs, at the
 /// start of `out`.
-fn run<'w>(p: &Program, regs: &mut [f64], out: &'w mut [f64], t: f64, d: &[f64]) -> &'w [f64] {
+fn run<'w, T: Scalar>(p: &Program, regs: &mut [T], out: &'w mut [T], t: T, d: &[T]) -> &'w [T] {
     let (inputs, outputs) = p.shape();
     regs[0] = t;
     regs[1..inputs].copy_from_slice(&d[..inputs - 1]);

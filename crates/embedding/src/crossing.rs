@@ -50,6 +50,8 @@ pub const CROSS_RESOLUTION: f64 = 1e-10;
 /// Where the resolution of `q⁗` is already worse than [`CROSS_RESOLUTION`]
 /// when an approach to the singular set begins (a fast-turning motion), the
 /// real integration leaves the axis when it has worsened by this factor.
+/// A path in complex time, in turn, stops where `q⁗` is resolved this
+/// factor worse than where it left the axis ([`Path::start_at`]).
 pub const APPROACH_FACTOR: f64 = 10.0;
 
 /// Relative imaginary part allowed on the state where the path returns to

@@ -1,6 +1,8 @@
 //! The derivative array `D = [E; Ė; Ë]` of (19) and the columns of its
 //! Jacobian that A's explicit form needs ([`crate::ode`]), traced once into
-//! straight-line programs ([`nonholo_core::graph`]) and run as native code.
+//! straight-line programs ([`nonholo_core::graph`]) and run as native code
+//! over `f64`, in the interpreter over complex numbers (the continuation's
+//! paths in complex time).
 //!
 //! [`elo_array`] is evaluated once over [`Tracer`] numbers on the order-4
 //! time jet: every operation of the scene's Lagrangian and embedding map on

@@ -107,7 +107,9 @@ fn parse_value(name: &str, text: &str, unit: &str) -> Result<f64, Error> {
 /// Resolves `name=value` pairs into initial data for `scene`.
 ///
 /// `extra` lists the names the formulation accepts beyond the physical ones
-/// (e.g. `lambda`); they are returned in [`Initial::extra`].
+/// (e.g. `lambda`); they are returned in [`Initial::extra`]. Positions not
+/// given start at [`Scene::default_q`], then [`Scene::place`] may move them
+/// to fit the ones given; velocities follow from the positions.
 pub fn resolve<S: Scene>(
     scene: &S,
     given: &[(String, String)],
@@ -119,6 +121,7 @@ pub fn resolve<S: Scene>(
     let mut q = scene.default_q();
     let mut chart = info.default_velocity.to_vec();
     let has_chart = !info.velocity_chart.is_empty();
+    let mut q_given = vec![false; n];
     let mut qd_given: Vec<Option<f64>> = vec![None; n];
     let mut chart_given: Vec<&str> = Vec::new();
     let mut extra_values = Vec::new();
@@ -134,6 +137,7 @@ pub fn resolve<S: Scene>(
         seen.push(name);
         if let Some(i) = info.coordinate_index(name) {
             q[i] = parse_value(name, text, info.coordinates[i].unit)?;
+            q_given[i] = true;
         } else if let Some(i) = name
             .strip_suffix("_dot")
             .and_then(|c| info.coordinate_index(c))
@@ -172,6 +176,7 @@ pub fn resolve<S: Scene>(
         });
     }
 
+    scene.place(&mut q, &q_given);
     let mut qd = vec![0.0; n];
     if has_chart {
         scene.velocities_from(&q, &chart, &mut qd);

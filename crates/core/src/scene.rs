@@ -579,6 +579,14 @@ pub trait Scene: Send + Sync + 'static {
         self.info().default_q.to_vec()
     }
 
+    /// Completes initial positions: `q` holds the values given (where
+    /// `given[i]`) and [`Scene::default_q`] elsewhere; a scene whose
+    /// holonomic constraints fix some coordinates from others may move
+    /// coordinates not given so that the constraints hold for the ones
+    /// given (the train's trailers follow its headings). Default: nothing
+    /// moves, and inconsistent positions are refused later by name.
+    fn place(&self, _q: &mut [f64], _given: &[bool]) {}
+
     /// Velocities `q̇` from positions `q` and the convenience values of
     /// [`SceneInfo::velocity_chart`] (in chart order).
     ///

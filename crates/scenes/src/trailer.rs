@@ -354,6 +354,29 @@ impl Scene for Train {
         default_q(self.sleighs, self.l, self.h)
     }
 
+    /// A trailer whose blade is not given (neither `xᵢ` nor `yᵢ`) and whose
+    /// hitch does not hold is put where the hitch holds it: its drawbar end
+    /// on the pin of the sleigh ahead, along its own heading, front to
+    /// back, so that headings alone state a train's shape (`phi2 =
+    /// 3.14159…` folds it). A hitch that holds to round-off (the default
+    /// line) is left as it is.
+    fn place(&self, q: &mut [f64], given: &[bool]) {
+        for i in 1..self.sleighs {
+            let (front, back) = (3 * (i - 1), 3 * i);
+            if given[back] || given[back + 1] {
+                continue;
+            }
+            let (s0, c0) = q[front + 2].sin_cos();
+            let (s1, c1) = q[back + 2].sin_cos();
+            let x = q[front] - c0 * self.h - c1 * self.l;
+            let y = q[front + 1] - s0 * self.h - s1 * self.l;
+            let scale = q[front].abs() + q[front + 1].abs() + self.h + self.l;
+            if (x - q[back]).hypot(y - q[back + 1]) > 1e-12 * scale {
+                (q[back], q[back + 1]) = (x, y);
+            }
+        }
+    }
+
     /// The lead sleigh moves at `u` along its heading and turns at `ω`;
     /// each trailer's blade moves along its heading, at the component of its
     /// hitch's velocity along it, and turns at the normal component over

@@ -352,3 +352,55 @@ fn compiled_check_of_initial_data_matches_the_dense_one() {
         }
     }
 }
+
+/// Headings alone state a train's shape: trailers whose blades are not
+/// given are put where their hitches hold them (folded, bent), the default
+/// line is left to the last bit, and a blade that is given stays where it
+/// is (then refused later if its hitch does not hold).
+#[test]
+fn trailers_follow_their_headings_when_their_blades_are_not_given() {
+    use nonholo_core::init::resolve;
+    let t = train(&[("N", "4"), ("h", "0.3"), ("l", "0.5")]).unwrap();
+    let given = |pairs: &[(&str, &str)]| -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect()
+    };
+    let hitches = |q: &[f64]| {
+        let mut f = vec![0.0; 6];
+        Holonomic(&t).eval(0.0, q, &[], &mut f);
+        f.iter().fold(0.0_f64, |m, v| m.max(v.abs()))
+    };
+    // The default line, untouched.
+    let line = resolve(&t, &[], &[]).unwrap();
+    assert_eq!(line.q, t.default_q());
+    // Folded behind the lead, bent after it, the lead moved and turned.
+    let bent = resolve(
+        &t,
+        &given(&[
+            ("x1", "2"),
+            ("y1", "-1"),
+            ("phi1", "0.4"),
+            ("phi2", "3.141592653589793"),
+            ("phi3", "-1.1"),
+            ("phi4", "2.5"),
+        ]),
+        &[],
+    )
+    .unwrap();
+    assert!(hitches(&bent.q) < 1e-15, "{:?}", bent.q);
+    // Trailer 2's blade: the pin 0.3 m behind blade 1, then 0.5 m back along
+    // heading π, i.e. 0.5 m forward along the lead's x axis.
+    let (s, c) = 0.4_f64.sin_cos();
+    assert!((bent.q[3] - (2.0 - 0.3 * c + 0.5)).abs() < 1e-15);
+    assert!((bent.q[4] - (-1.0 - 0.3 * s)).abs() < 1e-15);
+    // The chart's velocities hold on the placed train.
+    let mut g = vec![0.0; 4];
+    Nonholonomic(&t).eval(0.0, &bent.q, &bent.qd, &mut g);
+    assert!(g.iter().all(|v| v.abs() < 1e-14), "{g:?}");
+    // A blade given stays given: the hitch then fails the consistency check.
+    let kept = resolve(&t, &given(&[("phi2", "1.0"), ("x2", "-0.8")]), &[]).unwrap();
+    assert_eq!(kept.q[3], -0.8);
+    assert!(hitches(&kept.q) > 0.1);
+}

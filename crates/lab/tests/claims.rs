@@ -1464,6 +1464,154 @@ fn bicycle_eigenvalues_as_figures_md_states() {
     ]);
 }
 
+/// The unstable counts of the four straight motions of one trailer at
+/// each sampled value of `over`: `(value, [in line forward, in line
+/// backward, folded forward, folded backward])`, every sample linearised.
+fn train_types(name: &str, over: &str) -> Vec<(f64, [u32; 4])> {
+    let lines = [
+        "inline-forward",
+        "inline-backward",
+        "folded-forward",
+        "folded-backward",
+    ];
+    let mut by_value: Vec<(f64, [u32; 4])> = Vec::new();
+    for r in table(name, "samples.csv") {
+        assert_eq!(r["status"], "linearised", "{r:?}");
+        let v = num(&r, over);
+        let k = lines.iter().position(|l| *l == r["label"]).unwrap();
+        let at = match by_value.iter().position(|(x, _)| *x == v) {
+            Some(i) => i,
+            None => {
+                by_value.push((v, [u32::MAX; 4]));
+                by_value.len() - 1
+            }
+        };
+        by_value[at].1[k] = r["unstable"].parse().unwrap();
+    }
+    // One sink, one source, two saddles at every value: indices 1 + 1 − 2.
+    for (v, c) in &by_value {
+        let mut sorted = *c;
+        sorted.sort();
+        assert_eq!(sorted, [0, 1, 1, 2], "{name} at {v}: {c:?}");
+    }
+    by_value
+}
+
+/// The two eigenvalues of the in-line motions besides the zeros against
+/// `−a u/J` and `−u (l − h)/(l² + h²)` (`m = J = 1`): the largest
+/// difference at each sampled value (1/s).
+fn in_line_against_closed_form(name: &str, over: &str, a: f64, h: f64) -> Vec<(f64, f64)> {
+    let mut spectra: HashMap<(String, String), Vec<f64>> = HashMap::new();
+    for r in table(name, "eigenvalues.csv") {
+        if r["label"].starts_with("inline") {
+            assert_eq!(num(&r, "im"), 0.0, "{r:?}");
+            spectra
+                .entry((r["label"].clone(), r[over].clone()))
+                .or_default()
+                .push(num(&r, "re"));
+        }
+    }
+    let l = 0.5;
+    let mut worst: Vec<(f64, f64)> = Vec::new();
+    for ((label, value), mut ev) in spectra {
+        let x: f64 = value.parse().unwrap();
+        let (a, h) = if over == "param.a" { (x, h) } else { (a, x) };
+        let u = if label == "inline-forward" { 1.0 } else { -1.0 };
+        let mut want = vec![0.0, 0.0, -a * u, -u * (l - h) / (l * l + h * h)];
+        want.sort_by(f64::total_cmp);
+        ev.sort_by(f64::total_cmp);
+        // The two zeros need not be the smallest: match by nearest.
+        let mut here: f64 = 0.0;
+        for w in want {
+            let k = (0..ev.len())
+                .min_by(|&i, &j| (ev[i] - w).abs().total_cmp(&(ev[j] - w).abs()))
+                .unwrap();
+            here = here.max((ev[k] - w).abs());
+            ev.remove(k);
+        }
+        worst.push((x, here));
+    }
+    worst
+}
+
+/// figures.md, train-equilibria: for a ≠ 0 one sink, one source and two
+/// saddles among the four straight motions at each sampled a, the sink in
+/// line forward for a > 0 and folded backward for a < 0, every type
+/// changing at a = 0.
+#[test]
+fn train_equilibria_as_figures_md_states() {
+    let types = train_types("train-equilibria", "param.a");
+    assert_eq!(types.len(), 180);
+    for (a, c) in &types {
+        assert_ne!(*a, 0.0);
+        let sink = c.iter().position(|&k| k == 0).unwrap();
+        assert_eq!(sink, if *a > 0.0 { 0 } else { 3 }, "a = {a}: {c:?}");
+    }
+    let crossings = table("train-equilibria", "crossings.csv");
+    assert_eq!(crossings.len(), 4);
+    assert!(
+        crossings.iter().all(|r| num(r, "param.a").abs() < 3e-15),
+        "{crossings:?}"
+    );
+    // Where the two coincide (a = 10/17 m) they form a near-double
+    // eigenvalue, resolved to about √ε of its scale.
+    let double = 0.2 / 0.34;
+    let (mut near, mut away) = (0.0_f64, 0.0_f64);
+    for (a, err) in in_line_against_closed_form("train-equilibria", "param.a", 0.0, 0.3) {
+        if (a - double).abs() < 1e-3 {
+            near = near.max(err);
+        } else {
+            away = away.max(err);
+        }
+    }
+    assert!(away < 3e-13 && near < 1e-10, "{away:e} {near:e}");
+    doc_says(
+        "stability.md",
+        &[
+            "closed forms to 3e-13 1/s at every sample but one",
+            &format!("near-double pair is resolved to {near:.1e} 1/s"),
+            "(180 samples)",
+        ],
+    );
+    figures_md_says(&[
+        "at each of the 180 sampled centre-of-mass offsets a in [−0.9, 0.9] m",
+        "one of them is a sink, one a source and two are saddles",
+        "the sink is the motion in line forward for a > 0 and folded backward for a < 0",
+        "All four change type at a = 0 (located within 3e-15 m)",
+    ]);
+}
+
+/// figures.md, train-hitch: the in-line eigenvalues are the closed forms
+/// at every sampled h, forward in line is the sink below h = l and a
+/// saddle above, the folded motions the saddles below and the sink
+/// (backward) and source (forward) above.
+#[test]
+fn train_hitch_as_figures_md_states() {
+    let types = train_types("train-hitch", "param.h");
+    assert_eq!(types.len(), 100);
+    for (h, c) in &types {
+        let want = if *h < 0.5 { [0, 2, 1, 1] } else { [1, 1, 2, 0] };
+        assert_eq!(*c, want, "h = {h}");
+    }
+    let crossings = table("train-hitch", "crossings.csv");
+    assert_eq!(crossings.len(), 4);
+    assert!(
+        crossings
+            .iter()
+            .all(|r| (num(r, "param.h") - 0.5).abs() < 2e-14),
+        "{crossings:?}"
+    );
+    let worst = in_line_against_closed_form("train-hitch", "param.h", 0.4, 0.0)
+        .iter()
+        .fold(0.0_f64, |m, e| m.max(e.1));
+    assert!(worst < 1e-12, "{worst:e}");
+    figures_md_says(&[
+        "at each of the 100 sampled offsets h in [0, 1] m (to 1e-12 1/s)",
+        "turns into a saddle at h = l = 0.5 m (located within 2e-14 m)",
+        "the folded motions change from saddles to the sink (backward) and the source (forward)",
+    ]);
+}
+
 /// figures.md, sleigh-phase: B reverses at most once and stays within
 /// 6e-11 m of the closed form, whose ω is below 2.6e-3 rad/s at 20 s; C
 /// reverses 4 to 6 times and ends 14.9 to 21.6 m from B.

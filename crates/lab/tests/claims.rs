@@ -2815,3 +2815,38 @@ fn wp_train_as_figures_md_states() {
         "{lo} {hi}"
     );
 }
+
+/// The claims figures.md's table states are the experiment files' own:
+/// `nonholo reproduce` rebuilds the table from the files, so a claim
+/// edited in the table alone would be overwritten by the next run (as
+/// bvp-sleigh's Newton counts once were).
+#[test]
+fn figures_md_table_states_every_experiment_files_claim() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/figures.md"),
+    )
+    .unwrap();
+    let mut checked = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let file: toml::Value = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let exp = &file["experiment"];
+        if exp.get("figure").and_then(toml::Value::as_bool) != Some(true) {
+            continue;
+        }
+        let name = exp["name"].as_str().unwrap();
+        let claim = exp["claim"].as_str().unwrap().replace('|', "\\|");
+        let row = format!("](../results/{name}/index.html) | {claim} | `nonholo experiment ");
+        assert!(
+            text.contains(&row),
+            "docs/figures.md does not state the claim of {}",
+            path.display()
+        );
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked}");
+}

@@ -302,3 +302,90 @@ fn straight_motions_are_the_only_relative_equilibria_unless_a_is_zero() {
         }
     }
 }
+
+/// A train of `n` sleighs with the scene's other defaults on a level plane.
+fn longer_train(n: usize) -> Train {
+    let given = [("N", n.to_string()), ("alpha", "0".to_string())].map(|(k, v)| (k.to_string(), v));
+    let params = Params::resolve(nonholo_scenes::trailer::INFO.params, &given, "parameter");
+    Train::from_params(&params.unwrap()).unwrap()
+}
+
+/// Longer trains (`N` = 3, 4, 5; `a` = 0.4 m, `h` = 0.3 m < `l` = 0.5 m):
+/// of the `2^N` straight motions (each trailer in line or folded behind the
+/// one ahead, forward and backward) the train in line forward is the only
+/// one whose `N` non-zero eigenvalues all have negative real parts and in
+/// line backward the only one with all positive; reversing the motion
+/// negates the spectrum (time reversal); and the indices `(−1)^unstable`
+/// sum to zero. (Whether these are all the relative equilibria of a longer
+/// train is not checked here.)
+#[test]
+fn longer_trains_have_one_sink_and_one_source_among_their_straight_motions() {
+    for n in 3..=5 {
+        let (mut sinks, mut sources, mut index_sum) = (Vec::new(), Vec::new(), 0);
+        for folds in 0..1u32 << (n - 1) {
+            let mut spectra = Vec::new();
+            for u in [1.0, -1.0] {
+                let t = longer_train(n);
+                let mut given: Vec<(String, String)> =
+                    vec![("u".into(), format!("{u:?}")), ("omega".into(), "0".into())];
+                for k in 0..n - 1 {
+                    let heading = if folds >> k & 1 == 1 {
+                        std::f64::consts::PI
+                    } else {
+                        0.0
+                    };
+                    given.push((format!("phi{}", k + 2), format!("{heading:?}")));
+                }
+                let init = nonholo_core::init::resolve(&t, &given, &[]).unwrap();
+                let mut model = chetaev(t);
+                let lin = linearize(&mut model, &init, &Options::default()).unwrap();
+                let scale = lin
+                    .eigenvalues()
+                    .iter()
+                    .fold(1.0_f64, |m, z| m.max(z.norm()));
+                let mut live: Vec<c64> = lin
+                    .eigenvalues()
+                    .into_iter()
+                    .filter(|z| z.norm() > 1e-7 * scale)
+                    .collect();
+                assert_eq!(live.len(), n, "N {n} folds {folds:b} u {u}: {live:?}");
+                let unstable = live.iter().filter(|z| z.re > 0.0).count();
+                if unstable == 0 {
+                    sinks.push((folds, u));
+                }
+                if unstable == n {
+                    sources.push((folds, u));
+                }
+                index_sum += if unstable % 2 == 0 { 1 } else { -1 };
+                live.sort_by(|x, y| x.re.total_cmp(&y.re).then(x.im.total_cmp(&y.im)));
+                if (n, folds, u) == (3, 0, 1.0) {
+                    // As docs/stability.md quotes them: −0.89 ± 1.12i, −0.4.
+                    let want = [(-0.89, -1.12), (-0.89, 1.12), (-0.4, 0.0)];
+                    for (z, (re, im)) in live.iter().zip(want) {
+                        assert!(
+                            (z.re - re).abs() < 5e-3 && (z.im - im).abs() < 5e-3,
+                            "{live:?}"
+                        );
+                    }
+                    assert!((live[2].re + 0.4).abs() < 1e-12, "{live:?}");
+                }
+                spectra.push((live, scale));
+            }
+            // Backward is forward with every eigenvalue negated.
+            let ((forward, scale), (backward, _)) = (&spectra[0], &spectra[1]);
+            for z in forward {
+                let nearest = backward
+                    .iter()
+                    .map(|w| (*w + *z).norm())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    nearest < 1e-10 * scale,
+                    "N {n} folds {folds:b}: {spectra:?}"
+                );
+            }
+        }
+        assert_eq!(sinks, vec![(0, 1.0)], "N {n}");
+        assert_eq!(sources, vec![(0, -1.0)], "N {n}");
+        assert_eq!(index_sum, 0, "N {n}");
+    }
+}

@@ -13,9 +13,9 @@
 //! sleigh's forward speed and turning rate. With `N = 1` it is
 //! `sleigh-incline` with `potential = com`.
 //!
-//! The model is that of the n-trailer of Bravo-Doddoli & García-Naranjo
-//! (2015, *The dynamics of an articulated n-trailer vehicle*, Regular and
-//! Chaotic Dynamics 20, 497–517) with every body a Chaplygin sleigh of the
+//! It is an n-trailer of the kind Bravo-Doddoli & García-Naranjo (2015,
+//! *The dynamics of an articulated n-trailer vehicle*, Regular and Chaotic
+//! Dynamics 20, 497–517) study, with every body a Chaplygin sleigh of the
 //! same parameters.
 //!
 //! Every constraint couples at most two neighbouring sleighs, so `M`, `G`

@@ -1,7 +1,7 @@
 //! One sleigh pulling one trailer (`sleigh-train`, `N = 2`) on a level
 //! plane under B, against equations derived here by hand: Newton–Euler for
 //! each body, the hitch force and the blades' lateral forces eliminated
-//! (docs/stability.md, "One trailer"). The reduced state is the hitch
+//! (docs/stability.md, "One sleigh pulling one trailer"). The reduced state is the hitch
 //! angle `θ = φ1 − φ2`, the lead blade's speed `u` and the lead's turning
 //! rate `ω`; with the blades' constraints
 //!
@@ -246,6 +246,15 @@ fn straight_motions_have_the_hand_derived_spectra() {
                     rest.remove(k);
                 }
                 assert!(rest.iter().all(|z| z.norm() < 1e-7 * scale), "{ev:?}");
+                // The index from B's own pair: the eigenvalues left once
+                // the zeros are set aside.
+                let pair: Vec<c64> = ev
+                    .iter()
+                    .copied()
+                    .filter(|z| z.norm() >= 1e-7 * scale)
+                    .collect();
+                assert_eq!(pair.len(), 2, "{ev:?}");
+                let unstable = pair.iter().filter(|z| z.re > 0.0).count();
                 if sigma > 0.0 {
                     let lead = -p.a * u / p.j;
                     let trailer = -u * (p.l - p.h) / (p.l * p.l + p.h * p.h);
@@ -257,24 +266,27 @@ fn straight_motions_have_the_hand_derived_spectra() {
                         assert!((closed[k] - got[k]).abs() < 1e-13 * scale, "{p:?}");
                     }
                 }
-                let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
-                index_sum += if det > 0.0 { 1 } else { -1 };
+                index_sum += if unstable == 1 { -1 } else { 1 };
             }
         }
         assert_eq!(index_sum, 0, "{p:?}");
     }
 }
 
-/// No other relative equilibria: where `θ̇ = 0` (the train moving
-/// rigidly, `(u, ω) ∥ (l + h cos θ, sin θ)`), B's `u̇` and `ω̇` do not
-/// vanish together away from `θ = 0, π` — at 3600 hitch angles on each of
-/// the two branches, `|(u̇, ω̇)| ≥ 0.01 |sin θ|` at unit `|(u, ω)|` (the
-/// rates scale with its square); at `a = 0` they vanish on the whole
-/// curve: every rigid circular motion is then a relative equilibrium.
+/// No other relative equilibria unless `a (h − l) = 0`: where `θ̇ = 0`
+/// (the train moving rigidly, `(u, ω) ∥ (l + h cos θ, sin θ)`), B's `u̇`
+/// and `ω̇` do not vanish together away from `θ = 0, π` — at 3598 hitch
+/// angles on each of the two branches, `|(u̇, ω̇)| ≥ 0.01 |sin θ|` at unit
+/// `|(u, ω)|` (the rates scale with its square); at `a = 0` and at `h = l`
+/// they vanish on the whole curve (the lead's along-track equation leaves
+/// `m a ω² (h − l)/l`, docs/stability.md): every rigid circular motion is
+/// then a relative equilibrium.
 #[test]
-fn straight_motions_are_the_only_relative_equilibria_unless_a_is_zero() {
+fn straight_motions_are_the_only_relative_equilibria_unless_a_or_h_minus_l_is_zero() {
     let zero_a = P { a: 0.0, ..SETS[0] };
-    for p in SETS.iter().copied().chain([zero_a]) {
+    let h_is_l = P { h: 0.5, ..SETS[0] };
+    let h_is_l_behind = P { h: 0.2, ..SETS[4] };
+    for p in SETS.iter().copied().chain([zero_a, h_is_l, h_is_l_behind]) {
         let t = train(p);
         let mut model = chetaev(t.clone());
         let mut smallest = f64::INFINITY;
@@ -295,8 +307,8 @@ fn straight_motions_are_the_only_relative_equilibria_unless_a_is_zero() {
                 largest = largest.max(ratio);
             }
         }
-        if p.a == 0.0 {
-            assert!(largest < 1e-13, "{largest:e}");
+        if p.a == 0.0 || p.h == p.l {
+            assert!(largest < 1e-13, "{p:?}: {largest:e}");
         } else {
             assert!(smallest > 0.01, "{p:?}: {smallest:e}");
         }

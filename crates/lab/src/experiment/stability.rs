@@ -656,6 +656,11 @@ fn draw(
         if let Some([a, b]) = fixed {
             (lo, hi) = (a, b);
         }
+        if lo.is_finite() && hi <= lo {
+            // Every value equal (real spectra on the imaginary-part
+            // figure): the marks span the unit band the plot draws around it.
+            (lo, hi) = (lo - 1.0, hi + 1.0);
+        }
         if lo.is_finite() {
             let n = 64;
             series.push(Series {

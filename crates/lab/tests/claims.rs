@@ -1607,7 +1607,14 @@ fn train_hitch_as_figures_md_states() {
         .fold(0.0_f64, |m, e| m.max(e.1));
     // The claim's 1e-12, and stability.md's 4e-13 for both sweeps.
     assert!(worst < 4e-13, "{worst:e}");
+    // No focus in either sweep (figures.md's prose).
+    let im = ["train-equilibria", "train-hitch"]
+        .iter()
+        .flat_map(|name| table(name, "eigenvalues.csv"))
+        .fold(0.0_f64, |m, r| m.max(num(&r, "im").abs()));
+    assert!(im < 1e-15, "{im:e}");
     figures_md_says(&[
+        "are below 1e-15 1/s: no motion here is a focus",
         "at each of the 100 sampled offsets h in [0, 1] m (to 1e-12 1/s)",
         "turns into a saddle at h = l = 0.5 m (located within 2e-14 m), where every rigid circular motion is a relative equilibrium",
         "the folded motions change from saddles to the sink (backward) and the source (forward)",

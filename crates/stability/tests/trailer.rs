@@ -401,3 +401,116 @@ fn longer_trains_have_one_sink_and_one_source_among_their_straight_motions() {
         assert_eq!(index_sum, 0, "N {n}");
     }
 }
+
+/// `(θ̇2, θ̇3, u̇, ω̇)` of B for three sleighs with hitch angles `θ2 = φ1 − φ2`,
+/// `θ3 = φ2 − φ3`, the lead heading along x and moving at
+/// `(u, ω) = (cos ψ, sin ψ)`.
+fn three_rates(
+    t: &Train,
+    model: &mut nonholo_chetaev::Chetaev<Train>,
+    [theta2, theta3, psi]: [f64; 3],
+) -> [f64; 4] {
+    let (phi2, phi3) = (-theta2, -theta2 - theta3);
+    let given: Vec<(String, String)> = [
+        ("phi2", phi2),
+        ("phi3", phi3),
+        ("u", psi.cos()),
+        ("omega", psi.sin()),
+    ]
+    .iter()
+    .map(|(k, v)| (k.to_string(), format!("{v:?}")))
+    .collect();
+    let s = nonholo_core::init::resolve(t, &given, &[]).unwrap();
+    let y: Vec<f64> = s.q.iter().chain(&s.qd).copied().collect();
+    let mut dy = vec![0.0; 18];
+    model.rhs(0.0, &y, &mut dy).unwrap();
+    [
+        dy[2] - dy[5],
+        dy[5] - dy[8],
+        dy[9] + s.qd[2] * s.qd[1],
+        dy[11],
+    ]
+}
+
+/// The zeros of B's reduced field for three sleighs with centre-of-mass
+/// offset `a` on the unit circle of `(u, ω)`, by Gauss–Newton from 12 × 12
+/// × 12 starts over `(θ2, θ3, ψ)`, each kept once (to 1e-6 rad).
+fn three_sleigh_zeros(a: f64) -> Vec<[f64; 3]> {
+    use nalgebra::{Matrix4x3, Vector3, Vector4};
+    let given = [
+        ("N", "3".to_string()),
+        ("alpha", "0".into()),
+        ("a", format!("{a:?}")),
+    ]
+    .map(|(k, v)| (k.to_string(), v));
+    let params = Params::resolve(nonholo_scenes::trailer::INFO.params, &given, "parameter");
+    let t = Train::from_params(&params.unwrap()).unwrap();
+    let mut model = chetaev(t.clone());
+    let mut f = |x: [f64; 3]| Vector4::from(three_rates(&t, &mut model, x));
+    let mut found: Vec<[f64; 3]> = Vec::new();
+    let tau = std::f64::consts::TAU;
+    let starts = 12;
+    for i in 0..starts {
+        for j in 0..starts {
+            for k in 0..starts {
+                let step = tau / starts as f64;
+                let mut x = Vector3::new(
+                    (i as f64 + 0.5) * step,
+                    (j as f64 + 0.5) * step,
+                    (k as f64 + 0.5) * step,
+                );
+                let mut r = f(x.into());
+                for _ in 0..60 {
+                    let mut jac = Matrix4x3::zeros();
+                    for c in 0..3 {
+                        let mut e = Vector3::zeros();
+                        e[c] = 1e-7;
+                        jac.set_column(c, &((f((x + e).into()) - f((x - e).into())) / 2e-7));
+                    }
+                    let Ok(dx) = jac.svd(true, true).solve(&r, 1e-12) else {
+                        break;
+                    };
+                    x -= dx;
+                    r = f(x.into());
+                    if r.norm() < 1e-13 || dx.norm() < 1e-15 {
+                        break;
+                    }
+                }
+                if r.norm() > 1e-11 {
+                    continue;
+                }
+                let wrap = |v: f64| v.rem_euclid(tau);
+                let z = [wrap(x[0]), wrap(x[1]), wrap(x[2])];
+                let near = |a: f64, b: f64| (a - b).abs().min(tau - (a - b).abs()) < 1e-6;
+                if !found.iter().any(|w| (0..3).all(|c| near(w[c], z[c]))) {
+                    found.push(z);
+                }
+            }
+        }
+    }
+    found
+}
+
+/// Three sleighs (the defaults, `a (h − l) ≠ 0`): the search finds exactly
+/// the eight straight motions and nothing else (a sampled search, not a
+/// proof); with `a = 0` the same search finds curved ones too, so it can.
+#[test]
+fn a_search_finds_only_the_straight_motions_of_three_sleighs() {
+    let tau = std::f64::consts::TAU;
+    let straight = |v: f64| {
+        [0.0, std::f64::consts::PI, tau]
+            .iter()
+            .any(|s| (v - s).abs() < 1e-6)
+    };
+    let found = three_sleigh_zeros(0.4);
+    assert_eq!(found.len(), 8, "{found:?}");
+    assert!(
+        found.iter().all(|z| z.iter().all(|&v| straight(v))),
+        "{found:?}"
+    );
+    let curved = three_sleigh_zeros(0.0)
+        .into_iter()
+        .filter(|z| !z.iter().all(|&v| straight(v)))
+        .count();
+    assert!(curved > 100, "{curved}");
+}

@@ -221,6 +221,7 @@ fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
             })
             .collect();
         let plot = LinePlot {
+            verticals: Vec::new(),
             title: format!("{problem}, {param}, {potential} potential: error against wall time"),
             x_label: "wall time, median of the repeats [s]".into(),
             y_label: "max error over the samples, positions and velocities [SI]".into(),

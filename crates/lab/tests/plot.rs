@@ -126,6 +126,7 @@ fn convergence_plot() -> LinePlot {
     drift[1] = 0.0;
     drift[100] = f64::NAN;
     LinePlot {
+        verticals: Vec::new(),
         title: "Constraint violation of the sleigh".into(),
         x_label: "t [s]".into(),
         y_label: "|g(q, v)| [m/s]".into(),
@@ -303,6 +304,7 @@ fn rewriting_replaces_the_files() {
 
 fn single(label: &str, x: Vec<f64>, y: Vec<f64>, log_y: bool) -> LinePlot {
     LinePlot {
+        verticals: Vec::new(),
         title: format!("Edge case: {label}"),
         x_label: "x [m]".into(),
         y_label: "y [m]".into(),

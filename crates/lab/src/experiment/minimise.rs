@@ -346,6 +346,7 @@ pub fn draw(exp: &Experiment, m: &MinimiseSpec, dir: &Path) -> Result<Vec<PathBu
     let what = format!("{} vs {}", m.label, exp.reference);
     files.extend(line_plot(
         &LinePlot {
+            verticals: Vec::new(),
             title: format!(
                 "Smallest distance of {} from {} at every point",
                 m.label, exp.reference
@@ -417,6 +418,7 @@ pub fn draw(exp: &Experiment, m: &MinimiseSpec, dir: &Path) -> Result<Vec<PathBu
     }
     files.extend(line_plot(
         &LinePlot {
+            verticals: Vec::new(),
             title: format!(
                 "{} from {} at t = {} s, point {point}",
                 m.label, exp.reference, exp.t_end

@@ -466,6 +466,7 @@ fn time_series(
             .collect();
         files.extend(line_plot(
             &LinePlot {
+                verticals: Vec::new(),
                 title: titled("Paths"),
                 x_label: coordinate_label(exp, 0),
                 y_label: coordinate_label(exp, 1),
@@ -524,6 +525,7 @@ fn time_series(
         if !series.is_empty() {
             files.extend(line_plot(
                 &LinePlot {
+                    verticals: Vec::new(),
                     title: titled("Divergence"),
                     x_label: "t [s]".into(),
                     y_label: format!(
@@ -553,6 +555,7 @@ fn time_series(
             .collect();
         files.extend(line_plot(
             &LinePlot {
+                verticals: Vec::new(),
                 title: titled("Constraint residual, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: residual_label(info),
@@ -579,6 +582,7 @@ fn time_series(
             .collect();
         files.extend(line_plot(
             &LinePlot {
+                verticals: Vec::new(),
                 title: titled("Energy drift, largest so far"),
                 x_label: "t [s]".into(),
                 y_label: "|E(t) − E(0)| [J]".into(),
@@ -610,6 +614,7 @@ fn time_series(
                 .collect();
             files.extend(line_plot(
                 &LinePlot {
+                    verticals: Vec::new(),
                     title: titled(&format!("{name} against time")),
                     x_label: "t [s]".into(),
                     y_label: quantity_label(exp, name),
@@ -792,6 +797,7 @@ fn sweep_plots(
             let log_y = spans_decades(&series);
             files.extend(line_plot(
                 &LinePlot {
+                    verticals: Vec::new(),
                     title: format!(
                         "Divergence from {}, {}",
                         exp.reference,
@@ -868,6 +874,7 @@ fn sweep_plots(
             let time = cost(&|r| (r.wall_time_stop_t.is_none()).then_some(r.wall_time_s));
             files.extend(line_plot(
                 &LinePlot {
+                    verticals: Vec::new(),
                     title: "Cost over the sweep: wall time".into(),
                     x_label: x_label.clone(),
                     y_label: "wall time [s]".into(),
@@ -885,6 +892,7 @@ fn sweep_plots(
             });
             files.extend(line_plot(
                 &LinePlot {
+                    verticals: Vec::new(),
                     title: "Cost over the sweep: evaluations".into(),
                     x_label: x_label.clone(),
                     y_label: "right-hand-side evaluations [count]".into(),
@@ -944,6 +952,7 @@ fn sweep_plots(
             if !switch.is_empty() {
                 files.extend(line_plot(
                     &LinePlot {
+                        verticals: Vec::new(),
                         title: "First change of mode over the sweep".into(),
                         x_label,
                         y_label: "time of the first switch [s]".into(),

@@ -27,7 +27,7 @@ use super::spec::{Experiment, StabilitySpec, override_with};
 use super::{Outcome, RunOptions};
 use crate::CliError;
 use crate::linearize::linearise_at;
-use crate::plot::{Dash, LinePlot, Pen, Series, line_plot};
+use crate::plot::{Dash, LinePlot, Pen, Series, Vertical, line_plot};
 use crate::table::{self, Table};
 
 /// Schema of `stability.json`.
@@ -623,7 +623,7 @@ fn draw(
         (1, "eigenvalues-im", "Im λ [1/s]", spec.im_range),
     ] {
         let mut series = Vec::new();
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut drawn = false;
         for l in &r.lines {
             let pen = super::pens::find(&pens, &l.label);
             let m = l.spectra.iter().map(Vec::len).max().unwrap_or(0);
@@ -637,10 +637,7 @@ fn draw(
                         v.get(k).copied().unwrap_or(f64::NAN)
                     })
                     .collect();
-                for v in y.iter().filter(|v| v.is_finite()) {
-                    lo = lo.min(*v);
-                    hi = hi.max(*v);
-                }
+                drawn |= y.iter().any(|v| v.is_finite());
                 series.push(Series {
                     label: if k == 0 {
                         format!("{} ({})", l.label, l.formulation)
@@ -653,15 +650,9 @@ fn draw(
                 });
             }
         }
-        if let Some([a, b]) = fixed {
-            (lo, hi) = (a, b);
-        }
-        if lo.is_finite() && hi <= lo {
-            // Every value equal (real spectra on the imaginary-part
-            // figure): the marks span the unit band the plot draws around it.
-            (lo, hi) = (lo - 1.0, hi + 1.0);
-        }
-        if lo.is_finite() {
+        let mut verticals = Vec::new();
+        if drawn {
+            // More points than a series gets dots for: a plain line.
             let n = 64;
             series.push(Series {
                 label: String::new(),
@@ -676,21 +667,18 @@ fn draw(
                     dash: Dash::Dotted,
                 }),
             });
-            for (name, v) in &spec.marks {
-                // More points than a series gets dots for: a plain line.
-                let n = 64;
-                series.push(Series {
+            verticals = spec
+                .marks
+                .iter()
+                .map(|(name, v)| Vertical {
                     label: format!("{name} {v:.4}"),
-                    x: vec![*v; n],
-                    y: (0..n)
-                        .map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64)
-                        .collect(),
-                    pen: Some(Pen {
+                    x: *v,
+                    pen: Pen {
                         colour: 6,
                         dash: Dash::Dashed,
-                    }),
-                });
-            }
+                    },
+                })
+                .collect();
         }
         let title = format!(
             "{}: eigenvalues of the linearisation, {}",
@@ -707,6 +695,7 @@ fn draw(
                 x_label: x_label.clone(),
                 y_label: what.into(),
                 series,
+                verticals,
                 y_range: fixed,
                 ..LinePlot::default()
             },

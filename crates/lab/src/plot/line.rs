@@ -62,6 +62,17 @@ pub struct LinePlot {
     /// the Okabe–Ito palette by position (from the eighth series on the
     /// colours repeat with dashed lines).
     pub series: Vec<Series>,
+    /// Vertical lines at given abscissae across the whole vertical axis
+    /// (which is fitted to the series alone), after the series.
+    pub verticals: Vec<Vertical>,
+}
+
+/// A vertical line of a [`LinePlot`] with its legend text.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vertical {
+    pub label: String,
+    pub x: f64,
+    pub pen: Pen,
 }
 
 /// Draws `p` and writes `<stem>.png` and `<stem>.svg`; returns both paths
@@ -196,7 +207,16 @@ impl LineData {
             });
         }
         let points = || series.iter().flat_map(|s| s.runs.iter().flatten());
-        let x = Axis::fit(points().map(|p| p.0), p.log_x, 0.03);
+        let verticals: Vec<(&Vertical, f64)> = p
+            .verticals
+            .iter()
+            .filter_map(|v| Some((v, to_plot(v.x, p.log_x)?)))
+            .collect();
+        let x = Axis::fit(
+            points().map(|p| p.0).chain(verticals.iter().map(|v| v.1)),
+            p.log_x,
+            0.03,
+        );
         let y = match p.y_range {
             Some([lo, hi]) if lo < hi => Axis {
                 log: p.log_y,
@@ -214,6 +234,15 @@ impl LineData {
         } else {
             Some("nothing to draw: no finite values".to_string())
         };
+        for (v, px) in verticals {
+            series.push(SeriesData {
+                label: v.label.clone(),
+                pen: v.pen,
+                runs: vec![vec![(px, y.lo), (px, y.hi)]],
+                markers: false,
+                covered: 0,
+            });
+        }
         mark_covered(&mut series, &x, &y);
         Ok(LineData {
             series,
@@ -770,7 +799,46 @@ fn legend_position<DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::super::style::{Dash, Pen};
-    use super::{LineData, LinePlot, Series, clip_run};
+    use super::{LineData, LinePlot, Series, Vertical, clip_run};
+
+    /// A vertical line spans the vertical axis fitted to the series alone
+    /// (flat data included), widens the horizontal axis to show itself, and
+    /// has its legend entry; it adds no markers.
+    #[test]
+    fn verticals_span_the_vertical_axis_of_the_series() {
+        let pen = Pen {
+            colour: 6,
+            dash: Dash::Dashed,
+        };
+        for y in [vec![0.0, 1.0, 3.0], vec![0.0; 3]] {
+            let plot = |verticals: Vec<Vertical>| LinePlot {
+                x_label: "h [m]".into(),
+                y_label: "Im λ [1/s]".into(),
+                series: vec![Series {
+                    label: "B".into(),
+                    x: vec![0.0, 0.5, 1.0],
+                    y: y.clone(),
+                    pen: None,
+                }],
+                verticals,
+                ..LinePlot::default()
+            };
+            let without = LineData::new(&plot(Vec::new())).unwrap();
+            let mark = Vertical {
+                label: "h = l".into(),
+                x: 2.0,
+                pen,
+            };
+            let with = LineData::new(&plot(vec![mark])).unwrap();
+            assert_eq!((with.y.lo, with.y.hi), (without.y.lo, without.y.hi));
+            assert!(without.y.hi > without.y.lo);
+            assert!(with.x.hi > 2.0 && without.x.hi < 2.0);
+            let v = &with.series[1];
+            assert_eq!(v.label, "h = l");
+            assert_eq!(v.runs, vec![vec![(2.0, with.y.lo), (2.0, with.y.hi)]]);
+            assert!(!v.markers);
+        }
+    }
 
     /// A named series that later series of another colour (or banded ones)
     /// coincide with is banded one level above the highest of them, and its

@@ -43,7 +43,7 @@ use plotters::prelude::*;
 
 pub use self::grid::{Cell, CellStatus, StatusGrid, status_grid};
 pub use self::heatmap::{Heatmap, heatmap};
-pub use self::line::{LinePlot, Series, line_plot};
+pub use self::line::{LinePlot, Series, Vertical, line_plot};
 use self::style::ensure_font;
 pub use self::style::{Dash, Pen};
 

@@ -148,6 +148,7 @@ pub fn draw(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec<Path
                 continue;
             }
             let plot = LinePlot {
+                verticals: Vec::new(),
                 title: title(what),
                 x_label: x_label.into(),
                 y_label: "largest error in q [m, rad]".into(),

@@ -338,6 +338,9 @@ impl Solver {
             Solver::Ours(method) => {
                 let radau = Radau5Options {
                     newton: RadauNewton::Simplified,
+                    // RADAU5's polynomial, as in the stored results (the
+                    // default is now the Hermite extension: `OursHermite`).
+                    dense_output: RadauDense::Collocation,
                     ..Radau5Options::default()
                 };
                 run_ours(problem, method, radau, tol, grid, dense)
@@ -345,6 +348,9 @@ impl Solver {
             Solver::OursFullNewton => {
                 let radau = Radau5Options {
                     newton: RadauNewton::Full,
+                    // RADAU5's polynomial, as in the stored results (the
+                    // default is now the Hermite extension: `OursHermite`).
+                    dense_output: RadauDense::Collocation,
                     ..Radau5Options::default()
                 };
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
@@ -353,6 +359,9 @@ impl Solver {
                 let radau = Radau5Options {
                     newton: RadauNewton::Simplified,
                     jacobian_reuse: reuse.theta(),
+                    // RADAU5's polynomial, as in the stored results (the
+                    // default is now the Hermite extension: `OursHermite`).
+                    dense_output: RadauDense::Collocation,
                     ..Radau5Options::default()
                 };
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)

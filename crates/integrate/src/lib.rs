@@ -13,7 +13,7 @@
 //! | [`Method::Rk4`] | 4 | none (fixed step) | 3 (cubic Hermite) | Kutta 1901 |
 //! | [`Method::Dopri5`] | 5 | embedded 4 | 4 | Dormand & Prince 1980; Hairer, Nørsett & Wanner, *Solving ODE I*, §II.4–6 (DOPRI5) |
 //! | [`Method::Dop853`] | 8 | embedded 5 and 3 | 7 | Prince & Dormand 1981; Hairer, Nørsett & Wanner, §II.10 (DOP853) |
-//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 3 (collocation polynomial) | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
+//! | [`Method::Radau5`] | 5 (stage order 3, L-stable, implicit) | embedded 3, filtered | 5 on non-stiff rows of ODEs (Hermite, default), else 3 (collocation polynomial) | Hairer & Wanner, *Solving ODE II*, §IV.8 (RADAU5) |
 //!
 //! Step-size control, initial step selection and stiffness detection follow
 //! Hairer's DOPRI5/DOP853 codes; Radau IIA follows his RADAU5 (simplified

@@ -116,14 +116,18 @@ impl RadauNewton {
 
 /// How Radau IIA fills its steps between the step points: the continuous
 /// extension, output samples and guard location. Serialised by
-/// [`RadauDense::name`] (`"collocation"`, `"hermite"`).
+/// [`RadauDense::name`] (`"auto"`, `"collocation"`, `"hermite"`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RadauDense {
-    /// RADAU5's collocation polynomial (`CONTR5`, the default): degree 3,
-    /// stage order 3 inside the step, stiffly accurate; the Newton starting
-    /// values extrapolate it whatever this setting.
+    /// The default: [`RadauDense::Hermite`] for `y' = f(t, y)`,
+    /// [`RadauDense::Collocation`] for an implicit system `F(t, y, y') = 0`
+    /// (which has no Hermite extension).
     #[default]
+    Auto,
+    /// RADAU5's collocation polynomial (`CONTR5`): degree 3, stage order 3
+    /// inside the step, stiffly accurate; the Newton starting values
+    /// extrapolate it whatever this setting.
     Collocation,
     /// A quintic through the values and derivatives at the last three step
     /// points (a quartic without the value at `t_{n−1}` after a more than
@@ -141,6 +145,7 @@ impl RadauDense {
     /// Name on the command line and in result files.
     pub fn name(self) -> &'static str {
         match self {
+            RadauDense::Auto => "auto",
             RadauDense::Collocation => "collocation",
             RadauDense::Hermite => "hermite",
         }
@@ -148,13 +153,23 @@ impl RadauDense {
 
     /// The variant called `name`.
     pub fn from_name(name: &str) -> Option<RadauDense> {
-        [RadauDense::Collocation, RadauDense::Hermite]
-            .into_iter()
-            .find(|v| v.name() == name)
+        [
+            RadauDense::Auto,
+            RadauDense::Collocation,
+            RadauDense::Hermite,
+        ]
+        .into_iter()
+        .find(|v| v.name() == name)
     }
 
-    fn is_collocation(&self) -> bool {
-        *self == RadauDense::Collocation
+    /// Whether a run takes the Hermite extension: `explicit` says the
+    /// system is `y' = f(t, y)`.
+    pub fn hermite(self, explicit: bool) -> bool {
+        match self {
+            RadauDense::Auto => explicit,
+            RadauDense::Collocation => false,
+            RadauDense::Hermite => true,
+        }
     }
 }
 
@@ -264,7 +279,8 @@ impl Default for Options {
 /// Settings of [`Method::Radau5`] (RADAU5's `IWORK`/`WORK` entries for the
 /// Newton iteration and the reuse of Jacobians and step sizes).
 ///
-/// Serialisable as [`Options`]; defaults (RADAU5's):
+/// Serialisable as [`Options`]; defaults (RADAU5's, and the Hermite
+/// extension where there is one):
 ///
 /// | field | RADAU5 | default |
 /// |---|---|---|
@@ -273,7 +289,7 @@ impl Default for Options {
 /// | `newton_tol` | `FNEWT`, `WORK(4)` | `None`: `max(10·uround/rtol', min(0.03, sqrt(rtol')))` |
 /// | `jacobian_reuse` | `THET`, `WORK(3)` | `0.001` |
 /// | `keep_step` | `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)` | `(1.0, 1.2)` |
-/// | `dense_output` | — (`CONTR5`) | [`RadauDense::Collocation`] (not written when default) |
+/// | `dense_output` | — (`CONTR5`) | [`RadauDense::Auto`] |
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Radau5Options {
@@ -293,6 +309,11 @@ pub struct Radau5Options {
     /// `θ <= jacobian_reuse` the Jacobian is kept for the next step
     /// (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
     /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
+    /// RADAU5's documentation advises `0.1` "when Jacobian evaluations are
+    /// costly"; measured on the workbench's experiments (`docs/integrators.md`)
+    /// `0.1` is 2–7× faster at matched error on the sleigh trains, whose
+    /// Jacobians are large, and up to 2× slower on the small systems, whose
+    /// Jacobians are cheap, so the default stays RADAU5's.
     pub jacobian_reuse: f64,
     /// `(lo, hi)` with `0 < lo <= 1 <= hi < ∞`; when the Jacobian is kept
     /// and the proposed step ratio `h_new/h` lies in `[lo, hi]`, the step
@@ -300,9 +321,9 @@ pub struct Radau5Options {
     /// `QUOT1`, `QUOT2`, `WORK(5)`, `WORK(6)`). Default `(1.0, 1.2)`.
     pub keep_step: (f64, f64),
     /// The continuous extension between step points; see [`RadauDense`].
-    /// Default [`RadauDense::Collocation`], left out of serialised settings
-    /// when default (records written before it existed read the same).
-    #[serde(skip_serializing_if = "RadauDense::is_collocation")]
+    /// Default [`RadauDense::Auto`]: the Hermite extension where there is
+    /// one. Records written before version 0.2.0 that leave this field out
+    /// were made with [`RadauDense::Collocation`].
     pub dense_output: RadauDense,
 }
 
@@ -314,7 +335,7 @@ impl Default for Radau5Options {
             newton_tol: None,
             jacobian_reuse: 0.001,
             keep_step: (1.0, 1.2),
-            dense_output: RadauDense::Collocation,
+            dense_output: RadauDense::Auto,
         }
     }
 }

@@ -503,7 +503,7 @@ fn continuous_extension_is_the_collocation_polynomial() {
     let hs = [0.8, 0.56, 0.4, 0.28, 0.2, 0.14, 0.1];
     let es: Vec<f64> = hs
         .iter()
-        .map(|&h| local_dense_error(Method::Radau5, h, &tol_opts(1e-13)))
+        .map(|&h| local_dense_error(Method::Radau5, h, &collocation(tol_opts(1e-13))))
         .collect();
     let p = slope(&hs, &es) - 1.0;
     let es_txt: Vec<String> = es.iter().map(|e| format!("{e:.2e}")).collect();
@@ -511,15 +511,26 @@ fn continuous_extension_is_the_collocation_polynomial() {
     assert!((p - 3.0).abs() <= 0.3);
 }
 
-/// `dense_output = hermite` on these options.
-fn hermite(opts: Options) -> Options {
+/// These options with `dense_output = d`.
+fn dense(opts: Options, d: RadauDense) -> Options {
     Options {
         radau5: Radau5Options {
-            dense_output: RadauDense::Hermite,
+            dense_output: d,
             ..opts.radau5
         },
         ..opts
     }
+}
+
+/// `dense_output = hermite` on these options.
+fn hermite(opts: Options) -> Options {
+    dense(opts, RadauDense::Hermite)
+}
+
+/// `dense_output = collocation` on these options (the default, `auto`, is
+/// the Hermite extension on an ODE).
+fn collocation(opts: Options) -> Options {
+    dense(opts, RadauDense::Collocation)
 }
 
 /// Largest distance of a run's continuous extension from `exact` over 1001
@@ -572,8 +583,8 @@ fn hermite_extension_keeps_the_order_of_the_step_points() {
         )
         .unwrap()
     };
-    let base = tol_opts(1e-13);
-    let collocation = measured_order(&ns, 10.0, MAX_ERR, |h| {
+    let base = collocation(tol_opts(1e-13));
+    let colloc = measured_order(&ns, 10.0, MAX_ERR, |h| {
         dense_error(&run(h, &base), (h, 10.0), 0..2, exact)
     });
     let mut finest = f64::NAN;
@@ -596,14 +607,15 @@ fn hermite_extension_keeps_the_order_of_the_step_points() {
     let h = 10.0 / 40.0;
     let ratio = dense_error(&run(h, &base), (h, 10.0), 0..2, exact) / finest;
     eprintln!(
-        "dense error order: collocation {collocation:.3}, Hermite {quintic:.3}; \
+        "dense error order: collocation {colloc:.3}, Hermite {quintic:.3}; \
          collocation/Hermite at n = 40: {ratio:.2}"
     );
     assert!((quintic - 5.0).abs() <= 0.3, "{quintic}");
-    assert!(
-        collocation < quintic && ratio >= 3.0,
-        "{collocation} {ratio}"
-    );
+    assert!(colloc < quintic && ratio >= 3.0, "{colloc} {ratio}");
+    // The default, `auto`, is the Hermite extension on an ODE.
+    let h = 10.0 / 40.0;
+    let auto = dense_error(&run(h, &tol_opts(1e-13)), (h, 10.0), 0..2, exact);
+    assert_eq!(auto.to_bits(), finest.to_bits());
 }
 
 /// The oscillator beside a stiff relaxation `y₃' = −λ (y₃ − cos t) − sin t`
@@ -644,7 +656,7 @@ fn hermite_extension_keeps_the_collocation_polynomial_on_stiff_rows() {
         let mut sys = OscillatorAndRelaxation { lambda: 1e6 };
         solve(Method::Radau5, &mut sys, 0.0, &y0, 10.0, opts).unwrap()
     };
-    let base = tol_opts(1e-8);
+    let base = collocation(tol_opts(1e-8));
     let (c, h) = (run(&base), run(&hermite(base.clone())));
     assert_eq!(
         c.stats,
@@ -683,7 +695,7 @@ fn hermite_extension_without_a_step_jacobian_keeps_the_collocation_polynomial() 
     let y0 = [1.0, 0.0, 0.5];
     let opts = Options {
         fixed_step: Some(0.05),
-        ..mode(&tol_opts(1e-8), RadauNewton::Full)
+        ..mode(&collocation(tol_opts(1e-8)), RadauNewton::Full)
     };
     let run = |opts: &Options| {
         let mut sys = OscillatorAndRelaxation { lambda: 1e6 };

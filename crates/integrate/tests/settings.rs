@@ -28,27 +28,35 @@ fn options_round_trip_through_json() {
     assert_eq!(back, opts);
 }
 
-/// `dense_output` is written only when it is not the default, so records
-/// written before it existed read, and serialise, as they did.
+/// `dense_output` is always written: records made before it existed leave
+/// it out and were made with the collocation polynomial, records made
+/// since say which extension they used, the default `auto` included.
 #[test]
-fn dense_output_is_written_only_when_hermite() {
+fn dense_output_is_always_written() {
     let json = serde_json::to_value(Options::default()).unwrap();
-    assert!(json["radau5"].get("dense_output").is_none(), "{json}");
+    assert_eq!(json["radau5"]["dense_output"], "auto", "{json}");
     let opts = Options {
         radau5: Radau5Options {
-            dense_output: RadauDense::Hermite,
+            dense_output: RadauDense::Collocation,
             ..Radau5Options::default()
         },
         ..Options::default()
     };
     let json = serde_json::to_value(&opts).unwrap();
-    assert_eq!(json["radau5"]["dense_output"], "hermite");
+    assert_eq!(json["radau5"]["dense_output"], "collocation");
     assert_eq!(serde_json::from_value::<Options>(json).unwrap(), opts);
     assert!(serde_json::from_str::<Options>(r#"{"radau5": {"dense_output": "cubic"}}"#).is_err());
-    for v in [RadauDense::Collocation, RadauDense::Hermite] {
+    for v in [
+        RadauDense::Auto,
+        RadauDense::Collocation,
+        RadauDense::Hermite,
+    ] {
         assert_eq!(serde_json::to_value(v).unwrap(), v.name());
         assert_eq!(RadauDense::from_name(v.name()), Some(v));
     }
+    // `auto` is the Hermite extension for y' = f(t, y) only.
+    assert!(RadauDense::Auto.hermite(true) && !RadauDense::Auto.hermite(false));
+    assert!(RadauDense::Hermite.hermite(false) && !RadauDense::Collocation.hermite(true));
 }
 
 #[test]

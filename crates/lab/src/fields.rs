@@ -168,8 +168,22 @@ pub fn radau_newton(name: &str) -> Result<RadauNewton, String> {
 /// `radau_dense`).
 pub fn radau_dense(name: &str) -> Result<RadauDense, String> {
     RadauDense::from_name(name).ok_or_else(|| {
-        format!("unknown Radau continuous extension `{name}`; valid: collocation, hermite")
+        format!("unknown Radau continuous extension `{name}`; valid: auto, collocation, hermite")
     })
+}
+
+/// RADAU5's `THET` (`--radau-jacobian-reuse`, `radau_jacobian_reuse`): the
+/// Jacobian is kept after a Newton contraction rate at most this; negative
+/// asks for a new one every step. Finite and below 1.
+pub fn radau_jacobian_reuse(v: f64) -> Result<f64, String> {
+    if v.is_finite() && v < 1.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} must be a finite number below 1 (the Newton contraction rate up to which \
+             the Jacobian is kept; negative: a new Jacobian every step)"
+        ))
+    }
 }
 
 /// Whether a tolerance given with a fixed step would be ignored: an explicit

@@ -54,11 +54,18 @@ pub struct SimulateArgs {
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub radau_newton: String,
     /// Continuous extension of radau5 (output samples, guard location):
+    /// auto (hermite for ODE formulations, collocation for implicit ones),
     /// collocation (RADAU5's polynomial), hermite (a quintic through the last
     /// three step points where the Jacobian's row is not stiff; ODE
     /// formulations only).
-    #[arg(long, default_value = "collocation", allow_hyphen_values = true)]
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub radau_dense: String,
+    /// radau5 keeps its Jacobian after a step whose Newton iteration
+    /// contracted at rate ≤ this (RADAU5's THET; negative: a new Jacobian
+    /// every step). Below 1; default RADAU5's 0.001 (its documentation
+    /// advises 0.1 when Jacobians are costly).
+    #[arg(long, default_value_t = 0.001, allow_hyphen_values = true)]
+    pub radau_jacobian_reuse: f64,
     /// Budget on integrator steps (accepted plus rejected): where the run
     /// stops on it is the same on every machine.
     #[arg(long, default_value_t = 10_000_000, allow_hyphen_values = true)]
@@ -187,6 +194,10 @@ pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
     };
     options.radau5.newton = flag("--radau-newton", fields::radau_newton(&args.radau_newton))?;
     options.radau5.dense_output = flag("--radau-dense", fields::radau_dense(&args.radau_dense))?;
+    options.radau5.jacobian_reuse = flag(
+        "--radau-jacobian-reuse",
+        fields::radau_jacobian_reuse(args.radau_jacobian_reuse),
+    )?;
     Ok((method, options))
 }
 

@@ -929,13 +929,15 @@ fn visc_radau(dense: &str, extra: &[&str]) -> Output {
     nonholo(&args)
 }
 
-/// `--radau-dense`: the record names the extension only when it is not
-/// the default, and both runs take the same steps (the extension changes
-/// no step).
+/// `--radau-dense`: the record names the extension (`auto`, the default,
+/// included), and the runs take the same steps (the extension changes no
+/// step); `auto` is the Hermite extension on this ODE form, sample for
+/// sample.
 #[test]
 fn radau_dense_is_recorded_and_changes_no_step() {
     let dir = tmpdir("radau-dense");
-    let runs: Vec<serde_json::Value> = ["collocation", "hermite"]
+    let names = ["collocation", "hermite", "auto"];
+    let runs: Vec<serde_json::Value> = names
         .iter()
         .map(|dense| {
             let out = dir.join(format!("{dense}.json"));
@@ -944,16 +946,60 @@ fn radau_dense_is_recorded_and_changes_no_step() {
             serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
         })
         .collect();
+    for (run, name) in runs.iter().zip(names) {
+        assert_eq!(run["integrator"]["radau5"]["dense_output"], name);
+        for counter in ["steps", "rhs_evals", "jacobian_evals"] {
+            assert_eq!(
+                runs[0]["stats"][counter], run["stats"][counter],
+                "{counter}"
+            );
+        }
+    }
+    assert_eq!(runs[1]["q"], runs[2]["q"]);
+    assert_ne!(runs[0]["q"], runs[1]["q"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--radau-jacobian-reuse`: recorded as RADAU5's `jacobian_reuse`; a
+/// laxer threshold keeps Jacobians longer (fewer evaluations on this
+/// stiff run); a value at or above 1, or not finite, is refused naming the
+/// flag.
+#[test]
+fn radau_jacobian_reuse_is_recorded_and_validated() {
+    let dir = tmpdir("radau-reuse");
+    let runs: Vec<serde_json::Value> = ["0.001", "0.1"]
+        .iter()
+        .map(|theta| {
+            let out = dir.join(format!("{theta}.json"));
+            let o = visc_radau(
+                "auto",
+                &[
+                    "--radau-jacobian-reuse",
+                    theta,
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
+            );
+            assert!(o.status.success(), "{}", stderr(&o));
+            serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
+        })
+        .collect();
+    assert_eq!(runs[0]["integrator"]["radau5"]["jacobian_reuse"], 0.001);
+    assert_eq!(runs[1]["integrator"]["radau5"]["jacobian_reuse"], 0.1);
+    let jac = |r: &serde_json::Value| r["stats"]["jacobian_evals"].as_u64().unwrap();
     assert!(
-        runs[0]["integrator"]["radau5"]
-            .get("dense_output")
-            .is_none()
+        jac(&runs[1]) < jac(&runs[0]),
+        "{} {}",
+        jac(&runs[1]),
+        jac(&runs[0])
     );
-    assert_eq!(runs[1]["integrator"]["radau5"]["dense_output"], "hermite");
-    for counter in ["steps", "rhs_evals", "jacobian_evals"] {
-        assert_eq!(
-            runs[0]["stats"][counter], runs[1]["stats"][counter],
-            "{counter}"
+    for bad in ["1", "inf", "NaN"] {
+        let o = visc_radau("auto", &["--radau-jacobian-reuse", bad]);
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(
+            e.contains("--radau-jacobian-reuse") && e.contains("below 1"),
+            "{e}"
         );
     }
     std::fs::remove_dir_all(&dir).unwrap();
@@ -967,7 +1013,7 @@ fn radau_dense_refuses_bad_names_and_implicit_forms() {
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(
-        e.contains("--radau-dense") && e.contains("collocation, hermite"),
+        e.contains("--radau-dense") && e.contains("auto, collocation, hermite"),
         "{e}"
     );
     let o = nonholo(&[

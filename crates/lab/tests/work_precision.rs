@@ -293,7 +293,15 @@ fn bad_work_precision_files_name_key_and_line() {
             "integrator = \"radau5\"",
             "integrator = \"radau5\"\nradau_dense = \"cubic\"",
         ),
-        &["`formulation.radau_dense`", "collocation, hermite"],
+        &["`formulation.radau_dense`", "auto, collocation, hermite"],
+    );
+    refused(
+        "reuse-above-one",
+        &good.replace(
+            "integrator = \"radau5\"",
+            "integrator = \"radau5\"\nradau_jacobian_reuse = 1.5",
+        ),
+        &["`formulation.radau_jacobian_reuse`", "below 1"],
     );
 }
 

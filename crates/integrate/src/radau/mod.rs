@@ -185,7 +185,9 @@
 //! from the values at the nodes) for `Options::dense`, output samples,
 //! guard location and the Newton starting values. With
 //! `radau5.dense_output = hermite` ([`crate::RadauDense::Hermite`], ODEs
-//! only) the first three uses take instead, component by component, the
+//! only; the default [`crate::RadauDense::Auto`] is `hermite` for ODEs and
+//! the collocation polynomial for implicit systems) the first three uses
+//! take instead, component by component, the
 //! quintic through `(y, y')` at `t_{n−1}`, `t_n`, `t_{n+1}` (a quartic
 //! without the value at `t_{n−1}` after a more than twofold step growth)
 //! where the component's row of the Jacobian is not stiff over the step
@@ -210,7 +212,7 @@
 //! | `radau5.newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
 //! | `radau5.jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
 //! | `radau5.keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
-//! | `radau5.dense_output` | collocation polynomial or the Hermite quintic | `collocation` |
+//! | `radau5.dense_output` | collocation polynomial or the Hermite quintic | `auto` (Hermite for ODEs) |
 //!
 //! # Counters ([`Stats`])
 //!
@@ -470,7 +472,7 @@ fn driver<P: Problem>(
     opts: &Options,
 ) -> Result<Driver<P, RadauCore>, Failure> {
     let n = p.dim();
-    let hermite = opts.radau5.dense_output == RadauDense::Hermite;
+    let hermite = opts.radau5.dense_output.hermite(P::IDENTITY_JP);
     let rec = Record::new(Method::Radau5, n, ncoef(hermite), opts, t_end);
     let mut index = vec![1u8; n];
     p.variable_index(&mut index);
@@ -479,7 +481,7 @@ fn driver<P: Problem>(
     {
         return Err(rec.fail(IntegrateError::InvalidInput(msg), t0, y0, 0));
     }
-    if hermite && !P::IDENTITY_JP {
+    if opts.radau5.dense_output == RadauDense::Hermite && !P::IDENTITY_JP {
         let msg = "dense_output = hermite interpolates the derivatives of y' = f(t, y): an \
                    implicit system F(t, y, y') = 0 keeps the collocation polynomial \
                    (dense_output = collocation)"
@@ -615,7 +617,10 @@ impl RadauCore {
             hold: f64::NAN,
             erracc: 1e-2,
             h_new: f64::NAN,
-            hermite: (opts.radau5.dense_output == RadauDense::Hermite)
+            hermite: opts
+                .radau5
+                .dense_output
+                .hermite(identity_jp)
                 .then(|| Box::new(Hermite::new(n))),
             jy_valid: false,
         }

@@ -22,7 +22,7 @@
 //! the key. Every [`Settings`], [`RefSpec`] field is destructured by name:
 //! a new setting does not compile until the key holds it.
 
-use nonholo_core::integrate::RadauDense;
+use nonholo_core::integrate::{Method, RadauDense};
 use serde::{Serialize, Serializer};
 use sha2::{Digest, Sha256};
 
@@ -95,6 +95,11 @@ struct SettingsKey<'a> {
     /// existed still name the same runs.
     #[serde(skip_serializing_if = "is_collocation")]
     radau_dense: &'a str,
+    /// Left out at `0.001` (the default, RADAU5's), the value runs were
+    /// made with before the setting existed, so that their keys still name
+    /// them.
+    #[serde(skip_serializing_if = "is_radau5_reuse")]
+    radau_jacobian_reuse: Bits,
     /// Left out when off, so that keys made before the setting existed
     /// still name the same runs.
     #[serde(skip_serializing_if = "is_false")]
@@ -105,6 +110,10 @@ fn is_collocation(s: &&str) -> bool {
     *s == RadauDense::Collocation.name()
 }
 
+fn is_radau5_reuse(b: &Bits) -> bool {
+    b.0 == 0.001
+}
+
 fn is_false(b: &bool) -> bool {
     !*b
 }
@@ -113,8 +122,13 @@ fn is_one(n: &usize) -> bool {
     *n == 1
 }
 
-impl<'a> From<&'a Settings> for SettingsKey<'a> {
-    fn from(s: &'a Settings) -> Self {
+impl<'a> SettingsKey<'a> {
+    /// The key of `s`; `radau` says whether Radau IIA runs for the line
+    /// (as its integrator or its reference's). Without it the Radau
+    /// settings change nothing and are keyed as their values of before
+    /// they existed (and so left out), which keeps the keys of the other
+    /// integrators' runs.
+    fn new(s: &'a Settings, radau: bool) -> Self {
         let Settings {
             integrator,
             rtol,
@@ -125,6 +139,7 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             project_init,
             radau_newton,
             radau_dense,
+            radau_jacobian_reuse,
             stiff_stop,
         } = s;
         SettingsKey {
@@ -136,7 +151,12 @@ impl<'a> From<&'a Settings> for SettingsKey<'a> {
             max_wall_time: max_wall_time.map(Bits),
             project_init: *project_init,
             radau_newton,
-            radau_dense,
+            radau_dense: if radau {
+                radau_dense
+            } else {
+                RadauDense::Collocation.name()
+            },
+            radau_jacobian_reuse: Bits(if radau { *radau_jacobian_reuse } else { 0.001 }),
             stiff_stop: *stiff_stop,
         }
     }
@@ -202,6 +222,16 @@ impl<'a> From<&'a RefSpec> for RefKey<'a> {
     }
 }
 
+/// Whether Radau IIA runs for `f`: as its integrator, or as its
+/// work-precision reference or the reference's check.
+fn uses_radau(f: &FormulationSpec) -> bool {
+    let radau = Method::Radau5.name();
+    f.settings.integrator == radau
+        || f.work_precision
+            .as_ref()
+            .is_some_and(|(_, r)| r.integrator == radau || r.check_integrator == radau)
+}
+
 /// The canonical serialisation of `point` of `exp` for point files of
 /// `schema` (see the module documentation).
 pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String, String> {
@@ -219,7 +249,7 @@ pub fn canonical(exp: &Experiment, point: &Point, schema: &str) -> Result<String
             options: &r.spec.options,
             t_end: Bits(exp.t_end),
             output_every: Bits(exp.output_every),
-            settings: SettingsKey::from(&f.settings),
+            settings: SettingsKey::new(&f.settings, uses_radau(f)),
             work_precision: f
                 .work_precision
                 .as_ref()
@@ -261,7 +291,17 @@ mod tests {
     use super::*;
 
     fn experiment(rtol: &str, threshold: &str, title: &str) -> Experiment {
-        let text = format!(
+        parse(&experiment_text(rtol, threshold, title))
+    }
+
+    fn parse(text: &str) -> Experiment {
+        Experiment::parse(Path::new("experiments/key.toml"), text).unwrap()
+    }
+
+    /// The file of [`experiment`]: B (DOP853 by default) and C on the
+    /// rolling disk, two points.
+    fn experiment_text(rtol: &str, threshold: &str, title: &str) -> String {
+        format!(
             r#"[experiment]
 name = "key"
 title = "{title}"
@@ -293,8 +333,7 @@ values = {{ "C.init.lambda1" = [0.5, 1.0] }}
 [measures]
 threshold = {threshold}
 "#
-        );
-        Experiment::parse(Path::new("experiments/key.toml"), &text).unwrap()
+        )
     }
 
     fn keys(exp: &Experiment) -> Vec<String> {
@@ -340,6 +379,46 @@ threshold = {threshold}
             point_key(&exp, p, "nonholo.point/1").unwrap(),
             point_key(&exp, p, "nonholo.wp-point/1").unwrap()
         );
+    }
+
+    /// radau5's settings are in the key of a line that Radau IIA runs and
+    /// nowhere else: on B by DOP853 they change nothing; on B by radau5
+    /// the continuous extension and the Jacobian reuse each change the key,
+    /// and `collocation` with RADAU5's `0.001`, the settings of every run
+    /// before either existed, leave both out.
+    #[test]
+    fn radau_settings_are_keyed_where_radau_runs() {
+        // B's settings, given `extra`; the key of the first point and its
+        // canonical text.
+        let key = |extra: &str| {
+            let text = experiment_text("1e-10", "1e-6", "t").replace(
+                "rtol = 1e-10\natol = 1e-12",
+                &format!("rtol = 1e-10\n{extra}"),
+            );
+            let exp = parse(&text);
+            (
+                point_key(&exp, &exp.points()[0], "nonholo.point/1").unwrap(),
+                canonical(&exp, &exp.points()[0], "s").unwrap(),
+            )
+        };
+        let dop = key("integrator = \"dop853\"");
+        let dop_radau =
+            key("integrator = \"dop853\"\nradau_dense = \"hermite\"\nradau_jacobian_reuse = 0.1");
+        assert_eq!(dop.0, dop_radau.0);
+        assert!(!dop.1.contains("radau_dense") && !dop.1.contains("radau_jacobian_reuse"));
+        let radau = |extra: &str| key(&format!("integrator = \"radau5\"\n{extra}"));
+        let auto = radau("");
+        assert!(auto.1.contains(r#""radau_dense":"auto""#), "{}", auto.1);
+        let old = radau("radau_dense = \"collocation\"");
+        assert!(!old.1.contains("radau_dense") && !old.1.contains("radau_jacobian_reuse"));
+        let lax = radau("radau_jacobian_reuse = 0.1");
+        let hermite = radau("radau_dense = \"hermite\"");
+        let all = [&auto.0, &old.0, &lax.0, &hermite.0];
+        for (i, a) in all.iter().enumerate() {
+            for b in &all[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
     }
 
     #[test]

@@ -24,8 +24,11 @@
 //! formulation = "chetaev"            # or vakonomic, embedding, closed-form
 //! integrator = "dop853"              # rtol, atol, step, max_steps, max_wall_time, project_init,
 //!                                    # radau_newton = "auto" | "simplified" | "full",
-//!                                    # radau_dense = "collocation" | "hermite" (radau5's continuous
-//!                                    #   extension; hermite: ODE formulations only),
+//!                                    # radau_dense = "auto" | "collocation" | "hermite" (radau5's
+//!                                    #   continuous extension; hermite: ODE formulations only;
+//!                                    #   auto: hermite where there is one),
+//!                                    # radau_jacobian_reuse = 0.1 (radau5 keeps its Jacobian
+//!                                    #   after a Newton rate ≤ this; RADAU5's THET),
 //!                                    # stiff_stop = true (end where the stiffness test keeps firing)
 //! options = { stab = "none" }
 //! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
@@ -75,12 +78,13 @@
 //! (every formulation that has option `o`), `case` (a name for the point,
 //! e.g. in a zip sweep over a catalogue of cases), and
 //! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
-//! `<label>.rtol|atol|step|integrator|radau_newton|radau_dense` (one formulation).
+//! `<label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse`
+//! (one formulation).
 
 use std::path::{Path, PathBuf};
 
 use indexmap::IndexMap;
-use nonholo_core::integrate::RadauDense;
+use nonholo_core::integrate::{Radau5Options, RadauDense};
 use serde::Deserialize;
 use toml::{Spanned, Value};
 
@@ -317,6 +321,7 @@ struct FormulationFile {
     max_wall_time: Option<Spanned<f64>>,
     radau_newton: Option<Spanned<String>>,
     radau_dense: Option<Spanned<String>>,
+    radau_jacobian_reuse: Option<Spanned<f64>>,
     #[serde(default)]
     project_init: bool,
     #[serde(default)]
@@ -416,8 +421,11 @@ pub struct Settings {
     pub project_init: bool,
     /// Newton iteration of radau5: `auto`, `simplified`, `full`.
     pub radau_newton: String,
-    /// Continuous extension of radau5: `collocation`, `hermite`.
+    /// Continuous extension of radau5: `auto`, `collocation`, `hermite`.
     pub radau_dense: String,
+    /// radau5 keeps its Jacobian after a Newton contraction rate at most
+    /// this (RADAU5's `THET`; negative: a new one every step).
+    pub radau_jacobian_reuse: f64,
     /// Stop an explicit run where its stiffness test keeps firing.
     pub stiff_stop: bool,
 }
@@ -748,7 +756,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     let bad = || {
         format!(
             "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, case, or <label>.param.<p>, \
-             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton|radau_dense \
+             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse \
              (labels: {})",
             labels.join(", ")
         )
@@ -765,7 +773,13 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
             _ => Err(bad()),
         },
         [label, setting] if labels.iter().any(|l| l == label) => match *setting {
-            "rtol" | "atol" | "step" | "integrator" | "radau_newton" | "radau_dense" => {
+            "rtol"
+            | "atol"
+            | "step"
+            | "integrator"
+            | "radau_newton"
+            | "radau_dense"
+            | "radau_jacobian_reuse" => {
                 Ok(Target::FormSetting(label.to_string(), setting.to_string()))
             }
             _ => Err(bad()),
@@ -836,6 +850,9 @@ pub fn apply(
                         "radau_dense" => {
                             fields::radau_dense(value).map_err(|m| format!("`{field}`: {m}"))?;
                             f.settings.radau_dense = value.to_string();
+                        }
+                        "radau_jacobian_reuse" => {
+                            f.settings.radau_jacobian_reuse = num(fields::radau_jacobian_reuse)?
                         }
                         _ => {
                             fields::method(value).map_err(|m| format!("`{field}`: {m}"))?;
@@ -1027,6 +1044,13 @@ impl Experiment {
                             v.get_ref().clone()
                         }
                     },
+                    radau_jacobian_reuse: checked(
+                        &ctx,
+                        &f.radau_jacobian_reuse,
+                        "formulation.radau_jacobian_reuse",
+                        fields::radau_jacobian_reuse,
+                    )?
+                    .unwrap_or(Radau5Options::default().jacobian_reuse),
                     stiff_stop: f.stiff_stop,
                 },
                 options: entries(&ctx, "formulation.options", &f.options)?,

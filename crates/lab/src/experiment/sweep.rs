@@ -177,6 +177,7 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                                 .map_err(|m| format!("{}: radau_newton: {m}", f.label))?,
                             dense_output: fields::radau_dense(&s.radau_dense)
                                 .map_err(|m| format!("{}: radau_dense: {m}", f.label))?,
+                            jacobian_reuse: s.radau_jacobian_reuse,
                             ..Radau5Options::default()
                         },
                         output: grid.clone(),

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nonholo_core::integrate::{Method, RadauDense, RadauNewton};
+use nonholo_core::integrate::{Method, Radau5Options, RadauDense, RadauNewton};
 
 use super::{MIN_COST_SPREAD, WpPoint, WpRow, slopes};
 use crate::experiment::spec::{Experiment, FormulationSpec, compact};
@@ -240,16 +240,20 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
     )
 }
 
-/// `label: formulation · integrator` (with the Newton iteration and the
-/// continuous extension if chosen).
+/// `label: formulation · integrator` (with radau5's Newton iteration,
+/// continuous extension and Jacobian reuse where not the default).
 pub(super) fn line_name(f: &FormulationSpec) -> String {
     let mut s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
     let radau = f.settings.integrator == Method::Radau5.name();
     if radau && f.settings.radau_newton != RadauNewton::Auto.name() {
         s.push_str(&format!(" ({} Newton)", f.settings.radau_newton));
     }
-    if radau && f.settings.radau_dense != RadauDense::Collocation.name() {
+    if radau && f.settings.radau_dense != RadauDense::default().name() {
         s.push_str(&format!(" ({} dense output)", f.settings.radau_dense));
+    }
+    let reuse = f.settings.radau_jacobian_reuse;
+    if radau && reuse != Radau5Options::default().jacobian_reuse {
+        s.push_str(&format!(" (Jacobian kept at θ ≤ {reuse})"));
     }
     s
 }

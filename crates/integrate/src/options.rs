@@ -248,7 +248,9 @@ pub struct Options {
     /// Adaptive methods shorten a step that would pass the next time of
     /// `output` so that it lands on it: the samples are then step end points,
     /// free of the continuous extension's interpolation error (which for
-    /// Radau IIA, a polynomial of degree 3, dominates at tight tolerances).
+    /// Radau IIA's collocation polynomial, of degree 3, dominates at tight
+    /// tolerances; on ODEs the default is the Hermite extension, whose
+    /// error stays near the step points').
     /// For reference solutions; costs the extra steps. Default `false`.
     pub hit_output: bool,
     /// Settings of [`Method::Radau5`] only (the Newton iteration and
@@ -310,10 +312,12 @@ pub struct Radau5Options {
     /// (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
     /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
     /// RADAU5's documentation advises `0.1` "when Jacobian evaluations are
-    /// costly"; measured on the workbench's experiments (`docs/integrators.md`)
-    /// `0.1` is 2–7× faster at matched error on the sleigh trains, whose
-    /// Jacobians are large, and up to 2× slower on the small systems, whose
-    /// Jacobians are cheap, so the default stays RADAU5's.
+    /// costly". Measured (experiments `radau-reuse-1`, `radau-reuse-10`;
+    /// `docs/integrators.md`): on ten hitched sleighs `0.1` takes B to
+    /// 0.17–0.34× the time at matched error; on one sleigh B to 0.79–0.96×,
+    /// but C loses accuracy (at tolerance 1e-10, 1.2e-8 m against 3.8e-10 m)
+    /// and takes 1.22–1.45× the time. So the default stays RADAU5's and a
+    /// large system sets `0.1` itself.
     pub jacobian_reuse: f64,
     /// `(lo, hi)` with `0 < lo <= 1 <= hi < ∞`; when the Jacobian is kept
     /// and the proposed step ratio `h_new/h` lies in `[lo, hi]`, the step
@@ -322,8 +326,9 @@ pub struct Radau5Options {
     pub keep_step: (f64, f64),
     /// The continuous extension between step points; see [`RadauDense`].
     /// Default [`RadauDense::Auto`]: the Hermite extension where there is
-    /// one. Records written before version 0.2.0 that leave this field out
-    /// were made with [`RadauDense::Collocation`].
+    /// one. Records made before 2026-12-03 leave this field out and were
+    /// made with [`RadauDense::Collocation`]; read back, such a record gives
+    /// the default, [`RadauDense::Auto`].
     pub dense_output: RadauDense,
 }
 

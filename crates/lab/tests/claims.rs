@@ -2831,8 +2831,8 @@ fn wp_train_as_figures_md_states() {
 
 /// figures.md and integrators.md, radau-reuse-1 and radau-reuse-10: Radau
 /// IIA with Jacobian reuse θ ≤ 0.1 against RADAU5's θ ≤ 0.001 — time at
-/// matched error (the committed timed run), Jacobians per run and largest
-/// errors (deterministic).
+/// matched error (the committed timed run), Jacobians per run over the
+/// whole ladder, and largest errors (deterministic).
 #[test]
 fn radau_reuse_as_docs_state() {
     /// `lax` over `default` wall time at each largest error 1e-5 … 1e-9,
@@ -2883,7 +2883,7 @@ fn radau_reuse_as_docs_state() {
     let c = ratios(one, "C-radau5", &[1e-6, 1e-7]);
     let said = [
         format!(
-            "takes B to {} the time at matched error (1e-5 to 1e-9; {} Jacobians per run against {})",
+            "takes B to {} the time at matched error (1e-5 to 1e-9; {} Jacobians per run against {} over the ladder)",
             span(&ratios(one, "B-radau5", &matched)),
             jacobians(one, "B-radau5-lax"),
             jacobians(one, "B-radau5")
@@ -2896,17 +2896,31 @@ fn radau_reuse_as_docs_state() {
             c[1]
         ),
         format!(
-            "θ ≤ 0.1 takes B to {} the time of RADAU5's θ ≤ 0.001 at matched error (1e-5 to 1e-9; {} Jacobians per run against {})",
+            "θ ≤ 0.1 takes B to {} the time of RADAU5's θ ≤ 0.001 at matched error (1e-5 to 1e-9; {} Jacobians per run against {} over the ladder)",
             span(&ratios(ten, "B-radau5", &matched)),
             jacobians(ten, "B-radau5-lax"),
             jacobians(ten, "B-radau5")
         ),
         format!(
-            "(at best {} m with θ ≤ 0.001 and {} m with θ ≤ 0.1)",
-            best(ten, "C-radau5"),
+            "falls from {} m at tolerance 1e-5 to {} m at 1e-10 with θ ≤ 0.001, while with θ ≤ 0.1 it rises twice as the tolerance tightens (at best {} m)",
+            err(ten, "C-radau5", 1e-5),
+            err(ten, "C-radau5", 1e-10),
             best(ten, "C-radau5-lax")
         ),
     ];
+    // C on ten sleighs: the default's largest error falls at every rung,
+    // the lax setting's rises at two.
+    let rises = |label: &str| {
+        let rows = table(ten, "work_precision.csv");
+        let e: Vec<f64> = ladder(&rows, |r| r["label"] == label)
+            .iter()
+            .map(|r| num(r, "err_max"))
+            .collect();
+        assert_eq!(e.len(), 6, "{label}");
+        e.windows(2).filter(|w| w[1] > w[0]).count()
+    };
+    assert_eq!((rises("C-radau5"), rises("C-radau5-lax")), (0, 2));
+    assert_eq!(best(ten, "C-radau5"), err(ten, "C-radau5", 1e-10));
     let said: Vec<&str> = said.iter().map(String::as_str).collect();
     figures_md_says(&said);
     doc_says("integrators.md", &said);

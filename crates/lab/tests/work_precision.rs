@@ -81,7 +81,9 @@ integrator = "radau5"
 /// The slopes of error against evaluations are the methods' orders: RK4
 /// (fixed steps) within 0.1, the adaptive methods within 20 % (their step
 /// sequences follow the local error, so the asymptotic slope emerges only
-/// over the ladder). Measured: 4.00, 5.43, 9.33, 4.32.
+/// over the ladder). Measured: 4.00, 5.43, 9.33, 5.47 (Radau IIA through
+/// its Hermite extension, the default; 4.32 through the collocation
+/// polynomial).
 #[test]
 fn against_the_closed_form_the_slopes_are_the_orders() {
     let (file, dir) = setup("cf", &closed_form_file("cf"));
@@ -140,6 +142,7 @@ fn against_the_closed_form_the_slopes_are_the_orders() {
     for line in summary["lines"].as_array().unwrap() {
         let p = line["method_order"].as_f64().unwrap();
         let observed = line["observed_order"].as_f64().unwrap();
+        eprintln!("{}: observed order {observed:.2}", line["label"]);
         let allowed = if line["label"] == "rk4" { 0.1 } else { 0.2 * p };
         assert!(
             (observed - p).abs() <= allowed,

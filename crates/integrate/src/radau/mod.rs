@@ -193,7 +193,8 @@
 //! where the component's row of the Jacobian is not stiff over the step
 //! (`hermite.rs` says how that is decided), six coefficient vectors per step; the Newton
 //! starting values still extrapolate the collocation polynomial, so the
-//! steps, and every counter, are those of the default.
+//! steps, and every counter, are those of the collocation polynomial's run
+//! (unless a guard or event, located on the extension, ends a step).
 //!
 //! # Settings ([`Options`], and [`crate::Radau5Options`] in `Options::radau5`)
 //!

@@ -8,9 +8,11 @@
 //! - the point file's schema and the version of nonholo;
 //! - for every formulation, in the experiment's order: its label, scene,
 //!   formulation, resolved scene parameters, initial data and options (the
-//!   text they are given as, in their order), every integration setting,
-//!   the time span and output spacing, and for a work-precision line its
-//!   ladder and reference;
+//!   text they are given as, in their order), every integration setting
+//!   (radau5's only where Radau IIA runs for the line, as its integrator
+//!   or its reference's: elsewhere they change nothing and are keyed as
+//!   their values of before they existed), the time span and output
+//!   spacing, and for a work-precision line its ladder and reference;
 //! - the kind's measures: the divergence threshold of a comparison (and
 //!   the quantity whose sign changes it counts, if any), the timed repeats
 //!   of a work-precision experiment.
@@ -406,6 +408,36 @@ threshold = {threshold}
             key("integrator = \"dop853\"\nradau_dense = \"hermite\"\nradau_jacobian_reuse = 0.1");
         assert_eq!(dop.0, dop_radau.0);
         assert!(!dop.1.contains("radau_dense") && !dop.1.contains("radau_jacobian_reuse"));
+        // A DOP853 line whose work-precision reference is Radau IIA: the
+        // reference runs the line's radau5 settings, so they are keyed.
+        let wp = |dense: &str| {
+            let text = format!(
+                r#"[experiment]
+name = "key"
+kind = "work-precision"
+title = "t"
+claim = "none"
+scene = "rolling-disk"
+
+[time]
+t_end = 1.0
+output_every = 0.1
+
+[work_precision]
+tolerances = [1e-6]
+reference = {{ integrator = "radau5" }}
+
+[[formulation]]
+label = "B"
+formulation = "chetaev"
+integrator = "dop853"
+radau_dense = "{dense}"
+"#
+            );
+            let exp = parse(&text);
+            point_key(&exp, &exp.points()[0], "nonholo.wp-point/1").unwrap()
+        };
+        assert_ne!(wp("collocation"), wp("hermite"));
         let radau = |extra: &str| key(&format!("integrator = \"radau5\"\n{extra}"));
         let auto = radau("");
         assert!(auto.1.contains(r#""radau_dense":"auto""#), "{}", auto.1);

@@ -71,8 +71,9 @@ fn tight(spec: &RunSpec, method: &str, rtol: f64, r: &RefSpec) -> Result<Run, St
     s.integrator.max_wall_time_s = r.max_wall_time;
     s.integrator.max_steps = r.max_steps;
     s.options = super::spec::override_with(&s.options, &r.options);
-    // Samples at step end points, not interpolated: the continuous extension
-    // of Radau IIA (degree 3) would add ~1e-10 at tolerance 1e-13.
+    // Samples at step end points, not interpolated: Radau IIA's collocation
+    // polynomial (degree 3; implicit forms, and stiff rows under the Hermite
+    // extension) would add ~1e-10 at tolerance 1e-13.
     s.integrator.hit_output = true;
     let (run, _) = execute(&s).map_err(|e| e.to_string())?;
     Ok(run)

@@ -280,6 +280,19 @@ pub enum DiffsolMethod {
     TrBdf2,
 }
 
+/// Our Radau IIA with `newton` and RADAU5's Jacobian reuse (or `theta`),
+/// read through RADAU5's collocation polynomial as in the stored results
+/// (the default is now the Hermite extension: [`Solver::OursHermite`]).
+fn radau5(newton: RadauNewton, theta: Option<f64>) -> Radau5Options {
+    let default = Radau5Options::default();
+    Radau5Options {
+        newton,
+        jacobian_reuse: theta.unwrap_or(default.jacobian_reuse),
+        dense_output: RadauDense::Collocation,
+        ..default
+    }
+}
+
 impl Solver {
     pub fn crate_name(self) -> &'static str {
         match self {
@@ -336,34 +349,15 @@ impl Solver {
     pub fn run(self, problem: &Problem, tol: f64, grid: &[f64], dense: bool) -> Attempt {
         let attempt = match self {
             Solver::Ours(method) => {
-                let radau = Radau5Options {
-                    newton: RadauNewton::Simplified,
-                    // RADAU5's polynomial, as in the stored results (the
-                    // default is now the Hermite extension: `OursHermite`).
-                    dense_output: RadauDense::Collocation,
-                    ..Radau5Options::default()
-                };
+                let radau = radau5(RadauNewton::Simplified, None);
                 run_ours(problem, method, radau, tol, grid, dense)
             }
             Solver::OursFullNewton => {
-                let radau = Radau5Options {
-                    newton: RadauNewton::Full,
-                    // RADAU5's polynomial, as in the stored results (the
-                    // default is now the Hermite extension: `OursHermite`).
-                    dense_output: RadauDense::Collocation,
-                    ..Radau5Options::default()
-                };
+                let radau = radau5(RadauNewton::Full, None);
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
             Solver::OursReuse(reuse) => {
-                let radau = Radau5Options {
-                    newton: RadauNewton::Simplified,
-                    jacobian_reuse: reuse.theta(),
-                    // RADAU5's polynomial, as in the stored results (the
-                    // default is now the Hermite extension: `OursHermite`).
-                    dense_output: RadauDense::Collocation,
-                    ..Radau5Options::default()
-                };
+                let radau = radau5(RadauNewton::Simplified, Some(reuse.theta()));
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
             Solver::OursHermite(reuse) => {

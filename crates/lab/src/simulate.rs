@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use nonholo_core::integrate::{Method, Options};
+use nonholo_core::integrate::{Method, Options, Radau5Options, RadauDense};
 use nonholo_core::{Run, RunConfig, init, simulate};
 
 use crate::formulations;
@@ -58,13 +58,13 @@ pub struct SimulateArgs {
     /// collocation (RADAU5's polynomial), hermite (a quintic through the last
     /// three step points where the Jacobian's row is not stiff; ODE
     /// formulations only).
-    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
+    #[arg(long, default_value = RadauDense::default().name(), allow_hyphen_values = true)]
     pub radau_dense: String,
     /// radau5 keeps its Jacobian after a step whose Newton iteration
     /// contracted at rate ≤ this (RADAU5's THET; negative: a new Jacobian
     /// every step). Below 1; default RADAU5's 0.001 (its documentation
     /// advises 0.1 when Jacobians are costly).
-    #[arg(long, default_value_t = 0.001, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = Radau5Options::default().jacobian_reuse, allow_hyphen_values = true)]
     pub radau_jacobian_reuse: f64,
     /// Budget on integrator steps (accepted plus rejected): where the run
     /// stops on it is the same on every machine.

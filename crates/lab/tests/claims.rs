@@ -371,6 +371,7 @@ fn extreme_appell_as_figures_md_states() {
         }
         let digits = match (label, r["point"].as_str()) {
             ("B-rk4", _) => 13.9,
+            // The prose's 12.8 and 14.0, to its rounding.
             ("visc-radau5", "0") => 12.75,
             ("visc-radau5", _) => 13.95,
             _ => 14.5,
@@ -2919,8 +2920,8 @@ fn radau_reuse_as_docs_state() {
         assert_eq!(e.len(), 6, "{label}");
         e.windows(2).filter(|w| w[1] > w[0]).count()
     };
+    // (No rise in the default's means its best is its 1e-10 run, as said.)
     assert_eq!((rises("C-radau5"), rises("C-radau5-lax")), (0, 2));
-    assert_eq!(best(ten, "C-radau5"), err(ten, "C-radau5", 1e-10));
     let said: Vec<&str> = said.iter().map(String::as_str).collect();
     figures_md_says(&said);
     doc_says("integrators.md", &said);

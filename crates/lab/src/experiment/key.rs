@@ -112,8 +112,12 @@ fn is_collocation(s: &&str) -> bool {
     *s == RadauDense::Collocation.name()
 }
 
+/// radau5's Jacobian reuse of every run made before it was a setting
+/// (RADAU5's `THET`): a key leaves it out, whatever the default becomes.
+const REUSE_BEFORE_SETTING: f64 = 0.001;
+
 fn is_radau5_reuse(b: &Bits) -> bool {
-    b.0 == 0.001
+    b.0 == REUSE_BEFORE_SETTING
 }
 
 fn is_false(b: &bool) -> bool {
@@ -158,7 +162,11 @@ impl<'a> SettingsKey<'a> {
             } else {
                 RadauDense::Collocation.name()
             },
-            radau_jacobian_reuse: Bits(if radau { *radau_jacobian_reuse } else { 0.001 }),
+            radau_jacobian_reuse: Bits(if radau {
+                *radau_jacobian_reuse
+            } else {
+                REUSE_BEFORE_SETTING
+            }),
             stiff_stop: *stiff_stop,
         }
     }

@@ -453,9 +453,11 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
     let hash = point_key(exp, point, POINT_SCHEMA).unwrap_or_default();
     let mut results = Vec::new();
     let mut samples = Vec::new();
+    // Wall times of every run, and whether it is timed again (an
+    // integration that ran and did not fail).
+    let mut walls: Vec<(Vec<f64>, bool)> = Vec::new();
     for r in &runs {
-        let outcome =
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(r, exp.repeats)));
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(r)));
         let (res, smp) = match outcome {
             Ok(x) => x,
             Err(p) => {
@@ -474,9 +476,23 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
         if let (Some(name), Some(s)) = (&exp.reversals, &smp) {
             res.reversals = sign_changes(s, name);
         }
+        let timed = r.spec.formulation != CLOSED_FORM && res.status != "failed";
+        walls.push((vec![res.wall_time_s], timed));
         results.push(res);
         if let Some(s) = smp {
             samples.push(s);
+        }
+    }
+    // Repeats in rounds, each timing every formulation once, so that a
+    // change in the machine's speed falls on all of them alike.
+    for _ in 1..exp.repeats {
+        for (r, (times, again)) in runs.iter().zip(&mut walls) {
+            *again = *again && time_again(r, times);
+        }
+    }
+    for (res, (times, _)) in results.iter_mut().zip(walls) {
+        if let Some(median) = super::output::median(times) {
+            res.wall_time_s = median;
         }
     }
     let pairs = pair_measures(exp, &runs, &samples);
@@ -495,9 +511,8 @@ pub fn run_point(exp: &Experiment, point: &Point) -> (PointResult, Vec<Samples>)
     )
 }
 
-/// Runs `r` (timed `repeats` times where it integrates: the result of the
-/// first run, the median of the wall times).
-fn one(r: &PointRun, repeats: usize) -> (FormResult, Option<Samples>) {
+/// Runs `r` once (its repeats are timed by [`run_point`]).
+fn one(r: &PointRun) -> (FormResult, Option<Samples>) {
     let scene = match nonholo_scenes::build(&r.spec.scene, &r.spec.params) {
         Ok(s) => s,
         Err(e) => return (failed(r, None, e.to_string()), None),
@@ -557,9 +572,6 @@ fn one(r: &PointRun, repeats: usize) -> (FormResult, Option<Samples>) {
                 return (wall_time_stopped(r, &run, *seconds), None);
             }
             let mut res = from_run(r, &run);
-            if repeats > 1 {
-                res.wall_time_s = median_wall_time(r, res.wall_time_s, repeats);
-            }
             let t = run.solution.t[..run.samples.len()].to_vec();
             let (physics, chart) = scene.clone().visit(Physics {
                 t: &t,
@@ -581,22 +593,20 @@ fn one(r: &PointRun, repeats: usize) -> (FormResult, Option<Samples>) {
     }
 }
 
-/// The median wall time of `repeats` runs of `r`, the first of which took
-/// `first` seconds (a repeat that fails differently, e.g. on a wall-time
-/// budget, keeps only the times measured).
-fn median_wall_time(r: &PointRun, first: f64, repeats: usize) -> f64 {
-    let mut times = vec![first];
-    for _ in 1..repeats {
-        match execute(&r.spec) {
-            Ok((run, _))
-                if !matches!(run.failure, Some(IntegrateError::TimeBudgetExceeded { .. })) =>
-            {
-                times.push(run.solution.stats.wall_time_s)
-            }
-            _ => break,
+/// Runs `r` once more and adds its wall time to `times`; false (nothing
+/// added) for a run that fails differently, e.g. on a wall-time budget,
+/// whose repeats then end with the times measured.
+fn time_again(r: &PointRun, times: &mut Vec<f64>) -> bool {
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| execute(&r.spec)));
+    match outcome {
+        Ok(Ok((run, _)))
+            if !matches!(run.failure, Some(IntegrateError::TimeBudgetExceeded { .. })) =>
+        {
+            times.push(run.solution.stats.wall_time_s);
+            true
         }
+        _ => false,
     }
-    super::output::median(times).unwrap_or(first)
 }
 
 /// A result and its samples, if it has any: a trajectory file is written

@@ -13,7 +13,10 @@
 //! first repeat (they do not vary).
 //!
 //! Runs are timed one at a time on one thread, so that the timings are not
-//! disturbed by each other. Results go to the experiment's directory:
+//! disturbed by each other, and interleaved: every ladder value of every
+//! line runs once (and is measured), then each further round of repeats
+//! times every value once more, so a change in the machine's speed during
+//! a point falls on all lines alike. Results go to the experiment's directory:
 //!
 //! | file | content |
 //! |---|---|
@@ -159,15 +162,48 @@ fn ladder_runs(base: &RunSpec, ladder: &Ladder) -> Vec<(Option<f64>, Option<usiz
     }
 }
 
-/// Runs one ladder value `repeats` times and measures it against `reference`.
-fn measure(
+/// A ladder value after its first run: the measured row, the spec to time
+/// again and the wall times so far.
+struct Timed<'a> {
+    row: WpRow,
+    spec: &'a RunSpec,
+    walls: Vec<f64>,
+    /// Timed again in the next round: its runs so far completed or stopped.
+    again: bool,
+}
+
+impl Timed<'_> {
+    /// One more timed run; a run that fails or stops on its wall-time
+    /// budget ends the repeats (its cost measures nothing).
+    fn repeat(&mut self) {
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| execute(self.spec)));
+        self.again = false;
+        if let Ok(Ok((run, _))) = outcome {
+            self.walls.push(run.solution.stats.wall_time_s);
+            self.again = run.status() != RunStatus::Failed;
+        }
+    }
+
+    /// The row with the median and the least of the wall times.
+    fn finish(mut self) -> WpRow {
+        if !self.walls.is_empty() {
+            self.row.repeats = self.walls.len();
+            self.row.wall_time_min_s = self.walls.iter().copied().reduce(f64::min);
+            self.row.wall_time_median_s = median(self.walls);
+        }
+        self.row
+    }
+}
+
+/// Runs one ladder value once and measures it against `reference`; the
+/// caller times the repeats ([`Timed::repeat`]).
+fn measure<'a>(
     point: usize,
     label: &str,
-    (tolerance, step_count, spec): &(Option<f64>, Option<usize>, RunSpec),
-    repeats: usize,
+    (tolerance, step_count, spec): &'a (Option<f64>, Option<usize>, RunSpec),
     reference: Option<&Reference>,
     coords: &[(String, String)],
-) -> WpRow {
+) -> Timed<'a> {
     let mut row = WpRow {
         point,
         label: label.into(),
@@ -195,36 +231,48 @@ fn measure(
         energy_drift_max: None,
         reference_error: reference.and_then(|r| r.info.error_estimate),
     };
-    let mut walls = Vec::with_capacity(repeats);
-    let mut first = None;
-    for _ in 0..repeats {
-        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| execute(spec)));
-        match outcome {
-            Ok(Ok((run, _))) => {
-                walls.push(run.solution.stats.wall_time_s);
-                // A failed run is not repeated: its cost measures nothing.
-                let failed = run.status() == RunStatus::Failed;
-                if first.is_none() {
-                    first = Some(run);
-                }
-                if failed {
-                    break;
-                }
-            }
-            Ok(Err(e)) => {
-                row.error = Some(e.to_string());
-                return row;
-            }
-            Err(_) => {
-                row.error = Some("internal error (panic)".into());
-                return row;
-            }
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| execute(spec)));
+    let run = match outcome {
+        Ok(Ok((run, _))) => run,
+        Ok(Err(e)) => {
+            row.error = Some(e.to_string());
+            return Timed {
+                row,
+                spec,
+                walls: Vec::new(),
+                again: false,
+            };
         }
+        Err(_) => {
+            row.error = Some("internal error (panic)".into());
+            return Timed {
+                row,
+                spec,
+                walls: Vec::new(),
+                again: false,
+            };
+        }
+    };
+    let walls = vec![run.solution.stats.wall_time_s];
+    // A failed run is not repeated: its cost measures nothing.
+    let again = run.status() != RunStatus::Failed;
+    let row = measured(row, &run, reference, coords);
+    Timed {
+        row,
+        spec,
+        walls,
+        again,
     }
-    let Some(run) = first else { return row };
-    row.repeats = walls.len();
-    row.wall_time_min_s = walls.iter().copied().reduce(f64::min);
-    row.wall_time_median_s = median(walls);
+}
+
+/// `row` filled from its first run `run`: counters, diagnostics and the
+/// error against `reference` on the common output grid.
+fn measured(
+    mut row: WpRow,
+    run: &nonholo_core::Run,
+    reference: Option<&Reference>,
+    coords: &[(String, String)],
+) -> WpRow {
     if let Some(IntegrateError::TimeBudgetExceeded { seconds, .. }) = &run.failure {
         // Where it stopped depends on the machine: no time, no counter.
         row.error = Some(super::wall_time_stop(*seconds));
@@ -301,7 +349,7 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
     let at = if at.is_empty() { at } else { format!("{at}: ") };
     let mut cache: HashMap<String, Result<Reference, String>> = HashMap::new();
     let mut references = Vec::new();
-    let mut rows = Vec::new();
+    let mut lines = Vec::new();
     for (r, f) in runs.iter().zip(&exp.formulations) {
         let (ladder, refspec) = f
             .work_precision
@@ -331,19 +379,21 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
             },
         };
         references.push(record);
-        for value in ladder_runs(&r.spec, ladder) {
-            let row = measure(
-                point.index,
-                &r.label,
-                &value,
-                exp.repeats,
-                reference.as_ref().ok(),
-                &coords,
-            );
+        lines.push((&r.label, ladder_runs(&r.spec, ladder), reference));
+    }
+    // Every ladder value is run and measured once, line after line; then
+    // the repeats are timed in rounds, each round timing every value once,
+    // so that a change in the machine's speed during the point falls on
+    // every line alike.
+    let mut timed: Vec<Timed> = Vec::new();
+    for (label, values, reference) in &lines {
+        for value in values {
+            let t = measure(point.index, label, value, reference.as_ref().ok(), &coords);
             if !quiet {
+                let row = &t.row;
                 crate::note!(
                     "  {at}{} {}: {} {}, err_max {}, {} rhs, {:.3e} s",
-                    r.label,
+                    label,
                     value
                         .0
                         .map(|t| format!("tol {t:e}"))
@@ -358,12 +408,18 @@ fn run_point(exp: &Experiment, point: &Point, dir: &Path, quiet: bool) -> Result
                         .map(|e| format!("{e:.3e}"))
                         .unwrap_or("—".into()),
                     row.counters.rhs_evals,
-                    row.wall_time_median_s.unwrap_or(f64::NAN)
+                    t.walls.first().copied().unwrap_or(f64::NAN)
                 );
             }
-            rows.push(row);
+            timed.push(t);
         }
     }
+    for _ in 1..exp.repeats {
+        for t in timed.iter_mut().filter(|t| t.again) {
+            t.repeat();
+        }
+    }
+    let rows = timed.into_iter().map(Timed::finish).collect();
     Ok(WpPoint {
         schema: WP_SCHEMA.into(),
         index: point.index,

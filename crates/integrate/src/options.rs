@@ -312,11 +312,10 @@ pub struct Radau5Options {
     /// (RADAU5's `THET`, `WORK(3)`); a negative value asks for a new
     /// Jacobian after every accepted step. Must be `< 1`. Default `0.001`.
     /// RADAU5's documentation advises `0.1` "when Jacobian evaluations are
-    /// costly". Measured (experiments `radau-reuse-1`, `radau-reuse-10`;
-    /// `docs/integrators.md`): on ten hitched sleighs `0.1` takes B to
-    /// 0.17–0.34× the time at matched error; on one sleigh B to 0.79–0.96×,
-    /// but C loses accuracy (at tolerance 1e-10, 1.2e-8 m against 3.8e-10 m)
-    /// and takes 1.22–1.45× the time. So the default stays RADAU5's and a
+    /// costly". Measured (experiments `radau-reuse-1`, `radau-reuse-10`; the
+    /// numbers in `docs/integrators.md`): on ten hitched sleighs `0.1` cuts
+    /// B's time at matched error severalfold; on one sleigh it gains B little
+    /// and costs C accuracy and time. So the default stays RADAU5's and a
     /// large system sets `0.1` itself.
     pub jacobian_reuse: f64,
     /// `(lo, hi)` with `0 < lo <= 1 <= hi < ∞`; when the Jacobian is kept

@@ -78,12 +78,19 @@ fn performance_md_says(phrases: &[&str]) {
 }
 
 /// Asserts that `docs/<doc>` says each phrase (white space folded, see
-/// [`doc_flat`]).
+/// [`doc_flat`]); the message lists every phrase it does not say.
 fn doc_says(doc: &str, phrases: &[&str]) {
     let flat = doc_flat(doc);
-    for p in phrases {
-        assert!(flat.contains(p), "docs/{doc} does not say `{p}`");
-    }
+    let missing: Vec<String> = phrases
+        .iter()
+        .filter(|p| !flat.contains(*p))
+        .map(|p| format!("`{p}`"))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/{doc} does not say\n{}",
+        missing.join("\n")
+    );
 }
 
 fn num(row: &HashMap<String, String>, key: &str) -> f64 {
@@ -473,6 +480,21 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
         format!("**{explicit}**"),
         format!("({rk4} with RK4), and {radau:.0}× C with Radau IIA"),
     ];
+    // The span of the twelve B and C cells, quoted beside an older run's.
+    let cells: Vec<f64> = ["B", "C"]
+        .iter()
+        .flat_map(|f| ["dopri5", "dop853", "radau5"].map(|i| format!("{f}-{i}")))
+        .flat_map(|label| ["0", "1"].map(|p| time_at_error(&rows, p, &label, 1e-8).unwrap() * 1e3))
+        .collect();
+    let (lo, hi) = cells
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), x| (l.min(*x), h.max(*x)));
+    said.push(format!(
+        "({}–{} in the one above)",
+        sig3(lo).trim_end_matches(" ms"),
+        sig3(hi)
+    ));
+    said.push(format!("and is {radau:.0}× in the run above"));
     for f in ["A", "B", "C"] {
         let mut line = format!("| {f} |");
         for i in ["dopri5", "dop853", "radau5"] {
@@ -485,6 +507,42 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
         said.push(line);
     }
     performance_md_says(&said.iter().map(String::as_str).collect::<Vec<_>>());
+}
+
+/// performance.md's note on interleaved timing: over the work-precision
+/// experiments with repeats, the median over each experiment's runs of the
+/// median wall time's excess over the minimum, and the largest excess.
+#[test]
+fn interleaved_timing_spread_as_performance_md_states() {
+    let mut typical = Vec::new();
+    let mut largest: f64 = 0.0;
+    for name in experiments_of_kind("work-precision") {
+        let rows = timed_table(&name, "work_precision.csv");
+        let mut excess: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["repeats"].parse::<usize>().is_ok_and(|n| n > 1))
+            .map(|r| num(r, "wall_time_median_s") / num(r, "wall_time_min_s") - 1.0)
+            .collect();
+        if excess.is_empty() {
+            continue;
+        }
+        excess.sort_by(f64::total_cmp);
+        largest = largest.max(excess[excess.len() - 1]);
+        typical.push(excess[excess.len() / 2]);
+    }
+    let lo = typical.iter().copied().fold(f64::MAX, f64::min) * 100.0;
+    let hi = typical.iter().copied().fold(0.0, f64::max) * 100.0;
+    let count = [
+        "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten",
+    ];
+    performance_md_says(&[
+        &format!(
+            "In the {} work-precision experiments with repeats",
+            count[typical.len() - 1]
+        ),
+        &format!("the median sits {lo:.1}–{hi:.0} % above the minimum"),
+        &format!("at most {:.0} %); results before", largest * 100.0),
+    ]);
 }
 
 fn t_ratio(rows: &[HashMap<String, String>], point: &str, a: &str, b: &str) -> f64 {
@@ -2925,6 +2983,24 @@ fn radau_reuse_as_docs_state() {
     let said: Vec<&str> = said.iter().map(String::as_str).collect();
     figures_md_says(&said);
     doc_says("integrators.md", &said);
+}
+
+/// The names of the experiment files of `kind`, sorted.
+fn experiments_of_kind(kind: &str) -> Vec<String> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .filter_map(|p| {
+            let file: toml::Value = toml::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+            let exp = &file["experiment"];
+            (exp.get("kind").and_then(toml::Value::as_str) == Some(kind))
+                .then(|| exp["name"].as_str().unwrap().to_string())
+        })
+        .collect();
+    names.sort();
+    names
 }
 
 /// The claims figures.md's table states are the experiment files' own:

@@ -305,7 +305,11 @@ pub struct Radau5Options {
     /// `θ/(1 − θ)·‖ΔZ‖` is at most this, in units of the error scale
     /// (RADAU5's `FNEWT`, `WORK(4)`); positive and finite. `None` (default):
     /// `max(10·uround/rtol', min(0.03, sqrt(rtol')))` with RADAU5's internal
-    /// tolerance `rtol' = 0.1·rtol^(2/3)`.
+    /// tolerance `rtol' = 0.1·rtol^(2/3)`. A given value is raised to
+    /// `10·uround/rtol'` (below it rounding ends the iteration; RADAU5
+    /// refuses such a value). The error the iteration leaves can build up
+    /// over the steps: with the Jacobian kept for many steps it can
+    /// dominate the global error (`docs/integrators.md`, "Jacobian reuse").
     pub newton_tol: Option<f64>,
     /// After a step whose Newton iteration converged with rate
     /// `θ <= jacobian_reuse` the Jacobian is kept for the next step

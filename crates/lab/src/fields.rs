@@ -186,6 +186,20 @@ pub fn radau_jacobian_reuse(v: f64) -> Result<f64, String> {
     }
 }
 
+/// RADAU5's `FNEWT` (`--radau-newton-tol`, `radau_newton_tol`): the
+/// Newton iteration stops when its estimated remaining error, in the
+/// error scale, is at most this. Positive and below 1.
+pub fn radau_newton_tol(v: f64) -> Result<f64, String> {
+    if v > 0.0 && v < 1.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} must be a number between 0 and 1, exclusive (the Newton iteration's \
+             stopping test, in units of the error scale; RADAU5's FNEWT)"
+        ))
+    }
+}
+
 /// Whether a tolerance given with a fixed step would be ignored: an explicit
 /// method with a fixed step has no error control (Radau IIA still uses
 /// `rtol` and `atol` for its Newton iteration). The reason names `step_field`.

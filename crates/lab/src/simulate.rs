@@ -66,6 +66,14 @@ pub struct SimulateArgs {
     /// advises 0.1 when Jacobians are costly).
     #[arg(long, default_value_t = Radau5Options::default().jacobian_reuse, allow_hyphen_values = true)]
     pub radau_jacobian_reuse: f64,
+    /// radau5's Newton iteration stops when its estimated remaining error,
+    /// in units of the error scale, is at most this (RADAU5's FNEWT;
+    /// between 0 and 1). Default: RADAU5's, max(10·uround/rtol',
+    /// min(0.03, rtol'^½)) with rtol' = 0.1·rtol^⅔. Tighter costs Newton
+    /// iterations and removes the iteration error that builds up over many
+    /// steps (docs/integrators.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub radau_newton_tol: Option<f64>,
     /// Budget on integrator steps (accepted plus rejected): where the run
     /// stops on it is the same on every machine.
     #[arg(long, default_value_t = 10_000_000, allow_hyphen_values = true)]
@@ -198,6 +206,10 @@ pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
         "--radau-jacobian-reuse",
         fields::radau_jacobian_reuse(args.radau_jacobian_reuse),
     )?;
+    options.radau5.newton_tol = args
+        .radau_newton_tol
+        .map(|v| flag("--radau-newton-tol", fields::radau_newton_tol(v)))
+        .transpose()?;
     Ok((method, options))
 }
 

@@ -1005,6 +1005,47 @@ fn radau_jacobian_reuse_is_recorded_and_validated() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `--radau-newton-tol`: recorded as RADAU5's `newton_tol` (absent, the
+/// record holds no value: the default depends on the tolerance); a tighter
+/// stopping test costs Newton iterations (right-hand sides) on this stiff run; a value outside
+/// (0, 1) is refused naming the flag.
+#[test]
+fn radau_newton_tol_is_recorded_and_validated() {
+    let dir = tmpdir("radau-newton-tol");
+    let runs: Vec<serde_json::Value> = [None, Some("1e-6")]
+        .iter()
+        .map(|tol| {
+            let out = dir.join(format!("{}.json", tol.unwrap_or("default")));
+            let mut args = vec!["--out", out.to_str().unwrap()];
+            if let Some(t) = tol {
+                args.extend(["--radau-newton-tol", t]);
+            }
+            let o = visc_radau("auto", &args);
+            assert!(o.status.success(), "{}", stderr(&o));
+            serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
+        })
+        .collect();
+    assert!(runs[0]["integrator"]["radau5"]["newton_tol"].is_null());
+    assert_eq!(runs[1]["integrator"]["radau5"]["newton_tol"], 1e-6);
+    let it = |r: &serde_json::Value| r["stats"]["rhs_evals"].as_u64().unwrap();
+    assert!(
+        it(&runs[1]) > it(&runs[0]),
+        "{} {}",
+        it(&runs[1]),
+        it(&runs[0])
+    );
+    for bad in ["0", "1", "-1e-6", "inf", "NaN"] {
+        let o = visc_radau("auto", &["--radau-newton-tol", bad]);
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(
+            e.contains("--radau-newton-tol") && e.contains("between 0 and 1"),
+            "{e}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// An unknown `--radau-dense` is refused naming the flag; A's implicit form
 /// (a DAE under radau5) refuses the Hermite extension with the reason.
 #[test]

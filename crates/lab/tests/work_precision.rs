@@ -306,6 +306,14 @@ fn bad_work_precision_files_name_key_and_line() {
         ),
         &["`formulation.radau_jacobian_reuse`", "below 1"],
     );
+    refused(
+        "newton-tol-zero",
+        &good.replace(
+            "integrator = \"radau5\"",
+            "integrator = \"radau5\"\nradau_newton_tol = 0.0",
+        ),
+        &["`formulation.radau_newton_tol`", "between 0 and 1"],
+    );
 }
 
 #[test]

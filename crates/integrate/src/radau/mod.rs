@@ -210,7 +210,7 @@
 //! | `output`, `dense`, `hit_output` | samples and continuous extension, as for the explicit methods | `[]`, `true`, `false` |
 //! | `radau5.newton` | simplified (RADAU5) or full Newton iteration | `Auto` (here: simplified) |
 //! | `radau5.newton_max_iter` | `NIT` | 7 |
-//! | `radau5.newton_tol` | `FNEWT` | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
+//! | `radau5.newton_tol` | `FNEWT` (a given value is raised to `10·uround/rtol'`, where RADAU5 stops with an error) | `max(10·uround/rtol', min(0.03, sqrt(rtol')))`, uround = 1e-16 |
 //! | `radau5.jacobian_reuse` | `THET` (negative: new Jacobian every step) | `0.001` |
 //! | `radau5.keep_step` | `(QUOT1, QUOT2)` | `(1.0, 1.2)` |
 //! | `radau5.dense_output` | collocation polynomial or the Hermite quintic | `auto` (Hermite for ODEs) |
@@ -589,10 +589,12 @@ impl RadauCore {
             .collect();
         let np = NewtonParams {
             nit: opts.radau5.newton_max_iter,
-            fnewt: opts
-                .radau5
-                .newton_tol
-                .unwrap_or_else(|| (10.0 * UROUND / rtol).max(0.03f64.min(rtol.sqrt()))),
+            // Never below 10·uround/rtol', where rounding ends the iteration.
+            fnewt: (10.0 * UROUND / rtol).max(
+                opts.radau5
+                    .newton_tol
+                    .unwrap_or_else(|| 0.03f64.min(rtol.sqrt())),
+            ),
             thet: opts.radau5.jacobian_reuse,
             fixed: opts.fixed_step.is_some(),
         };

@@ -102,6 +102,10 @@ struct SettingsKey<'a> {
     /// them.
     #[serde(skip_serializing_if = "is_radau5_reuse")]
     radau_jacobian_reuse: Bits,
+    /// Left out when not given (RADAU5's tolerance-dependent default), as
+    /// every run was made before the setting existed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    radau_newton_tol: Option<Bits>,
     /// Left out when off, so that keys made before the setting existed
     /// still name the same runs.
     #[serde(skip_serializing_if = "is_false")]
@@ -146,6 +150,7 @@ impl<'a> SettingsKey<'a> {
             radau_newton,
             radau_dense,
             radau_jacobian_reuse,
+            radau_newton_tol,
             stiff_stop,
         } = s;
         SettingsKey {
@@ -167,6 +172,7 @@ impl<'a> SettingsKey<'a> {
             } else {
                 REUSE_BEFORE_SETTING
             }),
+            radau_newton_tol: radau_newton_tol.filter(|_| radau).map(Bits),
             stiff_stop: *stiff_stop,
         }
     }
@@ -453,7 +459,11 @@ radau_dense = "{dense}"
         assert!(!old.1.contains("radau_dense") && !old.1.contains("radau_jacobian_reuse"));
         let lax = radau("radau_jacobian_reuse = 0.1");
         let hermite = radau("radau_dense = \"hermite\"");
-        let all = [&auto.0, &old.0, &lax.0, &hermite.0];
+        let tight = radau("radau_newton_tol = 1e-6");
+        assert!(!auto.1.contains("radau_newton_tol"));
+        let dop_tight = key("integrator = \"dop853\"\nradau_newton_tol = 1e-6");
+        assert_eq!(dop.0, dop_tight.0);
+        let all = [&auto.0, &old.0, &lax.0, &hermite.0, &tight.0];
         for (i, a) in all.iter().enumerate() {
             for b in &all[i + 1..] {
                 assert_ne!(a, b);

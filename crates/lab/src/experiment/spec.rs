@@ -29,6 +29,8 @@
 //!                                    #   auto: hermite where there is one),
 //!                                    # radau_jacobian_reuse = 0.1 (radau5 keeps its Jacobian
 //!                                    #   after a Newton rate ≤ this; RADAU5's THET),
+//!                                    # radau_newton_tol = 1e-6 (radau5's Newton stopping test,
+//!                                    #   RADAU5's FNEWT; default its tolerance-dependent one),
 //!                                    # stiff_stop = true (end where the stiffness test keeps firing)
 //! options = { stab = "none" }
 //! init = {}                          # formulation-specific initial values (lambda, x_ddot…)
@@ -78,7 +80,7 @@
 //! (every formulation that has option `o`), `case` (a name for the point,
 //! e.g. in a zip sweep over a catalogue of cases), and
 //! `<label>.param.<p>`, `<label>.init.<v>`, `<label>.option.<o>`,
-//! `<label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse`
+//! `<label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse|radau_newton_tol`
 //! (one formulation).
 
 use std::path::{Path, PathBuf};
@@ -322,6 +324,7 @@ struct FormulationFile {
     radau_newton: Option<Spanned<String>>,
     radau_dense: Option<Spanned<String>>,
     radau_jacobian_reuse: Option<Spanned<f64>>,
+    radau_newton_tol: Option<Spanned<f64>>,
     #[serde(default)]
     project_init: bool,
     #[serde(default)]
@@ -426,6 +429,9 @@ pub struct Settings {
     /// radau5 keeps its Jacobian after a Newton contraction rate at most
     /// this (RADAU5's `THET`; negative: a new one every step).
     pub radau_jacobian_reuse: f64,
+    /// radau5's Newton stopping test (RADAU5's `FNEWT`); `None`: its
+    /// default, which depends on the tolerance.
+    pub radau_newton_tol: Option<f64>,
     /// Stop an explicit run where its stiffness test keeps firing.
     pub stiff_stop: bool,
 }
@@ -756,7 +762,7 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
     let bad = || {
         format!(
             "cannot address `{name}`: use param.<p>, init.<v>, option.<o>, case, or <label>.param.<p>, \
-             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse \
+             <label>.init.<v>, <label>.option.<o>, <label>.rtol|atol|step|integrator|radau_newton|radau_dense|radau_jacobian_reuse|radau_newton_tol \
              (labels: {})",
             labels.join(", ")
         )
@@ -779,9 +785,8 @@ fn parse_target(name: &str, labels: &[String]) -> Result<Target, String> {
             | "integrator"
             | "radau_newton"
             | "radau_dense"
-            | "radau_jacobian_reuse" => {
-                Ok(Target::FormSetting(label.to_string(), setting.to_string()))
-            }
+            | "radau_jacobian_reuse"
+            | "radau_newton_tol" => Ok(Target::FormSetting(label.to_string(), setting.to_string())),
             _ => Err(bad()),
         },
         _ => Err(bad()),
@@ -853,6 +858,9 @@ pub fn apply(
                         }
                         "radau_jacobian_reuse" => {
                             f.settings.radau_jacobian_reuse = num(fields::radau_jacobian_reuse)?
+                        }
+                        "radau_newton_tol" => {
+                            f.settings.radau_newton_tol = Some(num(fields::radau_newton_tol)?)
                         }
                         _ => {
                             fields::method(value).map_err(|m| format!("`{field}`: {m}"))?;
@@ -1051,6 +1059,12 @@ impl Experiment {
                         fields::radau_jacobian_reuse,
                     )?
                     .unwrap_or(Radau5Options::default().jacobian_reuse),
+                    radau_newton_tol: checked(
+                        &ctx,
+                        &f.radau_newton_tol,
+                        "formulation.radau_newton_tol",
+                        fields::radau_newton_tol,
+                    )?,
                     stiff_stop: f.stiff_stop,
                 },
                 options: entries(&ctx, "formulation.options", &f.options)?,

@@ -178,6 +178,7 @@ pub fn resolve(exp: &Experiment, point: &Point) -> Result<Vec<PointRun>, String>
                             dense_output: fields::radau_dense(&s.radau_dense)
                                 .map_err(|m| format!("{}: radau_dense: {m}", f.label))?,
                             jacobian_reuse: s.radau_jacobian_reuse,
+                            newton_tol: s.radau_newton_tol,
                             ..Radau5Options::default()
                         },
                         output: grid.clone(),

@@ -241,7 +241,8 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
 }
 
 /// `label: formulation · integrator` (with radau5's Newton iteration,
-/// continuous extension and Jacobian reuse where not the default).
+/// continuous extension, Jacobian reuse and Newton tolerance where not the
+/// default).
 pub(super) fn line_name(f: &FormulationSpec) -> String {
     let mut s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
     let radau = f.settings.integrator == Method::Radau5.name();
@@ -254,6 +255,9 @@ pub(super) fn line_name(f: &FormulationSpec) -> String {
     let reuse = f.settings.radau_jacobian_reuse;
     if radau && reuse != Radau5Options::default().jacobian_reuse {
         s.push_str(&format!(" (Jacobian kept at θ ≤ {reuse})"));
+    }
+    if let (true, Some(tol)) = (radau, f.settings.radau_newton_tol) {
+        s.push_str(&format!(" (Newton to {tol:e})"));
     }
     s
 }

@@ -2897,12 +2897,16 @@ fn radau_reuse_as_docs_state() {
     /// `lax` over `default` wall time at each largest error 1e-5 … 1e-9,
     /// as the prose rounds them (smallest and largest).
     fn ratios(name: &str, label: &str, errors: &[f64]) -> Vec<f64> {
+        setting_ratios(name, label, "-lax", errors)
+    }
+    /// `<label><setting>` over `label`, as [`ratios`].
+    fn setting_ratios(name: &str, label: &str, setting: &str, errors: &[f64]) -> Vec<f64> {
         let rows = timed_table(name, "work_precision.csv");
         errors
             .iter()
             .map(|&e| {
                 let t = |l: &str| at_error(&rows, "0", l, e, "wall_time_median_s").unwrap();
-                t(&format!("{label}-lax")) / t(label)
+                t(&format!("{label}{setting}")) / t(label)
             })
             .collect()
     }
@@ -2980,7 +2984,58 @@ fn radau_reuse_as_docs_state() {
     };
     // (No rise in the default's means its best is its 1e-10 run, as said.)
     assert_eq!((rises("C-radau5"), rises("C-radau5-lax")), (0, 2));
-    let said: Vec<&str> = said.iter().map(String::as_str).collect();
+    // The Newton stopping test tightened to 1e-5 with θ ≤ 0.1: RADAU5's
+    // default FNEWT over the ladder, C and B at matched error, C's error on
+    // ten sleighs falling at every rung and below the default's at each
+    // tolerance, and one Jacobian per run of C on one sleigh from 1e-7 on.
+    let fnewt = |tol: f64| {
+        let r = 0.1 * tol.powf(2.0 / 3.0);
+        (10.0 * 1e-16 / r).max(0.03f64.min(r.sqrt()))
+    };
+    let c_one = setting_ratios(one, "C-radau5", "-lax-newton", &matched[1..]);
+    let b_one = setting_ratios(one, "B-radau5", "-lax-newton", &matched[1..]);
+    let c_ten = setting_ratios(ten, "C-radau5", "-lax-newton", &[1e-3, 1e-4, 1e-5]);
+    let b_ten = setting_ratios(ten, "B-radau5", "-lax-newton", &matched[1..]);
+    let newton = [
+        format!("RADAU5's {:.1e} to {:.1e} on", fnewt(1e-10), fnewt(1e-5)),
+        format!(
+            "C's largest error at tolerance 1e-10 is {} m and C takes {} the time of RADAU5's defaults at matched error (1e-6 to 1e-9)",
+            err(one, "C-radau5-lax-newton", 1e-10),
+            span(&c_one)
+        ),
+        format!("B gains nothing from it ({})", span(&b_one)),
+        format!(
+            "C's largest error falls at every rung, to {} m at 1e-10, and lies below the default's at every tolerance: at matched error 1e-3 to 1e-5 C takes {} the time of RADAU5's defaults",
+            err(ten, "C-radau5-lax-newton", 1e-10),
+            span(&c_ten)
+        ),
+        format!(
+            "B takes {} with it (1e-6 to 1e-9), less of a gain than θ ≤ 0.1 alone",
+            span(&b_ten)
+        ),
+    ];
+    assert_eq!(rises("C-radau5-lax-newton"), 0);
+    for tol in [1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10] {
+        let e = |l: &str| err(ten, l, tol).parse::<f64>().unwrap();
+        assert!(
+            e("C-radau5-lax-newton") < e("C-radau5"),
+            "tolerance {tol:e}"
+        );
+    }
+    assert!(b_one.iter().all(|r| *r > 0.9), "B gains nothing: {b_one:?}");
+    let b_lax_ten = ratios(ten, "B-radau5", &matched[1..]);
+    assert!(
+        b_ten.iter().zip(&b_lax_ten).all(|(n, l)| n > l),
+        "less of a gain than θ ≤ 0.1 alone: {b_ten:?} {b_lax_ten:?}"
+    );
+    let jac_one: Vec<f64> = ladder(&table(one, "work_precision.csv"), |r| {
+        r["label"] == "C-radau5-lax"
+    })
+    .iter()
+    .map(|r| num(r, "jacobian_evals"))
+    .collect();
+    assert_eq!(&jac_one[2..], &[1.0; 4], "one Jacobian from 1e-7 on");
+    let said: Vec<&str> = said.iter().chain(&newton).map(String::as_str).collect();
     figures_md_says(&said);
     doc_says("integrators.md", &said);
 }

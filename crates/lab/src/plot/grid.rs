@@ -7,7 +7,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::style::{LEGEND_PX, SIZE, SWATCH_PX, TICK_PX, draw_err, ensure_font, text, title_text};
+use super::style::{LEGEND_PX, SIZE, SWATCH_PX, TICK_PX, draw_err, ensure_font, text, titled};
 use super::write_outputs;
 
 /// How a cell of a [`StatusGrid`] ended.
@@ -128,10 +128,7 @@ fn draw_status_grid<DB: DrawingBackend>(
     g: &StatusGrid,
 ) -> Result<(), String> {
     root.fill(&WHITE).map_err(draw_err)?;
-    let area = root
-        .margin(8, 8, 8, 8)
-        .titled(&g.title, title_text())
-        .map_err(draw_err)?;
+    let area = titled(&root.margin(8, 8, 8, 8), &g.title)?;
     let (aw, _) = area.dim_in_pixel();
     let label = text(LEGEND_PX);
     let small = text(TICK_PX);

@@ -10,7 +10,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::axis::{Axis, build_chart, draw_axes, draw_note, label_areas, max_label_width, to_plot};
 use super::style::{
     COLOUR_BAR_PX, LABEL_PX, MISSING_CROSS, MISSING_FILL, SIZE, SWATCH_PX, TICK_MARK_PX, TICK_PX,
-    draw_err, text, title_text,
+    draw_err, text, titled,
 };
 use super::write_outputs;
 
@@ -187,10 +187,7 @@ fn draw_heatmap<DB: DrawingBackend>(
     data: &HeatData,
 ) -> Result<(), String> {
     root.fill(&WHITE).map_err(draw_err)?;
-    let area = root
-        .margin(8, 8, 8, 8)
-        .titled(&h.title, title_text())
-        .map_err(draw_err)?;
+    let area = titled(&root.margin(8, 8, 8, 8), &h.title)?;
     let (aw, _) = area.dim_in_pixel();
     let layout = BarLayout::new(&area, data)?;
     let (main, bar) = area.split_horizontally(aw.saturating_sub(layout.panel));

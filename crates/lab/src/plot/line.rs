@@ -12,7 +12,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::axis::{Axis, Chart, build_chart, draw_axes, draw_note, label_areas, to_plot};
 use super::style::{
     LEGEND_MARGIN_PX, LEGEND_PX, LEGEND_SAMPLE_PX, LINE_PX, MARKER_MAX_POINTS, MARKER_PX, Pen,
-    SIZE, TICK_PX, draw_err, text, title_text,
+    SIZE, TICK_PX, draw_err, text, titled,
 };
 use super::write_outputs;
 
@@ -468,10 +468,7 @@ fn draw_line_plot<DB: DrawingBackend>(
     joins: Joins,
 ) -> Result<(), String> {
     root.fill(&WHITE).map_err(draw_err)?;
-    let area = root
-        .margin(8, 8, 8, 8)
-        .titled(&p.title, title_text())
-        .map_err(draw_err)?;
+    let area = titled(&root.margin(8, 8, 8, 8), &p.title)?;
     let right = 40;
     let (mut xa, mut ya) = (data.x, data.y);
     let mut areas = label_areas(&area, &xa, &ya)?;

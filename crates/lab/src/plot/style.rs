@@ -112,8 +112,28 @@ pub(super) fn text(px: f64) -> TextStyle<'static> {
     (FONT, px).into_font().into()
 }
 
-pub(super) fn title_text() -> TextStyle<'static> {
-    (FONT, TITLE_PX, FontStyle::Bold).into_font().into()
+fn title_text(px: f64) -> TextStyle<'static> {
+    (FONT, px, FontStyle::Bold).into_font().into()
+}
+
+/// `area` with `title` above it, in the title font shrunk (to no less than
+/// half its size) where the title would be wider than the area.
+pub(super) fn titled<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+) -> Result<DrawingArea<DB, plotters::coord::Shift>, String> {
+    let room = f64::from(area.dim_in_pixel().0);
+    let wide = f64::from(
+        area.estimate_text_size(title, &title_text(TITLE_PX))
+            .map_err(draw_err)?
+            .0,
+    );
+    let px = if wide > room {
+        (TITLE_PX * room / wide).floor().max(TITLE_PX / 2.0)
+    } else {
+        TITLE_PX
+    };
+    area.titled(title, title_text(px)).map_err(draw_err)
 }
 
 /// Registers DejaVu Sans (regular and bold) as `sans-serif`, once per

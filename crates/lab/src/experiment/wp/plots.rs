@@ -242,24 +242,31 @@ fn stability_map(exp: &Experiment, dir: &Path, points: &[WpPoint]) -> Result<Vec
 
 /// `label: formulation · integrator` (with radau5's Newton iteration,
 /// continuous extension, Jacobian reuse and Newton tolerance where not the
-/// default).
+/// default, in one parenthesis).
 pub(super) fn line_name(f: &FormulationSpec) -> String {
-    let mut s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
-    let radau = f.settings.integrator == Method::Radau5.name();
-    if radau && f.settings.radau_newton != RadauNewton::Auto.name() {
-        s.push_str(&format!(" ({} Newton)", f.settings.radau_newton));
+    let s = format!("{}: {} · {}", f.label, f.formulation, f.settings.integrator);
+    if f.settings.integrator != Method::Radau5.name() {
+        return s;
     }
-    if radau && f.settings.radau_dense != RadauDense::default().name() {
-        s.push_str(&format!(" ({} dense output)", f.settings.radau_dense));
+    let mut extras = Vec::new();
+    if f.settings.radau_newton != RadauNewton::Auto.name() {
+        extras.push(format!("{} Newton", f.settings.radau_newton));
+    }
+    if f.settings.radau_dense != RadauDense::default().name() {
+        extras.push(format!("{} dense output", f.settings.radau_dense));
     }
     let reuse = f.settings.radau_jacobian_reuse;
-    if radau && reuse != Radau5Options::default().jacobian_reuse {
-        s.push_str(&format!(" (Jacobian kept at θ ≤ {reuse})"));
+    if reuse != Radau5Options::default().jacobian_reuse {
+        extras.push(format!("Jacobian kept at θ ≤ {reuse}"));
     }
-    if let (true, Some(tol)) = (radau, f.settings.radau_newton_tol) {
-        s.push_str(&format!(" (Newton to {tol:e})"));
+    if let Some(tol) = f.settings.radau_newton_tol {
+        extras.push(format!("Newton to {tol:e}"));
     }
-    s
+    if extras.is_empty() {
+        s
+    } else {
+        format!("{s} ({})", extras.join("; "))
+    }
 }
 
 /// Caption of a work-precision plot from its stem.

@@ -242,6 +242,12 @@ pub enum Solver {
     /// extension (`radau5.dense_output = hermite`), with RADAU5's reuse
     /// threshold (`None`) or another one.
     OursHermite(Option<Reuse>),
+    /// As `OursHermite(Some(reuse))` with the Newton iteration's stopping
+    /// test (RADAU5's `FNEWT`) [`TIGHT_NEWTON`] times tighter than RADAU5's
+    /// default at the run's tolerance: a Jacobian kept over many steps
+    /// leaves iteration error that builds up (`docs/integrators.md`,
+    /// "Newton stopping test").
+    OursTightNewton(Reuse),
     /// diffsol with this method; `max_fails` is its cap on nonlinear-solver
     /// failures over the whole run (`OdeSolverOptions::
     /// max_nonlinear_solver_failures`, default [`DIFFSOL_DEFAULT_CAP`]).
@@ -268,6 +274,10 @@ impl Reuse {
         }
     }
 }
+
+/// How many times tighter than RADAU5's default [`Solver::OursTightNewton`]
+/// stops the Newton iteration.
+pub const TIGHT_NEWTON: f64 = 10.0;
 
 /// diffsol's default cap on nonlinear-solver failures per run.
 pub const DIFFSOL_DEFAULT_CAP: usize = 50;
@@ -299,7 +309,8 @@ impl Solver {
             Solver::Ours(_)
             | Solver::OursFullNewton
             | Solver::OursReuse(_)
-            | Solver::OursHermite(_) => "nonholo",
+            | Solver::OursHermite(_)
+            | Solver::OursTightNewton(_) => "nonholo",
             Solver::OdeSolversDop853 => "ode_solvers",
             _ => "diffsol",
         }
@@ -317,6 +328,12 @@ impl Solver {
             }
             Solver::OursHermite(Some(Reuse::Tenth)) => {
                 "Radau IIA (radau5), reuse θ ≤ 0.1, Hermite dense output"
+            }
+            Solver::OursTightNewton(Reuse::Hundredth) => {
+                "Radau IIA (radau5), reuse θ ≤ 0.01, Newton test ÷ 10, Hermite dense output"
+            }
+            Solver::OursTightNewton(Reuse::Tenth) => {
+                "Radau IIA (radau5), reuse θ ≤ 0.1, Newton test ÷ 10, Hermite dense output"
             }
             Solver::Ours(Method::Dop853) => "DOP853",
             Solver::Ours(Method::Dopri5) => "DOPRI5",
@@ -367,6 +384,17 @@ impl Solver {
                         .map_or(Radau5Options::default().jacobian_reuse, Reuse::theta),
                     dense_output: RadauDense::Hermite,
                     ..Radau5Options::default()
+                };
+                run_ours(problem, Method::Radau5, radau, tol, grid, dense)
+            }
+            Solver::OursTightNewton(reuse) => {
+                let default = Radau5Options::default();
+                let radau = Radau5Options {
+                    newton: RadauNewton::Simplified,
+                    jacobian_reuse: reuse.theta(),
+                    newton_tol: Some(default.newton_tol_at(tol) / TIGHT_NEWTON),
+                    dense_output: RadauDense::Hermite,
+                    ..default
                 };
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
@@ -928,6 +956,7 @@ fn quote(s: &str) -> String {
 }
 
 /// Runs `solver` `repeats` times; errors against `reference`; one row.
+#[allow(clippy::too_many_arguments)]
 pub fn measure(
     problem: &Problem,
     solver: Solver,
@@ -938,62 +967,99 @@ pub fn measure(
     ref_err: f64,
     repeats: usize,
 ) -> Row {
-    let mut row = Row {
-        problem: problem.name.clone(),
-        potential: problem.potential,
-        param: problem.label(),
-        t_end: problem.t_end,
-        crate_name: solver.crate_name(),
-        method: solver.method_name(),
+    let mut rows = measure_all(
+        problem,
+        &[solver],
         tol,
-        status: "ok",
-        message: String::new(),
-        err_end: f64::NAN,
-        err_max: f64::NAN,
+        grid,
+        reference,
+        reference_name,
         ref_err,
-        reference: reference_name.to_string(),
-        wall_median_s: f64::NAN,
-        wall_min_s: f64::NAN,
-        repeats: 0,
-        work: Work::default(),
-    };
-    let first = solver.run(problem, tol, grid, false);
-    match first {
-        Err(f) => {
-            row.status = "failed";
-            row.message = f.message;
-            row.work = f.work;
-            row.wall_median_s = f.wall_s;
-            row.wall_min_s = f.wall_s;
-            row.repeats = 1;
-        }
-        Ok(out) => {
-            match errors(&out, reference, problem.t_end) {
-                Ok((e_end, e_max, note)) => {
-                    row.err_end = e_end;
-                    row.err_max = e_max;
-                    row.message = note;
-                }
-                Err(e) => row.message = format!("error not measured: {e}"),
+        repeats,
+    );
+    rows.remove(0)
+}
+
+/// Runs every solver of `solvers` once (errors against `reference`, work
+/// counters), then times `repeats − 1` more rounds, each running every
+/// solver that has not failed once, so that a change in the machine's
+/// speed falls on all of them alike; one row per solver, in order, with
+/// the median and the least of its wall times.
+#[allow(clippy::too_many_arguments)]
+pub fn measure_all(
+    problem: &Problem,
+    solvers: &[Solver],
+    tol: f64,
+    grid: &[f64],
+    reference: &Reference,
+    reference_name: &str,
+    ref_err: f64,
+    repeats: usize,
+) -> Vec<Row> {
+    let mut rows = Vec::with_capacity(solvers.len());
+    let mut walls = Vec::with_capacity(solvers.len());
+    for &solver in solvers {
+        let mut row = Row {
+            problem: problem.name.clone(),
+            potential: problem.potential,
+            param: problem.label(),
+            t_end: problem.t_end,
+            crate_name: solver.crate_name(),
+            method: solver.method_name(),
+            tol,
+            status: "ok",
+            message: String::new(),
+            err_end: f64::NAN,
+            err_max: f64::NAN,
+            ref_err,
+            reference: reference_name.to_string(),
+            wall_median_s: f64::NAN,
+            wall_min_s: f64::NAN,
+            repeats: 0,
+            work: Work::default(),
+        };
+        match solver.run(problem, tol, grid, false) {
+            Err(f) => {
+                row.status = "failed";
+                row.message = f.message;
+                row.work = f.work;
+                walls.push(vec![f.wall_s]);
             }
-            let mut walls = vec![out.wall_s];
-            row.work = out.work;
-            for _ in 1..repeats {
-                match solver.run(problem, tol, grid, false) {
-                    Ok(o) => walls.push(o.wall_s),
-                    Err(f) => {
-                        row.message = format!("a repeat failed: {}", f.message);
-                        row.status = "failed";
-                        break;
+            Ok(out) => {
+                match errors(&out, reference, problem.t_end) {
+                    Ok((e_end, e_max, note)) => {
+                        row.err_end = e_end;
+                        row.err_max = e_max;
+                        row.message = note;
                     }
+                    Err(e) => row.message = format!("error not measured: {e}"),
+                }
+                row.work = out.work;
+                walls.push(vec![out.wall_s]);
+            }
+        }
+        rows.push(row);
+    }
+    for _ in 1..repeats {
+        for ((row, walls), &solver) in rows.iter_mut().zip(&mut walls).zip(solvers) {
+            if row.status != "ok" {
+                continue;
+            }
+            match solver.run(problem, tol, grid, false) {
+                Ok(o) => walls.push(o.wall_s),
+                Err(f) => {
+                    row.message = format!("a repeat failed: {}", f.message);
+                    row.status = "failed";
                 }
             }
-            row.repeats = walls.len();
-            row.wall_min_s = walls.iter().copied().fold(f64::INFINITY, f64::min);
-            row.wall_median_s = median(&mut walls);
         }
     }
-    row
+    for (row, mut walls) in rows.iter_mut().zip(walls) {
+        row.repeats = walls.len();
+        row.wall_min_s = walls.iter().copied().fold(f64::INFINITY, f64::min);
+        row.wall_median_s = median(&mut walls);
+    }
+    rows
 }
 
 /// Largest difference `‖a − b‖∞` of two references over `grid`.

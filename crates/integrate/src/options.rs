@@ -319,8 +319,10 @@ pub struct Radau5Options {
     /// costly". Measured (experiments `radau-reuse-1`, `radau-reuse-10`; the
     /// numbers in `docs/integrators.md`): on ten hitched sleighs `0.1` cuts
     /// B's time at matched error severalfold; on one sleigh it gains B little
-    /// and costs C accuracy and time. So the default stays RADAU5's and a
-    /// large system sets `0.1` itself.
+    /// and costs C accuracy and time, accuracy that a tighter
+    /// [`Radau5Options::newton_tol`] gives back (the loss is Newton
+    /// iteration error). So the default stays RADAU5's and a large system
+    /// sets `0.1` itself.
     pub jacobian_reuse: f64,
     /// `(lo, hi)` with `0 < lo <= 1 <= hi < ∞`; when the Jacobian is kept
     /// and the proposed step ratio `h_new/h` lies in `[lo, hi]`, the step
@@ -335,6 +337,22 @@ pub struct Radau5Options {
     pub dense_output: RadauDense,
 }
 
+impl Radau5Options {
+    /// The Newton stopping tolerance (RADAU5's `FNEWT`) a run at the
+    /// user's relative tolerance `rtol` uses: [`Radau5Options::newton_tol`]
+    /// where given, else RADAU5's default `min(0.03, sqrt(rtol'))`, and
+    /// never below `10·uround/rtol'` (RADAU5's internal tolerance
+    /// `rtol' = 0.1·rtol^(2/3)`). A study that tightens the test by a
+    /// factor reads the baseline from the default options here.
+    pub fn newton_tol_at(&self, rtol: f64) -> f64 {
+        let internal = 0.1 * rtol.powf(2.0 / 3.0);
+        (10.0 * crate::radau::UROUND / internal).max(
+            self.newton_tol
+                .unwrap_or_else(|| 0.03f64.min(internal.sqrt())),
+        )
+    }
+}
+
 impl Default for Radau5Options {
     fn default() -> Self {
         Radau5Options {
@@ -345,5 +363,35 @@ impl Default for Radau5Options {
             keep_step: (1.0, 1.2),
             dense_output: RadauDense::Auto,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Radau5Options;
+
+    /// RADAU5's `FNEWT` by hand: its internal tolerance `rtol' =
+    /// 0.1·rtol^(2/3)`, then `max(10·uround/rtol', min(0.03, sqrt(rtol')))`
+    /// with uround = 1e-16; a given value is raised to the floor only.
+    #[test]
+    fn newton_tol_is_radau5s_fnewt() {
+        let default = Radau5Options::default();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+        // rtol 1e-6: rtol' = 1e-5, sqrt = 3.1623e-3 (the floor is 1e-10).
+        assert!(close(default.newton_tol_at(1e-6), 1e-5f64.sqrt()));
+        // rtol 1e-2: sqrt(rtol') = 0.068 is capped at 0.03.
+        assert_eq!(default.newton_tol_at(1e-2), 0.03);
+        // rtol 1e-14: rtol' = 4.64e-11, whose floor 2.15e-5 beats 6.8e-6.
+        let internal = 0.1 * 1e-14f64.powf(2.0 / 3.0);
+        assert!(close(default.newton_tol_at(1e-14), 1e-15 / internal));
+        // The ladder of docs/integrators.md: 1.5e-4 at 1e-10, 6.8e-3 at 1e-5.
+        assert_eq!(format!("{:.1e}", default.newton_tol_at(1e-10)), "1.5e-4");
+        assert_eq!(format!("{:.1e}", default.newton_tol_at(1e-5)), "6.8e-3");
+        let given = |f: f64| Radau5Options {
+            newton_tol: Some(f),
+            ..Radau5Options::default()
+        };
+        assert_eq!(given(1e-5).newton_tol_at(1e-6), 1e-5);
+        assert!(close(given(1e-12).newton_tol_at(1e-6), 1e-10));
     }
 }

@@ -16,7 +16,7 @@ use std::process::ExitCode;
 
 use nonholo_bench::peers::{
     DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Reuse, Row, Solver,
-    measure, reference_distance,
+    measure, measure_all, reference_distance,
 };
 use nonholo_bench::setup::sleigh;
 use nonholo_core::integrate::Method;
@@ -37,8 +37,9 @@ const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
   --page         run nothing: rebuild index.html and its figures from the stored files
   --reuse        run only the Jacobian-reuse study: our Radau IIA with RADAU5's reuse
                  threshold θ ≤ 0.001 and with 0.01 and 0.1, and with the Hermite dense
-                 output (θ ≤ 0.001 and 0.1), beside diffsol's BDF, on visc in the adapted
-                 form and the body frame (reuse.csv, reuse-matched.csv)";
+                 output (θ ≤ 0.001 and 0.1; 0.1 also with a Newton test ten times
+                 tighter), beside diffsol's BDF, on visc in the adapted form and the
+                 body frame, timed interleaved (reuse.csv, reuse-matched.csv)";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -694,8 +695,10 @@ fn load_average() -> String {
 /// The Jacobian-reuse study: RADAU5 refreshes its Jacobian after every
 /// accepted step whose Newton contraction exceeded θ = 0.001; on `visc` in
 /// the adapted form that is nearly every step. Our Radau IIA at three
-/// thresholds, with the Hermite continuous extension at two of them, and
-/// diffsol's BDF, on the adapted form (AD Jacobian, ~11 right-hand sides)
+/// thresholds, with the Hermite continuous extension at two of them (at
+/// θ ≤ 0.1 also with a Newton stopping test ten times tighter than
+/// RADAU5's), and diffsol's BDF, every solver of a case timed once per
+/// round, on the adapted form (AD Jacobian, ~11 right-hand sides)
 /// and the body frame (forward differences), k = 1e4 … 1e8, errors against
 /// our Radau IIA at 1e-13 with the Hermite extension on the adapted form
 /// (its distance to the same at 3e-14 in `ref_err`); `reuse.csv` has every
@@ -724,17 +727,30 @@ fn reuse_study(args: &Args) -> Result<(), String> {
         let check = reference_by(&adapted, Solver::OursHermite(None), 3e-14, &g)?;
         let ref_err = reference_distance(&reference, &check, &g, 6);
         let ref_name = "ours radau5 @1e-13, Hermite dense output, adapted form";
+        let solvers = [
+            Solver::Ours(Method::Radau5),
+            Solver::OursReuse(Reuse::Hundredth),
+            Solver::OursReuse(Reuse::Tenth),
+            Solver::OursHermite(None),
+            Solver::OursHermite(Some(Reuse::Tenth)),
+            Solver::OursTightNewton(Reuse::Tenth),
+            BDF,
+        ];
         for &tol in tols {
             for p in [&adapted, &body] {
-                for solver in [
-                    Solver::Ours(Method::Radau5),
-                    Solver::OursReuse(Reuse::Hundredth),
-                    Solver::OursReuse(Reuse::Tenth),
-                    Solver::OursHermite(None),
-                    Solver::OursHermite(Some(Reuse::Tenth)),
-                    BDF,
-                ] {
-                    let row = measured(p, solver, tol, &g, &reference, ref_name, ref_err, args);
+                // Timed interleaved: every solver once per round.
+                let rows = measure_all(
+                    p,
+                    &solvers,
+                    tol,
+                    &g,
+                    &reference,
+                    ref_name,
+                    ref_err,
+                    args.repeats,
+                );
+                for row in rows {
+                    progress(&row);
                     csv.push_str(&row.csv());
                     csv.push('\n');
                 }

@@ -339,7 +339,8 @@ use crate::{
 };
 use hermite::{Hermite, Step};
 use newton::{Newton, NewtonParams};
-use problem::{Dae, Ode, Problem, UROUND};
+pub(crate) use problem::UROUND;
+use problem::{Dae, Ode, Problem};
 use sparse::SparseIteration;
 use work::Work;
 
@@ -590,11 +591,7 @@ impl RadauCore {
         let np = NewtonParams {
             nit: opts.radau5.newton_max_iter,
             // Never below 10·uround/rtol', where rounding ends the iteration.
-            fnewt: (10.0 * UROUND / rtol).max(
-                opts.radau5
-                    .newton_tol
-                    .unwrap_or_else(|| 0.03f64.min(rtol.sqrt())),
-            ),
+            fnewt: opts.radau5.newton_tol_at(opts.rtol),
             thet: opts.radau5.jacobian_reuse,
             fixed: opts.fixed_step.is_some(),
         };

@@ -13,7 +13,7 @@ use crate::explicit::control::{Rhs, Tol, hinit, hinit_guess};
 use crate::{ImplicitSystem, OdeSystem, Sparsity, SystemError};
 
 /// The rounding unit of RADAU5 (`WORK(1)` default `1e-16`).
-pub(super) const UROUND: f64 = 1e-16;
+pub(crate) const UROUND: f64 = 1e-16;
 
 /// What the Radau core needs from a problem (besides the hooks of the step
 /// loop, [`Hooks`], whose `evals` counts the evaluations of `F` or `f`).

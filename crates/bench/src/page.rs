@@ -148,6 +148,7 @@ fn completed(runs: &[Run]) -> BTreeMap<Problem, BTreeMap<String, Vec<&Run>>> {
 /// `matched.csv` (one row per problem, solver and reached error) and the
 /// HTML tables of the same, one per error.
 fn matched_outputs(runs: &[Run]) -> (String, String) {
+    // The tables alone: the caller heads them and names their CSV file.
     let m = matched(runs);
     let mut w = csv::Writer::from_writer(Vec::new());
     let _ = w.write_record(["problem", "potential", "param", "solver", "error", "wall_s"]);
@@ -165,14 +166,7 @@ fn matched_outputs(runs: &[Run]) -> (String, String) {
         .into_inner()
         .map(|b| String::from_utf8_lossy(&b).into_owned())
         .unwrap_or_default();
-    let mut html = String::from(
-        "<h2>At matched error</h2>\n<p>Wall time (ms, median of the repeats) at which each solver \
-         reaches the same largest error over the samples, interpolated as a power law (linearly in log time against \
-         log error) between the two successive tolerances whose errors bracket it (<a href=\"matched.csv\">matched.csv</a>); \
-         “—”: no two tolerances bracket it (not reached, or the error did not fall monotonically). \
-         Equal tolerances buy different errors from different methods; this is the comparison at \
-         equal accuracy.</p>\n",
-    );
+    let mut html = String::new();
     for (k, e) in MATCHED_ERRORS.iter().enumerate() {
         let solvers: std::collections::BTreeSet<&String> =
             m.values().flat_map(|s| s.keys()).collect();
@@ -204,17 +198,44 @@ fn matched_outputs(runs: &[Run]) -> (String, String) {
     (csv, html)
 }
 
+/// Appends a figure element per plot (paths under `dir`, with captions).
+fn push_figures(h: &mut String, dir: &Path, plots: &[(PathBuf, String)]) {
+    for (p, caption) in plots {
+        let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
+        let stem = p
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_default();
+        h.push_str(&nonholo_lab::experiment::page::figure_html(
+            &rel, &stem, caption,
+        ));
+    }
+}
+
+/// What the matched-error tables hold.
+const MATCHED_INTRO: &str = "Wall time (ms, median of the repeats) at which each solver \
+     reaches the same largest error over the samples, interpolated as a power law (linearly in log \
+     time against log error) between the two successive tolerances whose errors bracket it; \
+     “—”: no two tolerances bracket it (not reached, or the error did not fall monotonically). \
+     Equal tolerances buy different errors from different methods; this is the comparison at \
+     equal accuracy.";
+
 /// The figures: per (problem, potential, parameter), the largest error over
 /// the samples against the median wall time, one line per solver through its
 /// tolerances. Only completed runs are drawn (references and failures are in
 /// the tables). Returns the PNG paths with their captions.
-fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
+fn figures(
+    runs: &[Run],
+    dir: &Path,
+    prefix: &str,
+    label: fn(String) -> String,
+) -> Result<Vec<(PathBuf, String)>, String> {
     let mut files = Vec::new();
     for ((problem, potential, param), solvers) in completed(runs) {
         let series = solvers
             .into_iter()
             .map(|(solver, rs)| Series {
-                label: solver,
+                label: label(solver),
                 x: rs.iter().map(|r| r.wall_median_s).collect(),
                 y: rs.iter().map(|r| r.err_max).collect(),
                 pen: None,
@@ -224,7 +245,7 @@ fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
             verticals: Vec::new(),
             title: format!("{problem}, {param}, {potential} potential: error against wall time"),
             x_label: "wall time, median of the repeats [s]".into(),
-            y_label: "max error over the samples, positions and velocities [SI]".into(),
+            y_label: "largest error over the samples [SI]".into(),
             log_x: true,
             log_y: true,
             equal_aspect: false,
@@ -233,7 +254,7 @@ fn figures(runs: &[Run], dir: &Path) -> Result<Vec<(PathBuf, String)>, String> {
         };
         let stem = dir
             .join("plots")
-            .join(format!("wp-{problem}-{param}-{potential}"));
+            .join(format!("wp-{prefix}{problem}-{param}-{potential}"));
         let caption = format!(
             "{problem} at {param} with the {potential} potential: the largest error over the \
              samples against the median wall time, each solver through its tolerances \
@@ -265,7 +286,7 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
     let md_path = dir.join("peers.md");
     let md = std::fs::read_to_string(&md_path)
         .map_err(|e| format!("cannot read {}: {e}", md_path.display()))?;
-    let plots = figures(&runs, dir)?;
+    let plots = figures(&runs, dir, "", |s| s)?;
     let (matched_csv, matched_html) = matched_outputs(&runs);
     let matched_path = dir.join("matched.csv");
     nonholo_lab::record::write_atomic(&matched_path, matched_csv.as_bytes())
@@ -307,17 +328,42 @@ pub fn write_page(dir: &Path) -> Result<(), String> {
          interpolates); runs that failed are left out of the figures and named in the tables. Colours \
          tell solvers apart here (every line is the same formulation).</p>"
     );
-    for (p, caption) in &plots {
-        let rel = p.strip_prefix(dir).unwrap_or(p).display().to_string();
-        let stem = p
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_default();
-        h.push_str(&nonholo_lab::experiment::page::figure_html(
-            &rel, &stem, caption,
-        ));
-    }
+    push_figures(&mut h, dir, &plots);
+    let _ = writeln!(
+        h,
+        "<h2>At matched error</h2>\n<p>{MATCHED_INTRO} (<a href=\"matched.csv\">matched.csv</a>)</p>"
+    );
     h.push_str(&matched_html);
+    // The Jacobian-reuse study (`peers --reuse`), where it has been run.
+    let reuse = dir.join("reuse.csv");
+    if reuse.is_file() {
+        let runs = read_runs(&reuse)?;
+        let _ = writeln!(
+            h,
+            "<h2>The Jacobian-reuse study</h2>\n<p>Our Radau IIA with RADAU5's Jacobian-reuse \
+             threshold and laxer ones, through the collocation polynomial and the Hermite extension, \
+             beside diffsol's BDF, on <code>visc</code> in the adapted form and the body frame; every \
+             solver of a case timed once per round (<code>peers --reuse</code>; \
+             <a href=\"reuse.csv\">reuse.csv</a>, <a href=\"reuse-matched.csv\">reuse-matched.csv</a>; \
+             what it shows: docs/peers.md, “Jacobian reuse”).</p>"
+        );
+        // Seven lines of one formulation: the legend names only what
+        // differs (ours is Radau IIA by RADAU5's scheme throughout).
+        let short = |s: String| {
+            let s = s
+                .replace("nonholo Radau IIA (radau5)", "ours")
+                .replace("Hermite dense output", "Hermite")
+                .replace("ours, ", "ours: ");
+            if s == "ours" {
+                "ours: RADAU5's settings".to_string()
+            } else {
+                s
+            }
+        };
+        push_figures(&mut h, dir, &figures(&runs, dir, "reuse-", short)?);
+        let _ = writeln!(h, "<h3>At matched error</h3>\n<p>{MATCHED_INTRO}</p>");
+        h.push_str(&matched_outputs(&runs).1);
+    }
     if !md.contains("git revision") {
         h.push_str(
             "<p>The code revision these runs were made with was not recorded (peers.md \
@@ -404,6 +450,26 @@ mod tests {
         );
         // peers.md without a recorded revision: the page says so.
         assert!(html.contains("was not recorded"), "{html}");
+        assert!(!html.contains("Jacobian-reuse study"), "{html}");
+        // With a reuse study beside it (the same format), its section: a
+        // figure per case with the short legend, and its matched tables.
+        std::fs::write(
+            dir.join("reuse.csv"),
+            format!("{header}\n{}\n", rows[1..3].join("\n")),
+        )
+        .unwrap();
+        write_page(&dir).unwrap();
+        let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
+        assert!(html.contains("<h2>The Jacobian-reuse study</h2>"), "{html}");
+        assert_eq!(html.matches("<img ").count(), 3, "{html}");
+        assert!(dir.join("plots/wp-reuse-visc-k=1e2-paper.svg").is_file());
+        let svg = std::fs::read_to_string(dir.join("plots/wp-reuse-visc-k=1e2-paper.svg")).unwrap();
+        assert!(svg.contains("ours: RADAU5") && !svg.contains("nonholo Radau"));
+        assert_eq!(
+            html.matches("<h3>At matched error</h3>").count(),
+            1,
+            "{html}"
+        );
         // The list of result pages beside it names the page by its title.
         let index = std::fs::read_to_string(root.join("index.html")).unwrap();
         assert!(index.contains("peers/index.html") && index.contains("Peers: our integrators"));

@@ -39,7 +39,8 @@ const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
                  threshold θ ≤ 0.001 and with 0.01 and 0.1, and with the Hermite dense
                  output (θ ≤ 0.001 and 0.1; 0.1 also with a Newton test ten times
                  tighter), beside diffsol's BDF, on visc in the adapted form and the
-                 body frame, timed interleaved (reuse.csv, reuse-matched.csv)";
+                 body frame, timed interleaved (reuse.csv, reuse-matched.csv; the page
+                 is rebuilt with it where peers.csv is beside them)";
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
@@ -767,6 +768,11 @@ fn reuse_study(args: &Args) -> Result<(), String> {
         load_average()
     );
     println!("{matched}");
+    // The page shows the study beside the main comparison, where that has
+    // been run into the same directory.
+    if args.out.join("peers.csv").is_file() {
+        nonholo_bench::page::write_page(&args.out)?;
+    }
     Ok(())
 }
 

@@ -2602,6 +2602,29 @@ fn jacobian_reuse_as_peers_md_states() {
         l["rhs_evals"],
         l["jac_evals"],
     ));
+    // Against θ ≤ 0.1 alone, on the adapted form: dearer at matched error
+    // 1e-6 for every k, cheaper where it is the loose 1e-4 or the tight
+    // 1e-8 that is matched (the cases with both lines bracketing them).
+    let matched_at = |k: &str, m: &str, e: f64| {
+        matched
+            .iter()
+            .find(|r| {
+                r["problem"] == "visc-adapted"
+                    && r["param"] == k
+                    && r["solver"] == format!("nonholo {m}")
+                    && num(r, "error") == e
+            })
+            .map(|r| num(r, "wall_s"))
+            .unwrap_or_else(|| panic!("reuse-matched.csv: no visc-adapted {k} {m} at {e:e}"))
+    };
+    let over = |k: &str, e: f64| matched_at(k, &tight, e) / matched_at(k, &tenth_hermite, e);
+    let at6 = ["k=1e4", "k=1e6", "k=1e8"].map(|k| over(k, 1e-6));
+    let (at4, at8) = (over("k=1e6", 1e-4), over("k=1e8", 1e-8));
+    assert!(at6.iter().all(|&r| r > 1.0) && at4 < 1.0 && at8 < 1.0);
+    said.push(format!(
+        "In the stored run it took {:.2}, {:.2} and {:.2}× the time of θ ≤ 0.1 alone at matched error 1e-6 (k = 1e4, 1e6, 1e8), but {at4:.2}× at 1e-4 (k = 1e6) and {at8:.2}× at 1e-8 (k = 1e8)",
+        at6[0], at6[1], at6[2]
+    ));
     let ref_errs: Vec<f64> = runs.iter().map(|r| num(r, "ref_err")).collect();
     let lo = ref_errs.iter().cloned().fold(f64::INFINITY, f64::min);
     let hi = ref_errs.iter().cloned().fold(0.0, f64::max);

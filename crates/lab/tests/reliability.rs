@@ -69,6 +69,56 @@ fn resumed_results_equal_fresh_ones() {
     }
 }
 
+// Trajectories are not committed (.gitignore): a run without --force on a
+// fresh clone computes the plotted point again for them, and keeps its
+// stored result, wall times included, where the run agrees with it.
+#[test]
+fn regenerated_trajectories_keep_the_stored_point() {
+    let root = scratch("rel-traj");
+    let file = experiment(&root, "s", &sleigh_sweep("s"));
+    let dir = root.join("results/s");
+    let o = nonholo_in(&root, &["experiment", &file, "--force", "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let point = read(&dir.join("points/0.json"));
+    let timing = read(&dir.join("timing.csv"));
+    let trajectories = dir.join("trajectories");
+    let names = |d: &Path| {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    let before = names(&trajectories);
+    assert!(before.iter().any(|n| n.starts_with("0-")), "{before:?}");
+    std::fs::remove_dir_all(&trajectories).unwrap();
+    let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The plotted point ran again (8 of 9 reused) and wrote its
+    // trajectories; its stored file and the timings are the same bytes.
+    assert!(stderr(&o).contains("(8 reused)"), "{}", stderr(&o));
+    assert_eq!(names(&trajectories), before);
+    assert!(
+        read(&dir.join("points/0.json")) == point,
+        "points/0.json rewritten"
+    );
+    assert!(
+        read(&dir.join("timing.csv")) == timing,
+        "timing.csv rewritten"
+    );
+    // A stored result that disagrees beyond its wall times is replaced.
+    let text = String::from_utf8(point.clone()).unwrap();
+    let steps = text.find("\"steps\": ").expect("a step count");
+    let edited = format!("{}\"steps\": 1{}", &text[..steps], &text[steps + 9..]);
+    std::fs::write(dir.join("points/0.json"), &edited).unwrap();
+    std::fs::remove_dir_all(&trajectories).unwrap();
+    let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let again = String::from_utf8(read(&dir.join("points/0.json"))).unwrap();
+    assert_ne!(again, edited, "a stored result that disagrees was kept");
+}
+
 // Item 4: a run stopped by its wall-time budget is recorded as such, with
 // nothing that depends on the machine in the comparable tables, so they do
 // not depend on the thread count (or on the run).

@@ -246,6 +246,29 @@ fn has_series_columns(path: &Path, series: &[String]) -> bool {
     series.iter().all(|s| header.iter().any(|h| h == s))
 }
 
+/// Whether two results of one point agree in everything but their wall
+/// times (`wall_time_s` of every run, which no two runs share).
+fn same_but_wall_times(a: &PointResult, b: &PointResult) -> bool {
+    fn strip(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(m) => {
+                m.remove("wall_time_s");
+                m.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    match (serde_json::to_value(a), serde_json::to_value(b)) {
+        (Ok(mut a), Ok(mut b)) => {
+            strip(&mut a);
+            strip(&mut b);
+            a == b
+        }
+        _ => false,
+    }
+}
+
 /// The stored result of `p`, if it is complete and for the same computation.
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
     let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
@@ -340,7 +363,18 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
                         output::write_trajectory(dir, p.index, s)?;
                     }
                 }
-                files::write_json(&files::point_path(dir, p.index), &r)?;
+                // A stored result that lacked only its trajectories (they
+                // are not committed) was computed again for them; where the
+                // run agrees with it apart from wall times, the stored one
+                // stays, so that drawing a plot on a fresh clone does not
+                // rewrite the committed timings.
+                let r = match stored(dir, exp, p, false) {
+                    Some(old) if !opts.force && same_but_wall_times(&old, &r) => old,
+                    _ => {
+                        files::write_json(&files::point_path(dir, p.index), &r)?;
+                        r
+                    }
+                };
                 let failed = r
                     .body
                     .formulations

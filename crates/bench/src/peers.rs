@@ -242,7 +242,7 @@ pub enum Solver {
     /// extension (`radau5.dense_output = hermite`), with RADAU5's reuse
     /// threshold (`None`) or another one.
     OursHermite(Option<Reuse>),
-    /// As `OursHermite(Some(reuse))` with the Newton iteration's stopping
+    /// As `OursHermite(Some(Reuse::Tenth))` with the Newton iteration's stopping
     /// test (RADAU5's `FNEWT`) [`TIGHT_NEWTON`] times tighter than RADAU5's
     /// default at the run's tolerance: a Jacobian kept over many steps
     /// leaves iteration error that builds up (`docs/integrators.md`,
@@ -250,7 +250,7 @@ pub enum Solver {
     /// `10·uround/rtol'`, which binds below tolerances of about 3e-13
     /// (the test would then be less than ten times tighter); the studies
     /// here run at 1e-4 … 1e-10.
-    OursTightNewton(Reuse),
+    OursTightNewton,
     /// diffsol with this method; `max_fails` is its cap on nonlinear-solver
     /// failures over the whole run (`OdeSolverOptions::
     /// max_nonlinear_solver_failures`, default [`DIFFSOL_DEFAULT_CAP`]).
@@ -306,6 +306,15 @@ fn radau5(newton: RadauNewton, theta: Option<f64>) -> Radau5Options {
     }
 }
 
+/// Our Radau IIA with simplified Newton read through the Hermite
+/// extension, with RADAU5's Jacobian reuse (or `theta`).
+fn hermite(theta: Option<f64>) -> Radau5Options {
+    Radau5Options {
+        dense_output: RadauDense::Hermite,
+        ..radau5(RadauNewton::Simplified, theta)
+    }
+}
+
 impl Solver {
     pub fn crate_name(self) -> &'static str {
         match self {
@@ -313,7 +322,7 @@ impl Solver {
             | Solver::OursFullNewton
             | Solver::OursReuse(_)
             | Solver::OursHermite(_)
-            | Solver::OursTightNewton(_) => "nonholo",
+            | Solver::OursTightNewton => "nonholo",
             Solver::OdeSolversDop853 => "ode_solvers",
             _ => "diffsol",
         }
@@ -332,10 +341,7 @@ impl Solver {
             Solver::OursHermite(Some(Reuse::Tenth)) => {
                 "Radau IIA (radau5), reuse θ ≤ 0.1, Hermite dense output"
             }
-            Solver::OursTightNewton(Reuse::Hundredth) => {
-                "Radau IIA (radau5), reuse θ ≤ 0.01, Newton test ÷ 10, Hermite dense output"
-            }
-            Solver::OursTightNewton(Reuse::Tenth) => {
+            Solver::OursTightNewton => {
                 "Radau IIA (radau5), reuse θ ≤ 0.1, Newton test ÷ 10, Hermite dense output"
             }
             Solver::Ours(Method::Dop853) => "DOP853",
@@ -381,23 +387,13 @@ impl Solver {
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
             Solver::OursHermite(reuse) => {
-                let radau = Radau5Options {
-                    newton: RadauNewton::Simplified,
-                    jacobian_reuse: reuse
-                        .map_or(Radau5Options::default().jacobian_reuse, Reuse::theta),
-                    dense_output: RadauDense::Hermite,
-                    ..Radau5Options::default()
-                };
+                let radau = hermite(reuse.map(Reuse::theta));
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
-            Solver::OursTightNewton(reuse) => {
-                let default = Radau5Options::default();
+            Solver::OursTightNewton => {
                 let radau = Radau5Options {
-                    newton: RadauNewton::Simplified,
-                    jacobian_reuse: reuse.theta(),
-                    newton_tol: Some(default.newton_tol_at(tol) / TIGHT_NEWTON),
-                    dense_output: RadauDense::Hermite,
-                    ..default
+                    newton_tol: Some(Radau5Options::default().newton_tol_at(tol) / TIGHT_NEWTON),
+                    ..hermite(Some(Reuse::Tenth.theta()))
                 };
                 run_ours(problem, Method::Radau5, radau, tol, grid, dense)
             }
@@ -959,7 +955,6 @@ fn quote(s: &str) -> String {
 }
 
 /// Runs `solver` `repeats` times; errors against `reference`; one row.
-#[allow(clippy::too_many_arguments)]
 pub fn measure(
     problem: &Problem,
     solver: Solver,
@@ -989,7 +984,6 @@ pub fn measure(
 /// round, so that a change in the machine's speed falls on all of them
 /// alike; one row per solver, in order, with
 /// the median and the least of its wall times.
-#[allow(clippy::too_many_arguments)]
 pub fn measure_all(
     problem: &Problem,
     solvers: &[Solver],

@@ -734,7 +734,7 @@ fn reuse_study(args: &Args) -> Result<(), String> {
             Solver::OursReuse(Reuse::Tenth),
             Solver::OursHermite(None),
             Solver::OursHermite(Some(Reuse::Tenth)),
-            Solver::OursTightNewton(Reuse::Tenth),
+            Solver::OursTightNewton,
             BDF,
         ];
         for &tol in tols {

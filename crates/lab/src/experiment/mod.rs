@@ -269,25 +269,33 @@ fn same_but_wall_times(a: &PointResult, b: &PointResult) -> bool {
     }
 }
 
-/// The stored result of `p`, if it is complete and for the same computation.
-fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point, needs_traj: bool) -> Option<PointResult> {
+/// The stored result of `p`, if it is for the same computation.
+fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point) -> Option<PointResult> {
     let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
-    let r: PointResult = files::stored(dir, p.index, point::POINT_SCHEMA, &key)?;
-    if needs_traj {
-        let all_there = r
-            .body
-            .formulations
-            .iter()
-            .filter(|f| f.t_last.is_some())
-            .all(|f| {
-                let path = output::trajectory_path(dir, p.index, &f.label);
-                path.exists() && has_series_columns(&path, &exp.series)
-            });
-        if !all_there {
-            return None;
-        }
-    }
-    Some(r)
+    files::stored(dir, p.index, point::POINT_SCHEMA, &key)
+}
+
+/// Whether `p` keeps its trajectories (for a figure, or all of them).
+fn needs_trajectories(exp: &Experiment, p: &sweep::Point) -> bool {
+    exp.all_trajectories || p.index == exp.plot_point || exp.also_points.contains(&p.index)
+}
+
+/// The stored result of `p` with its trajectories where it needs them.
+fn complete(dir: &Path, exp: &Experiment, p: &sweep::Point) -> Option<PointResult> {
+    stored(dir, exp, p).filter(|r| !needs_trajectories(exp, p) || has_trajectories(dir, exp, p, r))
+}
+
+/// Whether the trajectories of every run of `r` that has any are stored,
+/// with every series the experiment asks for.
+fn has_trajectories(dir: &Path, exp: &Experiment, p: &sweep::Point, r: &PointResult) -> bool {
+    r.body
+        .formulations
+        .iter()
+        .filter(|f| f.t_last.is_some())
+        .all(|f| {
+            let path = output::trajectory_path(dir, p.index, &f.label);
+            path.exists() && has_series_columns(&path, &exp.series)
+        })
 }
 
 /// Runs `exp` and writes its results (see the module documentation; a
@@ -339,23 +347,22 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
         points
             .par_iter()
             .map(|p| {
-                let needs_traj = exp.all_trajectories
-                    || p.index == exp.plot_point
-                    || exp.also_points.contains(&p.index);
-                if !opts.force
-                    && let Some(r) = stored(dir, exp, p, needs_traj)
-                {
-                    {
-                        reused.fetch_add(1, Ordering::SeqCst);
-                        let failed = r
-                            .body
-                            .formulations
-                            .iter()
-                            .filter(|f| f.status == "failed")
-                            .count();
-                        progress.point_done(failed, true);
-                        return Ok(r);
-                    }
+                let needs_traj = needs_trajectories(exp, p);
+                let mut old = if opts.force {
+                    None
+                } else {
+                    stored(dir, exp, p)
+                };
+                if let Some(r) = old.take_if(|r| !needs_traj || has_trajectories(dir, exp, p, r)) {
+                    reused.fetch_add(1, Ordering::SeqCst);
+                    let failed = r
+                        .body
+                        .formulations
+                        .iter()
+                        .filter(|f| f.status == "failed")
+                        .count();
+                    progress.point_done(failed, true);
+                    return Ok(r);
                 }
                 let (r, samples) = point::run_point(exp, p);
                 if needs_traj {
@@ -368,8 +375,8 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
                 // run agrees with it apart from wall times, the stored one
                 // stays, so that drawing a plot on a fresh clone does not
                 // rewrite the committed timings.
-                let r = match stored(dir, exp, p, false) {
-                    Some(old) if !opts.force && same_but_wall_times(&old, &r) => old,
+                let r = match old {
+                    Some(old) if same_but_wall_times(&old, &r) => old,
                     _ => {
                         files::write_json(&files::point_path(dir, p.index), &r)?;
                         r

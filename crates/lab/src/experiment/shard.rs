@@ -135,12 +135,11 @@ pub fn gather(exp: &Experiment, shards: &[ResultsDir], out: &Path) -> Result<usi
     let mut found = Vec::with_capacity(points.len());
     let mut missing = Vec::new();
     for p in &points {
-        let needs_traj =
-            exp.all_trajectories || p.index == exp.plot_point || exp.also_points.contains(&p.index);
+        let needs_traj = super::needs_trajectories(exp, p);
         match shards
             .iter()
             .map(ResultsDir::path)
-            .find(|d| super::stored(d, exp, p, needs_traj).is_some())
+            .find(|d| super::complete(d, exp, p).is_some())
         {
             Some(dir) => found.push((p.index, dir, needs_traj)),
             None => missing.push(p.index),

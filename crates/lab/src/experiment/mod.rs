@@ -275,6 +275,15 @@ fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point) -> Option<PointResult>
     files::stored(dir, p.index, point::POINT_SCHEMA, &key)
 }
 
+/// How many runs of `r` failed.
+fn failed_runs(r: &PointResult) -> usize {
+    r.body
+        .formulations
+        .iter()
+        .filter(|f| f.status == "failed")
+        .count()
+}
+
 /// Whether `p` keeps its trajectories (for a figure, or all of them).
 fn needs_trajectories(exp: &Experiment, p: &sweep::Point) -> bool {
     exp.all_trajectories || p.index == exp.plot_point || exp.also_points.contains(&p.index)
@@ -355,13 +364,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
                 };
                 if let Some(r) = old.take_if(|r| !needs_traj || has_trajectories(dir, exp, p, r)) {
                     reused.fetch_add(1, Ordering::SeqCst);
-                    let failed = r
-                        .body
-                        .formulations
-                        .iter()
-                        .filter(|f| f.status == "failed")
-                        .count();
-                    progress.point_done(failed, true);
+                    progress.point_done(failed_runs(&r), true);
                     return Ok(r);
                 }
                 let (r, samples) = point::run_point(exp, p);
@@ -382,13 +385,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
                         r
                     }
                 };
-                let failed = r
-                    .body
-                    .formulations
-                    .iter()
-                    .filter(|f| f.status == "failed")
-                    .count();
-                progress.point_done(failed, false);
+                progress.point_done(failed_runs(&r), false);
                 Ok(r)
             })
             .collect()

@@ -38,15 +38,40 @@ impl<S: OdeSystem + ?Sized> Hooks for Rhs<'_, S> {
 }
 
 /// Writes `Σ_j a_j k_j` into `out` (`a.len() <= k.len()`, zero weights skipped).
+///
+/// Four components at a time, summed over the stages in registers: for the
+/// small states of the workbench a running sum kept in `out` costs a store
+/// and a load per stage, which took a quarter of a DOP853 run on the
+/// sleigh's B. The terms are added in the same order as by a running sum,
+/// so the result is the same to the bit.
 pub(crate) fn combine(out: &mut [f64], a: &[f64], k: &[Vec<f64>]) {
-    out.fill(0.0);
+    let n = out.len();
+    let mut i = 0;
+    while i + 4 <= n {
+        combine_at::<4>(out, a, k, i);
+        i += 4;
+    }
+    if i + 2 <= n {
+        combine_at::<2>(out, a, k, i);
+        i += 2;
+    }
+    if i < n {
+        combine_at::<1>(out, a, k, i);
+    }
+}
+
+/// [`combine`] for the `W` components from `i` on.
+#[inline(always)]
+fn combine_at<const W: usize>(out: &mut [f64], a: &[f64], k: &[Vec<f64>], i: usize) {
+    let mut acc = [0.0; W];
     for (&aj, kj) in a.iter().zip(k) {
         if aj != 0.0 {
-            for (o, &v) in out.iter_mut().zip(kj) {
-                *o += aj * v;
+            for (s, &v) in acc.iter_mut().zip(&kj[i..i + W]) {
+                *s += aj * v;
             }
         }
     }
+    out[i..i + W].copy_from_slice(&acc);
 }
 
 /// Writes the stage state `y + h Σ_j a_j k_j` into `out` (the sum is formed
@@ -251,6 +276,31 @@ pub(crate) fn hinit<S: OdeSystem + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The blocked sum equals a running sum over the stages to the bit, at
+    /// every state size the blocks split differently (1 … 9), zero weights
+    /// included.
+    #[test]
+    fn combine_is_the_running_sum_to_the_bit() {
+        let a = [0.3, 0.0, -1.7, 2.0 / 3.0, 0.0, 1e-3, -0.1];
+        for n in 1..=9 {
+            let k: Vec<Vec<f64>> = (0..a.len())
+                .map(|j| (0..n).map(|i| ((i * 7 + j * 3) as f64).sin() * 1e3).collect())
+                .collect();
+            let mut running = vec![0.0; n];
+            for (&aj, kj) in a.iter().zip(&k) {
+                if aj != 0.0 {
+                    for (o, &v) in running.iter_mut().zip(kj) {
+                        *o += aj * v;
+                    }
+                }
+            }
+            let mut out = vec![f64::NAN; n];
+            combine(&mut out, &a, &k);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&out), bits(&running), "n = {n}");
+        }
+    }
 
     fn params() -> ControlParams {
         ControlParams {

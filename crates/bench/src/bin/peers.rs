@@ -2,7 +2,8 @@
 //! and diffsol's BDF, ESDIRK34 and TR-BDF2, in three states (Cartesian and
 //! adapted by AD, body frame by hand); B on the sleigh by our DOP853
 //! and ode_solvers' DOP853; errors against references whose own error is
-//! measured, wall time (median of repeats), work counters.
+//! measured, wall time (median of repeats, every solver of a case timed
+//! once per round), work counters.
 //!
 //! `cargo run --release -p nonholo-bench --features peers --bin peers [-- OPTIONS]`
 //!
@@ -16,7 +17,7 @@ use std::process::ExitCode;
 
 use nonholo_bench::peers::{
     DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Reuse, Row, Solver,
-    measure, measure_all, reference_distance,
+    measure, measure_all, measure_all_retrying, reference_distance,
 };
 use nonholo_bench::setup::sleigh;
 use nonholo_core::integrate::Method;
@@ -32,7 +33,8 @@ struct Args {
 
 const USAGE: &str = "usage: peers [--out DIR] [--repeats N] [--quick] [--page]
   --out DIR      where peers.csv, peers.md and index.html go (default results/peers)
-  --repeats N    timed repeats per case, the median is reported (default 7)
+  --repeats N    timed repeats per case, in rounds over the case's solvers; the median
+                 is reported (default 7)
   --quick        k = 1e2, 1e6 and tolerances 1e-6 only (a smoke run)
   --page         run nothing: rebuild index.html and its figures from the stored files
   --reuse        run only the Jacobian-reuse study: our Radau IIA with RADAU5's reuse
@@ -436,32 +438,6 @@ fn visc_problem(scene: &nonholo_scenes::Sleigh, k: f64, name: &str) -> Problem {
     }
 }
 
-/// [`measure`] with the run's repeats, its progress line printed.
-#[allow(clippy::too_many_arguments)]
-fn measured(
-    p: &Problem,
-    solver: Solver,
-    tol: f64,
-    g: &[f64],
-    reference: &Reference,
-    ref_name: &str,
-    ref_err: f64,
-    args: &Args,
-) -> Row {
-    let row = measure(
-        p,
-        solver,
-        tol,
-        g,
-        reference,
-        ref_name,
-        ref_err,
-        args.repeats,
-    );
-    progress(&row);
-    row
-}
-
 /// Marks a row as a reference run.
 fn as_reference(row: Row) -> Row {
     Row {
@@ -583,23 +559,32 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
         let ref_err = distances.iter().copied().fold(f64::NAN, f64::min);
         for &tol in tols {
             for p in [&problem, &body, &adapted] {
-                for solver in [
-                    Solver::Ours(Method::Radau5),
-                    Solver::OursFullNewton,
-                    BDF,
-                    ESDIRK34,
-                    TR_BDF2,
-                ] {
-                    let row = measured(p, solver, tol, &g, &reference, ref_name, ref_err, args);
-                    let capped_out =
-                        row.status == "failed" && row.message.contains("nonlinear solver failures");
+                // Timed interleaved: every solver once per round, diffsol's
+                // methods that give up at their failure cap followed by the
+                // same without the cap.
+                let capped_out = |solver: Solver, row: &Row| {
+                    (row.status == "failed" && row.message.contains("nonlinear solver failures"))
+                        .then(|| solver.uncapped())
+                };
+                for row in measure_all_retrying(
+                    p,
+                    &[
+                        Solver::Ours(Method::Radau5),
+                        Solver::OursFullNewton,
+                        BDF,
+                        ESDIRK34,
+                        TR_BDF2,
+                    ],
+                    capped_out,
+                    tol,
+                    &g,
+                    &reference,
+                    ref_name,
+                    ref_err,
+                    args.repeats,
+                ) {
+                    progress(&row);
                     rows.push(row);
-                    if capped_out {
-                        let uncapped = solver.uncapped();
-                        let row =
-                            measured(p, uncapped, tol, &g, &reference, ref_name, ref_err, args);
-                        rows.push(row);
-                    }
                 }
             }
         }
@@ -663,17 +648,16 @@ fn b_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<(), S
                 (first, "ours dop853 @1e-13", d)
             };
             for &tol in tols {
-                for solver in [Solver::Ours(Method::Dop853), Solver::OdeSolversDop853] {
-                    let row = measure(
-                        &problem,
-                        solver,
-                        tol,
-                        &g,
-                        &reference,
-                        ref_name,
-                        ref_err,
-                        args.repeats,
-                    );
+                for row in measure_all(
+                    &problem,
+                    &[Solver::Ours(Method::Dop853), Solver::OdeSolversDop853],
+                    tol,
+                    &g,
+                    &reference,
+                    ref_name,
+                    ref_err,
+                    args.repeats,
+                ) {
                     progress(&row);
                     rows.push(row);
                 }

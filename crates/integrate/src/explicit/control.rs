@@ -285,7 +285,11 @@ mod tests {
         let a = [0.3, 0.0, -1.7, 2.0 / 3.0, 0.0, 1e-3, -0.1];
         for n in 1..=9 {
             let k: Vec<Vec<f64>> = (0..a.len())
-                .map(|j| (0..n).map(|i| ((i * 7 + j * 3) as f64).sin() * 1e3).collect())
+                .map(|j| {
+                    (0..n)
+                        .map(|i| ((i * 7 + j * 3) as f64).sin() * 1e3)
+                        .collect()
+                })
                 .collect();
             let mut running = vec![0.0; n];
             for (&aj, kj) in a.iter().zip(&k) {

@@ -2496,6 +2496,121 @@ fn peers_at_matched_error_as_peers_md_states() {
     assert!(ms("visc-body", radau) < ms("visc-body", bdf));
 }
 
+/// docs/peers.md's tables of the main comparison (errors, times, work and
+/// references for the three forms of `visc`, and B) are those of the
+/// generated `results/peers/peers.md`, verbatim: copied by hand they once
+/// stayed a run behind the stored results.
+#[test]
+fn peers_md_tables_are_the_generated_ones() {
+    let generated = std::fs::read_to_string(committed().join("peers/peers.md")).unwrap();
+    let doc = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/peers.md"),
+    )
+    .unwrap();
+    let lines: Vec<&str> = doc.lines().collect();
+    let mut tables = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if lines[i].starts_with('|') {
+            let start = i;
+            while i < lines.len() && lines[i].starts_with('|') {
+                i += 1;
+            }
+            tables.push(lines[start..i].join("\n"));
+        } else {
+            i += 1;
+        }
+    }
+    let first_cell = |t: &str| t.split('|').nth(1).unwrap_or("").trim().to_string();
+    let ours: Vec<&String> = tables
+        .iter()
+        .filter(|t| {
+            ["visc", "visc-body", "visc-adapted", "B", "problem"].contains(&first_cell(t).as_str())
+        })
+        .collect();
+    assert_eq!(ours.len(), 13, "docs/peers.md's tables of the comparison");
+    for t in ours {
+        assert!(
+            generated.contains(t.as_str()),
+            "docs/peers.md has a table that results/peers/peers.md does not:\n{t}"
+        );
+    }
+}
+
+/// docs/peers.md's ratios of wall times in the main comparison are those
+/// of `results/peers/peers.csv`: BDF against our Radau IIA at k = 1e2, and
+/// ode_solvers' DOP853 against ours on B.
+#[test]
+fn peers_time_ratios_as_peers_md_states() {
+    let rows = timed_table("peers", "peers.csv");
+    let wall = |problem: &str, param: &str, method: &str, tol: &str, krate: &str| -> f64 {
+        let r = rows
+            .iter()
+            .find(|r| {
+                r["problem"] == problem
+                    && r["param"] == param
+                    && r["method"] == method
+                    && r["tol"] == tol
+                    && r["crate"] == krate
+                    && r["status"] == "ok"
+            })
+            .unwrap_or_else(|| panic!("peers.csv: no {problem} {param} {method} {tol}"));
+        num(r, "wall_median_s")
+    };
+    let range = |v: &[f64]| {
+        (
+            v.iter().copied().fold(f64::INFINITY, f64::min),
+            v.iter().copied().fold(0.0, f64::max),
+        )
+    };
+    // k = 1e2: our Radau IIA over diffsol's BDF, every tolerance.
+    let q: Vec<f64> = ["1e-4", "1e-6", "1e-8", "1e-10"]
+        .iter()
+        .map(|t| {
+            wall("visc", "k=1e2", "Radau IIA (radau5)", t, "nonholo")
+                / wall("visc", "k=1e2", "BDF (NDF, order 1-5)", t, "diffsol")
+        })
+        .collect();
+    let (lo, hi) = range(&q);
+    // B: ours over ode_solvers', every case.
+    let mut b = Vec::new();
+    for a in ["a=0", "a=0.4"] {
+        for pot in ["paper", "com"] {
+            for tol in ["1e-6", "1e-9", "1e-12"] {
+                let pick = |krate: &str| {
+                    let r = rows
+                        .iter()
+                        .find(|r| {
+                            r["problem"] == "B"
+                                && r["param"] == a
+                                && r["potential"] == pot
+                                && r["tol"] == tol
+                                && r["crate"] == krate
+                        })
+                        .unwrap();
+                    num(r, "wall_median_s")
+                };
+                b.push(pick("nonholo") / pick("ode_solvers"));
+            }
+        }
+    }
+    let (b_lo, b_hi) = range(&b);
+    b.sort_by(f64::total_cmp);
+    let b_med = 0.5 * (b[5] + b[6]);
+    doc_says(
+        "peers.md",
+        &[
+            &format!("BDF is {:.1}–{:.1}× faster in wall time", lo, hi),
+            &format!(
+                "1.46× ode_solvers' (median over the twelve rows; 1.17–1.49×) in a run the same day to {b_med:.2}× ({b_lo:.2}–{b_hi:.2}×) in the stored one"
+            ),
+        ],
+    );
+    performance_md_says(&[&format!(
+        "ours takes {b_lo:.2}–{b_hi:.2}× ode_solvers' time (median {b_med:.2}×)"
+    )]);
+}
+
 /// docs/peers.md's Jacobian-reuse study is `results/peers/reuse.csv` and
 /// `reuse-matched.csv` (`peers --reuse`): the Jacobian counts at k = 1e6 and
 /// the ranges over k of our time against BDF's at matched error 1e-6.

@@ -19,12 +19,17 @@
 //! drifts between rungs does not enter it. The errors reached there, and
 //! the number of paired repeats, are printed and written beside it.
 //!
-//! With `--scipy PYTHON`, each rung also runs `crates/bench/scipy/sleigh_b.py`
-//! under that interpreter (it needs NumPy and SciPy): the same problem as a
-//! SciPy user writes it, a KKT right-hand side in NumPy integrated by
-//! `solve_ivp`'s DOP853, timed inside the script (its own medians over the
-//! same number of repeats, interpreter start excluded) right after the rung's
-//! alternating repeats of B and the hand-written equations.
+//! With `--scipy PYTHON`, `crates/bench/scipy/sleigh_b.py` runs under that
+//! interpreter (it needs NumPy and SciPy) as one process serving one run per
+//! request: the same problem as a SciPy user writes it, a KKT right-hand
+//! side in NumPy integrated by `solve_ivp`'s DOP853, each run timed inside
+//! the script (`solve_ivp` alone). Its runs take turns with B's and the
+//! hand-written equations' in every repeat of every rung, and at matched
+//! error SciPy runs at its own interpolated tolerance in the same paired
+//! repeats: the speed-up is the median of the repeats' ratios. The process
+//! gets `OPENBLAS_NUM_THREADS=1` (and the same for OpenMP and MKL): a 4 × 4
+//! `dgesv` runs on one thread anyway, and BLAS threads left spinning would
+//! take the second core from the runs being timed.
 //!
 //! `cargo run --release -p nonholo-bench --bin sleigh-floor [-- --repeats N --error E --scipy PYTHON]`,
 //! from the repository root: the ladder and the matched-error line are also
@@ -57,54 +62,87 @@ struct Rung {
 /// Path of the SciPy peer, in this crate.
 const SCIPY_SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scipy/sleigh_b.py");
 
-/// `(error, rhs evaluations, median ms)` of SciPy's DOP853 at `tol`, by
-/// the script under `python`.
-fn scipy_run(
-    python: &str,
-    c: &Constants,
-    y0: &[f64],
-    reference: [f64; 3],
-    tol: f64,
-    repeats: usize,
-) -> Result<(f64, usize, f64), String> {
-    let mut cmd = std::process::Command::new(python);
-    cmd.arg(SCIPY_SCRIPT);
-    for (name, v) in [
-        ("--m", c.m),
-        ("--j", c.j),
-        ("--a", c.a),
-        ("--gs", c.gs),
-        ("--com", c.com),
-        ("--t-end", T_END),
-        ("--tol", tol),
-    ] {
-        // `--name=value`: argparse would take a separate `-2.9e0` for an option.
-        cmd.arg(format!("{name}={v:e}"));
+/// SciPy's DOP853: `sleigh_b.py --serve` under `python`, one run per
+/// request.
+struct Scipy {
+    child: std::process::Child,
+    requests: std::process::ChildStdin,
+    answers: std::io::BufReader<std::process::ChildStdout>,
+}
+
+impl Scipy {
+    fn start(python: &str, c: &Constants, y0: &[f64], reference: [f64; 3]) -> Result<Self, String> {
+        use std::process::{Command, Stdio};
+        let mut cmd = Command::new(python);
+        cmd.arg(SCIPY_SCRIPT).arg("--serve");
+        for (name, v) in [
+            ("--m", c.m),
+            ("--j", c.j),
+            ("--a", c.a),
+            ("--gs", c.gs),
+            ("--com", c.com),
+            ("--t-end", T_END),
+        ] {
+            // `--name=value`: argparse would take a separate `-2.9e0` for an option.
+            cmd.arg(format!("{name}={v:e}"));
+        }
+        // Plain decimals (round-trip exact): argparse takes `-2e-1` for an option.
+        cmd.arg("--y0").args(y0.iter().map(|v| v.to_string()));
+        cmd.arg("--reference")
+            .args(reference.iter().map(|v| v.to_string()));
+        for var in ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"] {
+            cmd.env(var, "1");
+        }
+        let mut child = cmd
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("--scipy: cannot run `{python}`: {e}"))?;
+        let (Some(requests), Some(answers)) = (child.stdin.take(), child.stdout.take()) else {
+            return Err("--scipy: no pipe to the script".into());
+        };
+        Ok(Scipy {
+            child,
+            requests,
+            answers: std::io::BufReader::new(answers),
+        })
     }
-    // Plain decimals (round-trip exact): argparse takes `-2e-1` for an option.
-    cmd.arg("--y0").args(y0.iter().map(|v| v.to_string()));
-    cmd.arg("--reference")
-        .args(reference.iter().map(|v| v.to_string()));
-    cmd.arg("--repeats").arg(repeats.to_string());
-    let out = cmd
-        .output()
-        .map_err(|e| format!("--scipy: cannot run `{python}`: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "--scipy: {SCIPY_SCRIPT} failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
+
+    /// `(error, rhs evaluations, ms)` of one run at `tol`.
+    fn run(&mut self, tol: f64) -> Result<(f64, usize, f64), String> {
+        use std::io::{BufRead, Write};
+        let failed = |what: &str| {
+            format!("--scipy: {SCIPY_SCRIPT} {what} at tol {tol:e} (its message is above)")
+        };
+        writeln!(self.requests, "{tol:e}")
+            .and_then(|()| self.requests.flush())
+            .map_err(|_| failed("stopped"))?;
+        let mut line = String::new();
+        match self.answers.read_line(&mut line) {
+            Ok(n) if n > 0 => {}
+            _ => return Err(failed("stopped")),
+        }
+        let cells: Vec<&str> = line.trim().split(',').collect();
+        let bad = || format!("--scipy: unexpected output `{}`", line.trim());
+        if cells.len() != 4 {
+            return Err(bad());
+        }
+        let error: f64 = cells[1].parse().map_err(|_| bad())?;
+        let evals: usize = cells[2].parse().map_err(|_| bad())?;
+        let ms: f64 = cells[3].parse().map_err(|_| bad())?;
+        Ok((error, evals, ms))
     }
-    let line = String::from_utf8_lossy(&out.stdout);
-    let cells: Vec<&str> = line.trim().split(',').collect();
-    let bad = || format!("--scipy: unexpected output `{}`", line.trim());
-    if cells.len() != 4 {
-        return Err(bad());
+}
+
+impl Drop for Scipy {
+    fn drop(&mut self) {
+        // The script ends when its stdin closes; a script that does not is
+        // killed rather than waited for.
+        if self.child.try_wait().ok().flatten().is_none() {
+            let _ = self.child.kill();
+        }
+        let _ = self.child.wait();
     }
-    let error: f64 = cells[1].parse().map_err(|_| bad())?;
-    let evals: usize = cells[2].parse().map_err(|_| bad())?;
-    let ms: f64 = cells[3].parse().map_err(|_| bad())?;
-    Ok((error, evals, ms))
 }
 
 /// `(position at T_END, rhs evaluations, wall ms)` of one DOP853 run.
@@ -152,12 +190,6 @@ fn args() -> Result<(usize, f64, Option<String>), String> {
     Ok((repeats, error, scipy))
 }
 
-/// Wall time of `side` at error `e` ([`at_error`] over the rungs).
-fn time_at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
-    let points: Vec<(f64, f64)> = rungs.iter().map(|r| (r.error[side], r.ms[side])).collect();
-    at_error(&points, e)
-}
-
 /// Tolerance of `side` for error `e` ([`at_error`] over the rungs: the
 /// tolerance interpolated as a power law of the error).
 fn tol_at_error(rungs: &[Rung], side: usize, e: f64) -> Option<f64> {
@@ -197,10 +229,15 @@ fn report() -> Result<(), String> {
     let mut ladder =
         String::from("tol,error_b,error_hand,evals_b,evals_hand,ms_b,ms_hand,time_ratio\n");
     let mut scipy_ladder = String::from("tol,error,evals,ms,speedup_b\n");
+    let mut scipy = match &scipy {
+        Some(python) => Some(Scipy::start(python, &c, &y_b, reference)?),
+        None => None,
+    };
     for k in 6..=13 {
         let tol = 10f64.powi(-k);
-        let (mut tb, mut th) = (Vec::new(), Vec::new());
+        let (mut tb, mut th, mut ts) = (Vec::new(), Vec::new(), Vec::new());
         let (mut pb, mut ph, mut eb, mut eh) = ([0.0; 3], [0.0; 3], 0, 0);
+        let (mut es, mut ns) = (f64::NAN, 0);
         for _ in 0..repeats {
             let (p, e, ms) = run(&mut b, &y_b, tol)?;
             (pb, eb) = (p, e);
@@ -208,15 +245,21 @@ fn report() -> Result<(), String> {
             let (p, e, ms) = run(&mut hand, &y_h, tol)?;
             (ph, eh) = (p, e);
             th.push(ms);
+            if let Some(peer) = scipy.as_mut() {
+                let (e, n, ms) = peer.run(tol)?;
+                (es, ns) = (e, n);
+                ts.push(ms);
+            }
         }
-        let (es, ns, ms) = match &scipy {
-            Some(python) => scipy_run(python, &c, &y_b, reference, tol, repeats)?,
-            None => (f64::NAN, 0, f64::NAN),
+        let ms_scipy = if ts.is_empty() {
+            f64::NAN
+        } else {
+            median(&mut ts)
         };
         let r = Rung {
             tol,
             error: [dist(pb), dist(ph), es],
-            ms: [median(&mut tb), median(&mut th), ms],
+            ms: [median(&mut tb), median(&mut th), ms_scipy],
             evals: [eb, eh, ns],
         };
         if scipy.is_some() {
@@ -251,9 +294,18 @@ fn report() -> Result<(), String> {
             "error {target:.0e} m is not bracketed by both ladders"
         ));
     };
-    // Both sides at their matched tolerances, paired.
-    let (mut tb, mut th, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut pb, mut ph) = ([0.0; 3], [0.0; 3]);
+    // SciPy's tolerance for the same error, where it runs.
+    let tol_s =
+        match scipy {
+            Some(_) => Some(tol_at_error(&rungs, 2, target).ok_or_else(|| {
+                format!("error {target:.0e} m is not bracketed by SciPy's ladder")
+            })?),
+            None => None,
+        };
+    // Every side at its matched tolerance, paired.
+    let (mut tb, mut th, mut ts) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut ratios, mut speedups) = (Vec::new(), Vec::new());
+    let (mut pb, mut ph, mut es) = ([0.0; 3], [0.0; 3], f64::NAN);
     for _ in 0..3 * repeats {
         let (p, _, a) = run(&mut b, &y_b, tol_b)?;
         let (q, _, h) = run(&mut hand, &y_h, tol_h)?;
@@ -261,6 +313,12 @@ fn report() -> Result<(), String> {
         tb.push(a);
         th.push(h);
         ratios.push(a / h);
+        if let (Some(peer), Some(tol_s)) = (scipy.as_mut(), tol_s) {
+            let (e, _, ms) = peer.run(tol_s)?;
+            es = e;
+            ts.push(ms);
+            speedups.push(ms / a);
+        }
     }
     let (a, h, ratio) = (median(&mut tb), median(&mut th), median(&mut ratios));
     let (err_b, err_h) = (dist(pb), dist(ph));
@@ -283,31 +341,28 @@ fn report() -> Result<(), String> {
             ),
         ),
     ];
-    if scipy.is_some() {
-        println!("\nSciPy (solve_ivp DOP853, NumPy KKT right-hand side), same rungs:\n");
+    if let Some(tol_s) = tol_s {
+        println!(
+            "\nSciPy (solve_ivp DOP853, NumPy KKT right-hand side), same rungs, same repeats:\n"
+        );
         println!("| tol | error (m) | evaluations | ms | time / B's |");
         println!("|---|---|---|---|---|");
         for line in scipy_ladder.lines().skip(1) {
             println!("| {} |", line.replace(',', " | "));
         }
-        let (Some(a), Some(p)) = (
-            time_at_error(&rungs, 0, target),
-            time_at_error(&rungs, 2, target),
-        ) else {
-            return Err(format!(
-                "error {target:.0e} m is not bracketed by SciPy's ladder"
-            ));
-        };
+        let (p, speedup) = (median(&mut ts), median(&mut speedups));
         println!(
-            "\nAt matched error {target:.0e} m: B {a:.3} ms, SciPy {p:.2} ms: B {:.0}× faster",
-            p / a
+            "\nAt matched error {target:.0e} m (SciPy at tol {tol_s:.2e}: {es:.2e} m; {} paired \
+             repeats): B {a:.3} ms, SciPy {p:.2} ms: B {speedup:.0}× faster",
+            speedups.len()
         );
         files.push(("scipy.csv", scipy_ladder));
         files.push((
             "scipy-matched.csv",
             format!(
-                "error,ms_b,ms_scipy,speedup\n{target:e},{a:.4},{p:.4},{:.1}\n",
-                p / a
+                "error,ms_b,ms_scipy,speedup,tol_scipy,error_scipy,paired_repeats\n\
+                 {target:e},{a:.4},{p:.4},{speedup:.1},{tol_s:.3e},{es:.3e},{}\n",
+                speedups.len()
             ),
         ));
     }

@@ -407,6 +407,21 @@ formulation = "vakonomic"
         "{orders:?}"
     );
     assert_eq!(csv_rows(&res.join("stationarity.csv")).len(), 2 * 3 * 2);
+    // A second run computes everything again; it agrees with the stored
+    // result apart from wall times, so the stored one stays, to the byte
+    // (`nonholo reproduce` on a fresh clone leaves it alone). `--force`
+    // writes the new one.
+    let stored = std::fs::read(res.join("bvp.json")).unwrap();
+    let solves_csv = std::fs::read(res.join("solves.csv")).unwrap();
+    let o = nonholo_in(&dir, &["experiment", &file]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(1 reused)"), "{}", stderr(&o));
+    assert!(std::fs::read(res.join("bvp.json")).unwrap() == stored);
+    assert!(std::fs::read(res.join("solves.csv")).unwrap() == solves_csv);
+    let o = nonholo_in(&dir, &["experiment", &file, "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(0 reused)"), "{}", stderr(&o));
+    assert!(std::fs::read(res.join("bvp.json")).unwrap() != stored);
     // `nonholo plot` redraws from bvp.json.
     let o = nonholo_in(&dir, &["plot", &file]);
     assert!(o.status.success(), "{}", stderr(&o));

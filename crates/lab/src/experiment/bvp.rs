@@ -19,7 +19,8 @@
 //! | `summary.json`, `manifest.json`, `plots/`, `index.html` | as for the other kinds |
 //!
 //! Solves take milliseconds to a second, so nothing is stored per point and
-//! a run computes everything again.
+//! a run computes everything again; a stored `bvp.json` that agrees with it
+//! apart from wall times stays (see `run`).
 
 use std::path::{Path, PathBuf};
 
@@ -655,6 +656,20 @@ pub fn run(
             .collect::<Result<_, _>>()
             .map_err(CliError::Run)?,
     };
+    // A run computes everything again, and everything but its wall times
+    // is deterministic: where the stored result agrees with this one apart
+    // from them, it stays (tables, figures and page are written from it, as
+    // they were), so that `nonholo reproduce` on a fresh clone does not
+    // rewrite the committed timings for nothing. `--force` takes the new.
+    let stored = match opts.force {
+        false => super::read_stored::<BvpResult>(&dir, "bvp.json").ok(),
+        true => None,
+    };
+    let (result, kept) = match stored {
+        Some(old) if super::same_apart_from(&old, &result, "wall_s") => (old, true),
+
+        _ => (result, false),
+    };
     // The figures first: a failure there leaves the tables of the last run
     // beside its figures.
     let written = (|| {
@@ -679,7 +694,7 @@ pub fn run(
     Ok(Outcome {
         dir,
         points: result.points.len(),
-        reused: 0,
+        reused: if kept { result.points.len() } else { 0 },
         failed_runs: failed,
         stopped_runs: 0,
         budget_runs: 0,

@@ -246,23 +246,23 @@ fn has_series_columns(path: &Path, series: &[String]) -> bool {
     series.iter().all(|s| header.iter().any(|h| h == s))
 }
 
-/// Whether two results of one point agree in everything but their wall
-/// times (`wall_time_s` of every run, which no two runs share).
-fn same_but_wall_times(a: &PointResult, b: &PointResult) -> bool {
-    fn strip(v: &mut serde_json::Value) {
+/// Whether two results agree in everything but their wall times (the
+/// fields named `wall_key` at any depth, which no two runs share).
+pub(crate) fn same_apart_from<T: serde::Serialize>(a: &T, b: &T, wall_key: &str) -> bool {
+    fn strip(v: &mut serde_json::Value, key: &str) {
         match v {
             serde_json::Value::Object(m) => {
-                m.remove("wall_time_s");
-                m.values_mut().for_each(strip);
+                m.remove(key);
+                m.values_mut().for_each(|v| strip(v, key));
             }
-            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            serde_json::Value::Array(a) => a.iter_mut().for_each(|v| strip(v, key)),
             _ => {}
         }
     }
     match (serde_json::to_value(a), serde_json::to_value(b)) {
         (Ok(mut a), Ok(mut b)) => {
-            strip(&mut a);
-            strip(&mut b);
+            strip(&mut a, wall_key);
+            strip(&mut b, wall_key);
             a == b
         }
         _ => false,
@@ -379,7 +379,7 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
                 // stays, so that drawing a plot on a fresh clone does not
                 // rewrite the committed timings.
                 let r = match old {
-                    Some(old) if same_but_wall_times(&old, &r) => old,
+                    Some(old) if same_apart_from(&old, &r, "wall_time_s") => old,
                     _ => {
                         files::write_json(&files::point_path(dir, p.index), &r)?;
                         r

@@ -3225,6 +3225,36 @@ fn experiments_of_kind(kind: &str) -> Vec<String> {
     names
 }
 
+/// Every committed experiment page states its file's current claim: a page
+/// left from before an edit of the claim (bvp-sleigh's once was) says what
+/// the experiment no longer claims.
+#[test]
+fn every_committed_page_states_its_files_claim() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(root.join("experiments")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|x| x != "toml") {
+            continue;
+        }
+        let file: toml::Value = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let exp = &file["experiment"];
+        let name = exp["name"].as_str().unwrap();
+        let Ok(page) = std::fs::read_to_string(committed().join(name).join("index.html")) else {
+            continue;
+        };
+        let claim = nonholo_lab::table::escape(exp["claim"].as_str().unwrap());
+        assert!(
+            page.contains(&format!("<b>Claim tested:</b> {claim}</p>")),
+            "results/{name}/index.html does not state the claim of {}",
+            path.display()
+        );
+        checked += 1;
+    }
+    // Not vacuous: every figure experiment has a committed page.
+    assert!(checked >= 30, "{checked} pages checked");
+}
+
 /// The claims figures.md's table states are the experiment files' own:
 /// `nonholo reproduce` rebuilds the table from the files, so a claim
 /// edited in the table alone would be overwritten by the next run (as

@@ -66,7 +66,8 @@ const SCIPY_SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scipy/sleigh_b.
 /// request.
 struct Scipy {
     child: std::process::Child,
-    requests: std::process::ChildStdin,
+    /// `None` once closed (in `drop`).
+    requests: Option<std::process::ChildStdin>,
     answers: std::io::BufReader<std::process::ChildStdout>,
 }
 
@@ -103,7 +104,7 @@ impl Scipy {
         };
         Ok(Scipy {
             child,
-            requests,
+            requests: Some(requests),
             answers: std::io::BufReader::new(answers),
         })
     }
@@ -114,8 +115,9 @@ impl Scipy {
         let failed = |what: &str| {
             format!("--scipy: {SCIPY_SCRIPT} {what} at tol {tol:e} (its message is above)")
         };
-        writeln!(self.requests, "{tol:e}")
-            .and_then(|()| self.requests.flush())
+        let requests = self.requests.as_mut().ok_or_else(|| failed("was closed"))?;
+        writeln!(requests, "{tol:e}")
+            .and_then(|()| requests.flush())
             .map_err(|_| failed("stopped"))?;
         let mut line = String::new();
         match self.answers.read_line(&mut line) {
@@ -136,11 +138,8 @@ impl Scipy {
 
 impl Drop for Scipy {
     fn drop(&mut self) {
-        // The script ends when its stdin closes; a script that does not is
-        // killed rather than waited for.
-        if self.child.try_wait().ok().flatten().is_none() {
-            let _ = self.child.kill();
-        }
+        // The script ends when its stdin closes.
+        drop(self.requests.take());
         let _ = self.child.wait();
     }
 }

@@ -2603,6 +2603,38 @@ fn peers_time_ratios_as_peers_md_states() {
         }
     }
     let (b_lo, b_hi) = range(&b);
+    // The same steps in all but the cases the prose names.
+    let ours = rows
+        .iter()
+        .filter(|r| r["problem"] == "B" && r["crate"] == "nonholo" && r["status"] == "ok");
+    let mut same = 0;
+    let mut differ = Vec::new();
+    for r in ours {
+        let o = rows
+            .iter()
+            .find(|o| {
+                o["problem"] == "B"
+                    && o["crate"] == "ode_solvers"
+                    && ["param", "potential", "tol"].iter().all(|k| o[*k] == r[*k])
+            })
+            .unwrap();
+        if r["steps"] == o["steps"] && r["rejected"] == o["rejected"] {
+            same += 1;
+        } else {
+            differ.push(format!(
+                "ours takes {} steps with {} rejected, ode_solvers {} with {}",
+                r["steps"], r["rejected"], o["steps"], o["rejected"]
+            ));
+        }
+    }
+    assert_eq!(differ.len(), 1, "{differ:?}");
+    doc_says(
+        "peers.md",
+        &[
+            &format!("the same accepted and rejected steps in {same} of the 12 cases"),
+            &differ[0],
+        ],
+    );
     b.sort_by(f64::total_cmp);
     let b_med = 0.5 * (b[5] + b[6]);
     doc_says(

@@ -954,31 +954,29 @@ fn quote(s: &str) -> String {
     }
 }
 
-/// Runs `solver` `repeats` times; errors against `reference`; one row.
+/// What runs are measured against: the grid their samples are read on, the
+/// reference, its name (for the CSV) and its own estimated error.
+#[derive(Clone, Copy)]
+pub struct Against<'a> {
+    pub grid: &'a [f64],
+    pub reference: &'a Reference,
+    pub name: &'a str,
+    pub ref_err: f64,
+}
+
+/// Runs `solver` `repeats` times; one row.
 pub fn measure(
     problem: &Problem,
     solver: Solver,
     tol: f64,
-    grid: &[f64],
-    reference: &Reference,
-    reference_name: &str,
-    ref_err: f64,
+    against: Against<'_>,
     repeats: usize,
 ) -> Row {
-    let mut rows = measure_all(
-        problem,
-        &[solver],
-        tol,
-        grid,
-        reference,
-        reference_name,
-        ref_err,
-        repeats,
-    );
+    let mut rows = measure_all(problem, &[solver], tol, against, repeats);
     rows.remove(0)
 }
 
-/// Runs every solver of `solvers` once (errors against `reference`, work
+/// Runs every solver of `solvers` once (errors against `against`, work
 /// counters), then times `repeats − 1` more rounds, each running every
 /// solver that has not failed once, starting one solver further on each
 /// round, so that a change in the machine's speed falls on all of them
@@ -988,23 +986,10 @@ pub fn measure_all(
     problem: &Problem,
     solvers: &[Solver],
     tol: f64,
-    grid: &[f64],
-    reference: &Reference,
-    reference_name: &str,
-    ref_err: f64,
+    against: Against<'_>,
     repeats: usize,
 ) -> Vec<Row> {
-    measure_all_retrying(
-        problem,
-        solvers,
-        |_, _| None,
-        tol,
-        grid,
-        reference,
-        reference_name,
-        ref_err,
-        repeats,
-    )
+    measure_all_retrying(problem, solvers, |_, _| None, tol, against, repeats)
 }
 
 /// [`measure_all`], where a solver whose first run `retry` answers with
@@ -1016,13 +1001,11 @@ pub fn measure_all_retrying(
     solvers: &[Solver],
     retry: impl Fn(Solver, &Row) -> Option<Solver>,
     tol: f64,
-    grid: &[f64],
-    reference: &Reference,
-    reference_name: &str,
-    ref_err: f64,
+    against: Against<'_>,
     repeats: usize,
 ) -> Vec<Row> {
-    let first = |solver: Solver| -> (Row, Vec<f64>) {
+    // (solver, its row, its wall times) after the first run.
+    let first = |solver: Solver| -> (Solver, Row, Vec<f64>) {
         let mut row = Row {
             problem: problem.name.clone(),
             potential: problem.potential,
@@ -1035,14 +1018,14 @@ pub fn measure_all_retrying(
             message: String::new(),
             err_end: f64::NAN,
             err_max: f64::NAN,
-            ref_err,
-            reference: reference_name.to_string(),
+            ref_err: against.ref_err,
+            reference: against.name.to_string(),
             wall_median_s: f64::NAN,
             wall_min_s: f64::NAN,
             repeats: 0,
             work: Work::default(),
         };
-        let wall = match solver.run(problem, tol, grid, false) {
+        let wall = match solver.run(problem, tol, against.grid, false) {
             Err(f) => {
                 row.status = "failed";
                 row.message = f.message;
@@ -1050,7 +1033,7 @@ pub fn measure_all_retrying(
                 f.wall_s
             }
             Ok(out) => {
-                match errors(&out, reference, problem.t_end) {
+                match errors(&out, against.reference, problem.t_end) {
                     Ok((e_end, e_max, note)) => {
                         row.err_end = e_end;
                         row.err_max = e_max;
@@ -1062,49 +1045,42 @@ pub fn measure_all_retrying(
                 out.wall_s
             }
         };
-        (row, vec![wall])
+        (solver, row, vec![wall])
     };
     let mut runs = Vec::with_capacity(solvers.len());
-    let mut rows = Vec::with_capacity(solvers.len());
-    let mut walls = Vec::with_capacity(solvers.len());
     for &solver in solvers {
-        let (row, wall) = first(solver);
-        let again = retry(solver, &row);
-        runs.push(solver);
-        rows.push(row);
-        walls.push(wall);
-        if let Some(other) = again {
-            let (row, wall) = first(other);
-            runs.push(other);
-            rows.push(row);
-            walls.push(wall);
-        }
+        let run = first(solver);
+        let again = retry(solver, &run.1);
+        runs.push(run);
+        runs.extend(again.map(first));
     }
-    let solvers = &runs;
-    let n = solvers.len();
+    let n = runs.len();
     for round in 1..repeats {
         // Each round starts one solver further on, so that no solver holds
         // the same place in the order (first after the previous case's
         // last run, say) in every round.
         for i in (0..n).map(|j| (j + round) % n) {
-            if rows[i].status != "ok" {
+            let (solver, row, walls) = &mut runs[i];
+            if row.status != "ok" {
                 continue;
             }
-            match solvers[i].run(problem, tol, grid, false) {
-                Ok(o) => walls[i].push(o.wall_s),
+            match solver.run(problem, tol, against.grid, false) {
+                Ok(o) => walls.push(o.wall_s),
                 Err(f) => {
-                    rows[i].message = format!("a repeat failed: {}", f.message);
-                    rows[i].status = "failed";
+                    row.message = format!("a repeat failed: {}", f.message);
+                    row.status = "failed";
                 }
             }
         }
     }
-    for (row, mut walls) in rows.iter_mut().zip(walls) {
-        row.repeats = walls.len();
-        row.wall_min_s = walls.iter().copied().fold(f64::INFINITY, f64::min);
-        row.wall_median_s = median(&mut walls);
-    }
-    rows
+    runs.into_iter()
+        .map(|(_, mut row, mut walls)| {
+            row.repeats = walls.len();
+            row.wall_min_s = walls.iter().copied().fold(f64::INFINITY, f64::min);
+            row.wall_median_s = median(&mut walls);
+            row
+        })
+        .collect()
 }
 
 /// Largest difference `‖a − b‖∞` of two references over `grid`.

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use nonholo_bench::peers::{
-    DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Reuse, Row, Solver,
-    measure, measure_all, measure_all_retrying, reference_distance,
+    Against, DIFFSOL_DEFAULT_CAP, DiffsolMethod, Formulation, Problem, Reference, Reuse, Row,
+    Solver, measure, measure_all, measure_all_retrying, reference_distance,
 };
 use nonholo_bench::setup::sleigh;
 use nonholo_core::integrate::Method;
@@ -469,18 +469,15 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
         let adapted = visc_problem(&scene, k, "visc-adapted");
         eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13");
         let reference = our_reference(&problem, Method::Radau5, 1e-13, &g)?;
-        let ref_name = "ours radau5 @1e-13";
+        // Reference runs: no estimate of the reference's error yet.
+        let against = Against {
+            grid: &g,
+            reference: &reference,
+            name: "ours radau5 @1e-13",
+            ref_err: f64::NAN,
+        };
         // The primary reference's own work (its errors are against itself).
-        let row = measure(
-            &problem,
-            Solver::Ours(Method::Radau5),
-            1e-13,
-            &g,
-            &reference,
-            ref_name,
-            f64::NAN,
-            1,
-        );
+        let row = measure(&problem, Solver::Ours(Method::Radau5), 1e-13, against, 1);
         progress(&row);
         refs.push(Row {
             message: "primary reference (errors against itself)".into(),
@@ -500,45 +497,18 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
         };
         eprintln!("  second reference: Radau IIA at 1e-13 in body-frame velocities");
         second(
-            measure(
-                &body,
-                Solver::Ours(Method::Radau5),
-                1e-13,
-                &g,
-                &reference,
-                ref_name,
-                f64::NAN,
-                1,
-            ),
+            measure(&body, Solver::Ours(Method::Radau5), 1e-13, against, 1),
             refs,
         );
         eprintln!("  second reference: Radau IIA at 1e-13 in the adapted form (AD)");
         second(
-            measure(
-                &adapted,
-                Solver::Ours(Method::Radau5),
-                1e-13,
-                &g,
-                &reference,
-                ref_name,
-                f64::NAN,
-                1,
-            ),
+            measure(&adapted, Solver::Ours(Method::Radau5), 1e-13, against, 1),
             refs,
         );
         if k <= 1e6 {
             eprintln!("  second reference: our DOP853 at 1e-13");
             second(
-                measure(
-                    &problem,
-                    Solver::Ours(Method::Dop853),
-                    1e-13,
-                    &g,
-                    &reference,
-                    ref_name,
-                    f64::NAN,
-                    1,
-                ),
+                measure(&problem, Solver::Ours(Method::Dop853), 1e-13, against, 1),
                 refs,
             );
         }
@@ -548,7 +518,7 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
                     "  second reference: diffsol {} at {tight:e}",
                     cap.method_name()
                 );
-                let row = measure(&problem, cap, tight, &g, &reference, ref_name, f64::NAN, 1);
+                let row = measure(&problem, cap, tight, against, 1);
                 let ok = row.status == "ok";
                 second(row, refs);
                 if ok {
@@ -556,16 +526,19 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
                 }
             }
         }
-        let ref_err = distances.iter().copied().fold(f64::NAN, f64::min);
+        let against = Against {
+            ref_err: distances.iter().copied().fold(f64::NAN, f64::min),
+            ..against
+        };
+        // Timed interleaved: every solver once per round, diffsol's methods
+        // that give up at their failure cap followed by the same without
+        // the cap.
+        let capped_out = |solver: Solver, row: &Row| {
+            (row.status == "failed" && row.message.contains("nonlinear solver failures"))
+                .then(|| solver.uncapped())
+        };
         for &tol in tols {
             for p in [&problem, &body, &adapted] {
-                // Timed interleaved: every solver once per round, diffsol's
-                // methods that give up at their failure cap followed by the
-                // same without the cap.
-                let capped_out = |solver: Solver, row: &Row| {
-                    (row.status == "failed" && row.message.contains("nonlinear solver failures"))
-                        .then(|| solver.uncapped())
-                };
                 for row in measure_all_retrying(
                     p,
                     &[
@@ -577,10 +550,7 @@ fn visc_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<()
                     ],
                     capped_out,
                     tol,
-                    &g,
-                    &reference,
-                    ref_name,
-                    ref_err,
+                    against,
                     args.repeats,
                 ) {
                     progress(&row);
@@ -616,16 +586,13 @@ fn b_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<(), S
             let (reference, ref_name, ref_err) = if a == 0.0 {
                 let closed = Reference::Closed(problem.clone());
                 // Our tight run against the closed form, for the record.
-                let row = measure(
-                    &problem,
-                    Solver::Ours(Method::Dop853),
-                    1e-13,
-                    &g,
-                    &closed,
-                    "closed form",
-                    0.0,
-                    1,
-                );
+                let against = Against {
+                    grid: &g,
+                    reference: &closed,
+                    name: "closed form",
+                    ref_err: 0.0,
+                };
+                let row = measure(&problem, Solver::Ours(Method::Dop853), 1e-13, against, 1);
                 progress(&row);
                 refs.push(as_reference(row));
                 (closed, "closed form", 0.0)
@@ -633,29 +600,29 @@ fn b_part(args: &Args, rows: &mut Vec<Row>, refs: &mut Vec<Row>) -> Result<(), S
                 let first = our_reference(&problem, Method::Dop853, 1e-13, &g)?;
                 let second = our_reference(&problem, Method::Radau5, 1e-13, &g)?;
                 let d = reference_distance(&first, &second, &g, 6);
-                let row = measure(
-                    &problem,
-                    Solver::Ours(Method::Radau5),
-                    1e-13,
-                    &g,
-                    &first,
-                    "ours dop853 @1e-13",
-                    f64::NAN,
-                    1,
-                );
+                let against = Against {
+                    grid: &g,
+                    reference: &first,
+                    name: "ours dop853 @1e-13",
+                    ref_err: f64::NAN,
+                };
+                let row = measure(&problem, Solver::Ours(Method::Radau5), 1e-13, against, 1);
                 progress(&row);
                 refs.push(as_reference(row));
                 (first, "ours dop853 @1e-13", d)
+            };
+            let against = Against {
+                grid: &g,
+                reference: &reference,
+                name: ref_name,
+                ref_err,
             };
             for &tol in tols {
                 for row in measure_all(
                     &problem,
                     &[Solver::Ours(Method::Dop853), Solver::OdeSolversDop853],
                     tol,
-                    &g,
-                    &reference,
-                    ref_name,
-                    ref_err,
+                    against,
                     args.repeats,
                 ) {
                     progress(&row);
@@ -710,8 +677,12 @@ fn reuse_study(args: &Args) -> Result<(), String> {
         eprintln!("visc k = {k:e}: reference Radau IIA at 1e-13 (Hermite), checked at 3e-14");
         let reference = reference_by(&adapted, Solver::OursHermite(None), 1e-13, &g)?;
         let check = reference_by(&adapted, Solver::OursHermite(None), 3e-14, &g)?;
-        let ref_err = reference_distance(&reference, &check, &g, 6);
-        let ref_name = "ours radau5 @1e-13, Hermite dense output, adapted form";
+        let against = Against {
+            grid: &g,
+            reference: &reference,
+            name: "ours radau5 @1e-13, Hermite dense output, adapted form",
+            ref_err: reference_distance(&reference, &check, &g, 6),
+        };
         let solvers = [
             Solver::Ours(Method::Radau5),
             Solver::OursReuse(Reuse::Hundredth),
@@ -724,17 +695,7 @@ fn reuse_study(args: &Args) -> Result<(), String> {
         for &tol in tols {
             for p in [&adapted, &body] {
                 // Timed interleaved: every solver once per round.
-                let rows = measure_all(
-                    p,
-                    &solvers,
-                    tol,
-                    &g,
-                    &reference,
-                    ref_name,
-                    ref_err,
-                    args.repeats,
-                );
-                for row in rows {
+                for row in measure_all(p, &solvers, tol, against, args.repeats) {
                     progress(&row);
                     csv.push_str(&row.csv());
                     csv.push('\n');

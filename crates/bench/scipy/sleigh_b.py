@@ -18,18 +18,16 @@ with the blade g = yd cos phi - xd sin phi, and solved by
 LAPACK (dgesv); integrated by scipy.integrate.solve_ivp with DOP853
 (Hairer's method, as the workbench's) at rtol = atol = tol.
 
-Given --tol, the script runs solve_ivp --repeats times and prints one CSV
-line
+The script reads one tolerance per line from stdin, runs solve_ivp once at
+each, and answers each with one CSV line
 
     tol,error,rhs_evals,ms
 
-error = max |(x, y, phi)(t_end) - reference| (t_end is a step point of
-solve_ivp: no dense output is read), ms the median wall time of
-`solve_ivp` alone over the repeats (interpreter start and imports are not
-timed). With --serve instead, it reads one tolerance per line from stdin,
-runs solve_ivp once at each, and answers each with the same line (ms the
-one run's time), until stdin closes: `sleigh-floor --scipy PYTHON` keeps
-one such process and times it in turn with its own runs, one run each.
+until stdin closes. error = max |(x, y, phi)(t_end) - reference| (t_end is
+a step point of solve_ivp: no dense output is read), ms the wall time of
+`solve_ivp` alone (interpreter start and imports are not timed).
+`sleigh-floor --scipy PYTHON` keeps one such process and times it in turn
+with its own runs, one run each.
 """
 
 import argparse
@@ -105,27 +103,16 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for name in ("m", "j", "a", "gs", "com", "t-end"):
         p.add_argument("--" + name, type=float, required=True)
-    p.add_argument("--tol", type=float)
-    p.add_argument("--serve", action="store_true")
     p.add_argument("--y0", type=float, nargs=6, required=True)
     p.add_argument("--reference", type=float, nargs=3, required=True)
-    p.add_argument("--repeats", type=int, default=5)
     args = p.parse_args()
     f = sleigh_rhs(args.m, args.j, args.a, args.gs, args.com)
-    if args.serve:
-        for line in sys.stdin:
-            tol = float(line)
-            if not tol > 0.0:
-                raise SystemExit(f"tolerance must be positive, got {line.strip()}")
-            error, nfev, ms = solve_once(f, args, tol)
-            print(f"{tol:e},{error:.3e},{nfev},{ms:.4f}", flush=True)
-        return
-    if args.tol is None or args.repeats < 1 or not args.tol > 0.0:
-        p.error("--tol (positive) or --serve, and --repeats at least 1")
-    runs = [solve_once(f, args, args.tol) for _ in range(args.repeats)]
-    error, nfev, _ = runs[-1]
-    ms = float(np.median([r[2] for r in runs]))
-    print(f"{args.tol:e},{error:.3e},{nfev},{ms:.4f}")
+    for line in sys.stdin:
+        tol = float(line)
+        if not tol > 0.0:
+            raise SystemExit(f"tolerance must be positive, got {line.strip()}")
+        error, nfev, ms = solve_once(f, args, tol)
+        print(f"{tol:e},{error:.3e},{nfev},{ms:.4f}", flush=True)
 
 
 if __name__ == "__main__":

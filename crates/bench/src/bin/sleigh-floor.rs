@@ -62,8 +62,7 @@ struct Rung {
 /// Path of the SciPy peer, in this crate.
 const SCIPY_SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scipy/sleigh_b.py");
 
-/// SciPy's DOP853: `sleigh_b.py --serve` under `python`, one run per
-/// request.
+/// SciPy's DOP853: `sleigh_b.py` under `python`, one run per request.
 struct Scipy {
     child: std::process::Child,
     /// `None` once closed (in `drop`).
@@ -75,7 +74,7 @@ impl Scipy {
     fn start(python: &str, c: &Constants, y0: &[f64], reference: [f64; 3]) -> Result<Self, String> {
         use std::process::{Command, Stdio};
         let mut cmd = Command::new(python);
-        cmd.arg(SCIPY_SCRIPT).arg("--serve");
+        cmd.arg(SCIPY_SCRIPT);
         for (name, v) in [
             ("--m", c.m),
             ("--j", c.j),
@@ -250,15 +249,10 @@ fn report() -> Result<(), String> {
                 ts.push(ms);
             }
         }
-        let ms_scipy = if ts.is_empty() {
-            f64::NAN
-        } else {
-            median(&mut ts)
-        };
         let r = Rung {
             tol,
             error: [dist(pb), dist(ph), es],
-            ms: [median(&mut tb), median(&mut th), ms_scipy],
+            ms: [median(&mut tb), median(&mut th), median(&mut ts)],
             evals: [eb, eh, ns],
         };
         if scipy.is_some() {

@@ -418,6 +418,17 @@ formulation = "vakonomic"
     assert!(stderr(&o).contains("(1 reused)"), "{}", stderr(&o));
     assert!(std::fs::read(res.join("bvp.json")).unwrap() == stored);
     assert!(std::fs::read(res.join("solves.csv")).unwrap() == solves_csv);
+    // A stored result that disagrees beyond its wall times is replaced.
+    let mut edited: serde_json::Value = serde_json::from_slice(&stored).unwrap();
+    let iterations = &mut edited["points"][0]["solves"][0]["iterations"];
+    *iterations = (iterations.as_u64().unwrap() + 1).into();
+    std::fs::write(res.join("bvp.json"), edited.to_string()).unwrap();
+    let o = nonholo_in(&dir, &["experiment", &file]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(0 reused)"), "{}", stderr(&o));
+    let again: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(res.join("bvp.json")).unwrap()).unwrap();
+    assert_ne!(again, edited, "a stored result that disagrees was kept");
     let o = nonholo_in(&dir, &["experiment", &file, "--force"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("(0 reused)"), "{}", stderr(&o));

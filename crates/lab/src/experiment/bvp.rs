@@ -667,7 +667,6 @@ pub fn run(
     };
     let (result, kept) = match stored {
         Some(old) if super::same_apart_from(&old, &result, "wall_s") => (old, true),
-
         _ => (result, false),
     };
     // The figures first: a failure there leaves the tables of the last run

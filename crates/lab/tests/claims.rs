@@ -2536,6 +2536,8 @@ fn peers_md_tables_are_the_generated_ones() {
             ["visc", "visc-body", "visc-adapted", "B", "problem"].contains(&first_cell(t).as_str())
         })
         .collect();
+    // Error, time and work for each of the three forms of `visc`, the same
+    // three for B, and the references.
     assert_eq!(ours.len(), 13, "docs/peers.md's tables of the comparison");
     for t in ours {
         assert!(
@@ -2551,18 +2553,18 @@ fn peers_md_tables_are_the_generated_ones() {
 #[test]
 fn peers_time_ratios_as_peers_md_states() {
     let rows = timed_table("peers", "peers.csv");
-    let wall = |problem: &str, param: &str, method: &str, tol: &str, krate: &str| -> f64 {
+    // k = 1e2: our Radau IIA over diffsol's BDF, every tolerance.
+    let wall = |method: &str, tol: &str| -> f64 {
         let r = rows
             .iter()
             .find(|r| {
-                r["problem"] == problem
-                    && r["param"] == param
+                r["problem"] == "visc"
+                    && r["param"] == "k=1e2"
                     && r["method"] == method
                     && r["tol"] == tol
-                    && r["crate"] == krate
                     && r["status"] == "ok"
             })
-            .unwrap_or_else(|| panic!("peers.csv: no {problem} {param} {method} {tol}"));
+            .unwrap_or_else(|| panic!("peers.csv: no visc k=1e2 {method} {tol}"));
         num(r, "wall_median_s")
     };
     let range = |v: &[f64]| {
@@ -2571,45 +2573,18 @@ fn peers_time_ratios_as_peers_md_states() {
             v.iter().copied().fold(0.0, f64::max),
         )
     };
-    // k = 1e2: our Radau IIA over diffsol's BDF, every tolerance.
     let q: Vec<f64> = ["1e-4", "1e-6", "1e-8", "1e-10"]
         .iter()
-        .map(|t| {
-            wall("visc", "k=1e2", "Radau IIA (radau5)", t, "nonholo")
-                / wall("visc", "k=1e2", "BDF (NDF, order 1-5)", t, "diffsol")
-        })
+        .map(|t| wall("Radau IIA (radau5)", t) / wall("BDF (NDF, order 1-5)", t))
         .collect();
     let (lo, hi) = range(&q);
-    // B: ours over ode_solvers', every case.
-    let mut b = Vec::new();
-    for a in ["a=0", "a=0.4"] {
-        for pot in ["paper", "com"] {
-            for tol in ["1e-6", "1e-9", "1e-12"] {
-                let pick = |krate: &str| {
-                    let r = rows
-                        .iter()
-                        .find(|r| {
-                            r["problem"] == "B"
-                                && r["param"] == a
-                                && r["potential"] == pot
-                                && r["tol"] == tol
-                                && r["crate"] == krate
-                        })
-                        .unwrap();
-                    num(r, "wall_median_s")
-                };
-                b.push(pick("nonholo") / pick("ode_solvers"));
-            }
-        }
-    }
-    let (b_lo, b_hi) = range(&b);
-    // The same steps in all but the cases the prose names.
-    let ours = rows
+    // B: each of our runs beside ode_solvers' of the same case: the ratio
+    // of times, and whether the steps are the same.
+    let (mut b, mut same, mut differ) = (Vec::new(), 0, Vec::new());
+    for r in rows
         .iter()
-        .filter(|r| r["problem"] == "B" && r["crate"] == "nonholo" && r["status"] == "ok");
-    let mut same = 0;
-    let mut differ = Vec::new();
-    for r in ours {
+        .filter(|r| r["problem"] == "B" && r["crate"] == "nonholo" && r["status"] == "ok")
+    {
         let o = rows
             .iter()
             .find(|o| {
@@ -2618,6 +2593,7 @@ fn peers_time_ratios_as_peers_md_states() {
                     && ["param", "potential", "tol"].iter().all(|k| o[*k] == r[*k])
             })
             .unwrap();
+        b.push(num(r, "wall_median_s") / num(o, "wall_median_s"));
         if r["steps"] == o["steps"] && r["rejected"] == o["rejected"] {
             same += 1;
         } else {
@@ -2627,6 +2603,12 @@ fn peers_time_ratios_as_peers_md_states() {
             ));
         }
     }
+    // Two potentials, two values of a, three tolerances.
+    assert_eq!(b.len(), 12);
+    let (b_lo, b_hi) = range(&b);
+    b.sort_by(f64::total_cmp);
+    let b_med = 0.5 * (b[5] + b[6]);
+    // The prose names the one case that differs.
     assert_eq!(differ.len(), 1, "{differ:?}");
     doc_says(
         "peers.md",
@@ -2635,8 +2617,6 @@ fn peers_time_ratios_as_peers_md_states() {
             &differ[0],
         ],
     );
-    b.sort_by(f64::total_cmp);
-    let b_med = 0.5 * (b[5] + b[6]);
     doc_says(
         "peers.md",
         &[
@@ -3272,8 +3252,12 @@ fn every_committed_page_states_its_files_claim() {
         let file: toml::Value = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let exp = &file["experiment"];
         let name = exp["name"].as_str().unwrap();
-        let Ok(page) = std::fs::read_to_string(committed().join(name).join("index.html")) else {
-            continue;
+        let figure = exp.get("figure").and_then(toml::Value::as_bool) == Some(true);
+        let page = match std::fs::read_to_string(committed().join(name).join("index.html")) {
+            Ok(page) => page,
+            // Not vacuous: a figure experiment's page is committed.
+            Err(e) if figure => panic!("results/{name}/index.html: {e}"),
+            Err(_) => continue,
         };
         let claim = nonholo_lab::table::escape(exp["claim"].as_str().unwrap());
         assert!(
@@ -3283,8 +3267,7 @@ fn every_committed_page_states_its_files_claim() {
         );
         checked += 1;
     }
-    // Not vacuous: every figure experiment has a committed page.
-    assert!(checked >= 30, "{checked} pages checked");
+    assert!(checked > 0);
 }
 
 /// The claims figures.md's table states are the experiment files' own:

@@ -957,8 +957,13 @@ where
             let w = &self.warm_v[kind][..cols * cols];
             let row = &mut self.norms[..cols];
             for i in 0..rows {
-                for (c, r) in row.iter_mut().enumerate() {
-                    *r = (0..cols).map(|k| a[k * rows + i] * w[c * cols + k]).sum();
+                for (r, wc) in row.iter_mut().zip(w.chunks_exact(cols)) {
+                    *r = a[i..]
+                        .iter()
+                        .step_by(rows)
+                        .zip(wc)
+                        .map(|(x, y)| x * y)
+                        .sum();
                 }
                 for (c, &r) in row.iter().enumerate() {
                     a[c * rows + i] = r;
@@ -982,8 +987,8 @@ where
             for pc in 0..cols - 1 {
                 for qc in pc + 1..cols {
                     let (mut alpha, mut beta, mut gamma) = (0.0, 0.0, 0.0);
-                    for i in 0..rows {
-                        let (x, y) = (a[pc * rows + i], a[qc * rows + i]);
+                    let (ap, aq) = (&a[pc * rows..][..rows], &a[qc * rows..][..rows]);
+                    for (&x, &y) in ap.iter().zip(aq) {
                         alpha += x * x;
                         beta += y * y;
                         gamma += x * y;
@@ -1050,19 +1055,22 @@ where
         self.pinv[..cols * rows].fill(0.0);
         for &j in &self.order[..rank] {
             let s2 = norms[j] * norms[j];
-            for k in 0..cols {
-                let vk = self.v[j * cols + k] / s2;
+            let aj = &self.a[j * rows..][..rows];
+            let vj = &self.v[j * cols..][..cols];
+            for (&v, pk) in vj.iter().zip(self.pinv.chunks_exact_mut(rows)) {
+                let vk = v / s2;
                 if vk == 0.0 {
                     continue;
                 }
-                for l in 0..rows {
-                    self.pinv[k * rows + l] += vk * self.a[j * rows + l];
+                for (x, &y) in pk.iter_mut().zip(aj) {
+                    *x += vk * y;
                 }
             }
         }
-        for k in 0..cols {
-            for l in 0..rows {
-                self.pinv[k * rows + l] /= self.col_scale[k / p] * self.row_scale[l / p];
+        for (k, pk) in self.pinv[..cols * rows].chunks_exact_mut(rows).enumerate() {
+            let ck = self.col_scale[k / p];
+            for (l, x) in pk.iter_mut().enumerate() {
+                *x /= ck * self.row_scale[l / p];
             }
         }
         Ok(())

@@ -16,7 +16,9 @@
 //! `A` and `B` are either two results directories (`results/`) or two
 //! experiment directories. In results directories an experiment is a
 //! directory with a nonholo manifest; those of the same name are paired,
-//! and one found on one side only is a difference. Other directories with
+//! and one found on one side only is a difference; two results directories
+//! with no experiment in common, or two experiment directories of different
+//! experiments, are refused (there is nothing to compare). Other directories with
 //! tables (the benchmarks' outputs, whose time columns have other names)
 //! are listed, not compared.
 
@@ -27,7 +29,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use crate::CliError;
-use crate::experiment::dir::written_by_an_experiment;
+use crate::experiment::dir::{stored_experiment, written_by_an_experiment};
 use crate::table::read_csv;
 
 #[derive(Debug, Clone, Args)]
@@ -38,7 +40,7 @@ pub struct CompareArgs {
     pub b: PathBuf,
     /// Numbers within this relative difference count as equal, 0 ≤ R < 1
     /// (default 0: the same text).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub rtol: f64,
 }
 
@@ -278,6 +280,15 @@ pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
     ) = (&ka, &kb)
     else {
         if let (Kind::Experiment, Kind::Experiment) = (&ka, &kb) {
+            if let (Some(na), Some(nb)) = (stored_experiment(a), stored_experiment(b))
+                && na != nb
+            {
+                return Err(format!(
+                    "{} holds experiment `{na}` and {} holds `{nb}`: nothing in common to compare",
+                    a.display(),
+                    b.display()
+                ));
+            }
             compare_experiment("", a, b, rtol, &mut report)?;
             report.experiments.push(a.display().to_string());
             return Ok(report);
@@ -294,6 +305,13 @@ pub fn compare(a: &Path, b: &Path, rtol: f64) -> Result<Report, String> {
             what(&kb)
         ));
     };
+    if ea.is_disjoint(eb) && !ea.is_empty() && !eb.is_empty() {
+        return Err(format!(
+            "{} and {} have no experiment in common: nothing to compare",
+            a.display(),
+            b.display()
+        ));
+    }
     for name in ea.intersection(eb) {
         let shown = name.to_string_lossy();
         compare_experiment(&shown, &a.join(name), &b.join(name), rtol, &mut report)?;

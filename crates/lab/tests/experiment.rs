@@ -252,6 +252,14 @@ fn bad_experiment_files_name_key_and_line() {
         &["`R` = -1", "(0, inf)"],
     );
     refused(
+        "random-range-overflows",
+        &good.replace(
+            "mode = \"grid\"\nvalues = { \"C.init.lambda1\" = [-2.000, 0.000] }",
+            "mode = \"random\"\nsamples = 2\nseed = 1\nranges = { \"C.init.lambda1\" = [-1e308, 1e308] }",
+        ),
+        &["sweep.ranges.C.init.lambda1", "finite width"],
+    );
+    refused(
         "bad-sweep-name",
         &good.replace("\"C.init.lambda1\"", "\"D.init.lambda1\""),
         &["cannot address `D.init.lambda1`", "labels: B, C"],
@@ -368,14 +376,28 @@ fn shards_merge_into_the_single_run() {
             && err.contains("--shard 2/3"),
         "{err}"
     );
-    assert!(
-        !partial.join("points").exists(),
-        "a refused merge writes nothing"
-    );
+    assert!(!partial.exists(), "a refused merge writes nothing");
     // A shard directory is the shard's: no full results, no merge into it,
     // and not given twice.
     let o = nonholo(&["experiment", f, "--quiet", "--out", &shards[0]]);
     assert_eq!(o.status.code(), Some(2));
+    // Nor does a shard write into a directory of full results.
+    let o = nonholo(&[
+        "experiment",
+        f,
+        "--quiet",
+        "--shard",
+        "1/3",
+        "--out",
+        single.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("holds the full results"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!single.join("shard.json").exists());
     let o = nonholo(&["merge", f, "--quiet", "--out", &shards[0], &shards[1]]);
     assert_eq!(o.status.code(), Some(2));
     let o = nonholo(&[
@@ -464,4 +486,39 @@ fn compare_finds_equal_runs_equal_and_names_a_moved_number() {
     let missing = nonholo(&["compare", d, "/nonexistent/results"]);
     assert_eq!(missing.status.code(), Some(2));
     assert!(common::stderr(&missing).contains("not a directory"));
+    // A negative tolerance is refused for what it is, not as an argument.
+    let neg = nonholo(&["compare", d, o, "--rtol", "-1"]);
+    assert_eq!(neg.status.code(), Some(2));
+    assert!(
+        common::stderr(&neg).contains("--rtol: -1 must be at least 0"),
+        "{}",
+        common::stderr(&neg)
+    );
+
+    // Another experiment's results: nothing in common, refused (exit 2),
+    // as two results directories with no experiment in common are.
+    let (file2, dir2) = setup("cmp2", "cmp2", &disk_sweep("cmp2", 2, 1.0));
+    let run = nonholo(&["experiment", file2.to_str().unwrap(), "--quiet"]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    let foreign = nonholo(&["compare", d, dir2.to_str().unwrap()]);
+    assert_eq!(
+        foreign.status.code(),
+        Some(2),
+        "{}",
+        common::stderr(&foreign)
+    );
+    assert!(
+        common::stderr(&foreign).contains("nothing in common"),
+        "{}",
+        common::stderr(&foreign)
+    );
+    let roots = [dir.parent().unwrap(), dir2.parent().unwrap()].map(|p| p.to_str().unwrap());
+    let disjoint = nonholo(&["compare", roots[0], roots[1]]);
+    assert_eq!(
+        disjoint.status.code(),
+        Some(2),
+        "{}",
+        common::stderr(&disjoint)
+    );
+    assert!(common::stderr(&disjoint).contains("no experiment in common"));
 }

@@ -242,6 +242,20 @@ samples = 3
         "{}",
         stderr(&o)
     );
+    // Finite ends whose width overflows: refused before anything is written.
+    let wide = std::fs::read_to_string(dir.join(&file))
+        .unwrap()
+        .replace("name = \"sleigh-a\"", "name = \"wide\"")
+        .replace("range = [-0.5, 0.5]", "range = [-1e308, 1e308]");
+    let wide = experiment(&dir, "wide", &wide);
+    let o = nonholo_in(&dir, &["experiment", &wide]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("stability.range") && stderr(&o).contains("finite width"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.join("results/wide").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

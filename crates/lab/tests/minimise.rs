@@ -153,6 +153,11 @@ reference = "B"
             "over = \"C.init.lambda1\"\nrange = [1.0, 0.0]\nlabel = \"C\"",
             "minimise.range",
         ),
+        // Finite ends whose width overflows to infinity.
+        (
+            "over = \"C.init.lambda1\"\nrange = [-1e308, 1e308]\nlabel = \"C\"",
+            "finite width",
+        ),
         (
             "over = \"C.init.lambda1\"\nrange = [0.0, 1.0]\nlabel = \"B\"",
             "minimise.label",

@@ -67,6 +67,20 @@ fn resumed_results_equal_fresh_ones() {
     for (f, (a, b)) in COMPARABLE.iter().zip(fresh.iter().zip(comparable(&dir))) {
         assert!(*a == b, "{f} differs between a fresh and a resumed run");
     }
+    // A stored point that lacks a formulation's run (a file cut short or
+    // edited) is computed again, not reused with a row missing.
+    let path = dir.join("points/3.json");
+    let mut v: serde_json::Value = serde_json::from_slice(&read(&path)).unwrap();
+    v["formulations"].as_array_mut().unwrap().pop();
+    std::fs::write(&path, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+    let o = nonholo_in(&root, &["experiment", &file, "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("(8 reused)"), "{}", stderr(&o));
+    // Every row is back (its wall time is the new run's).
+    let lines = |b: &[u8]| b.iter().filter(|&&c| c == b'\n').count();
+    for (f, (a, b)) in COMPARABLE.iter().zip(fresh.iter().zip(comparable(&dir))) {
+        assert_eq!(lines(a), lines(&b), "{f}: rows after a cut point ran again");
+    }
 }
 
 // Trajectories are not committed (.gitignore): a run without --force on a

@@ -194,6 +194,29 @@ fn a_computed_reference_carries_its_error_estimate() {
     );
 }
 
+/// A reference that cannot be computed (here: its step budget is one step)
+/// leaves its lines without errors: the tables say why, and the run exits
+/// 3, as when runs fail.
+#[test]
+fn a_failed_reference_exits_as_failed_runs_do() {
+    let body = closed_form_file("noref")
+        .replace("a = 0.0", "a = 0.4")
+        .replace("t_end = 10", "t_end = 2")
+        .replace("repeats = 3", "repeats = 1\nreference = { max_steps = 1 }");
+    let (file, dir) = setup("noref", &body);
+    let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("could not be computed") && err.contains("references.csv"),
+        "{err}"
+    );
+    let refs = table(&dir.join("references.csv"));
+    assert!(!refs.is_empty() && refs.iter().all(|r| !r["failure"].is_empty()));
+    let rows = table(&dir.join("work_precision.csv"));
+    assert!(rows.iter().all(|r| r["err_max"].is_empty()));
+}
+
 fn refused(tag: &str, body: &str, needles: &[&str]) {
     let (file, _) = setup(tag, body);
     let o = nonholo(&["experiment", file.to_str().unwrap(), "--quiet"]);

@@ -698,6 +698,7 @@ pub fn run(
         stopped_runs: 0,
         budget_runs: 0,
         runs: all.count() + result.points.iter().map(|p| p.ivp.len()).sum::<usize>(),
+        failed_references: 0,
         plots,
     })
 }

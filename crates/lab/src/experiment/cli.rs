@@ -182,8 +182,7 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
         .iter()
         .map(|(_, exp)| open_dir(exp, None, true))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut failed = 0;
-    let mut runs = 0;
+    let (mut failed, mut runs, mut failed_references) = (0, 0, 0);
     for ((_, exp), dir) in experiments.iter().zip(dirs) {
         let o = run(
             exp,
@@ -206,11 +205,15 @@ pub fn work_precision(args: &WorkPrecisionArgs) -> Result<(), CliError> {
         );
         failed += o.failed_runs;
         runs += o.runs;
+        failed_references += o.failed_references;
     }
     if failed > 0 {
         return Err(CliError::RunsFailed(format!(
             "{failed} of {runs} work-precision runs failed (reasons in each experiment's work_precision.csv)"
         )));
+    }
+    if failed_references > 0 {
+        return Err(CliError::RunsFailed(references_failed(failed_references)));
     }
     Ok(())
 }
@@ -260,6 +263,17 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
         _ => open_dir(&exp, args.out.as_deref(), true)?,
     };
     let is_shard_dir = shard::shard_of(out.path()).is_some();
+    let holds_full_results = ["summary.json", "runs.csv"]
+        .iter()
+        .any(|f| out.path().join(f).exists());
+    if shard.is_some() && !is_shard_dir && holds_full_results {
+        return Err(CliError::Input(format!(
+            "--out: {} holds the full results of a run (summary.json, runs.csv); a shard \
+             writes into a directory of its own (the default results/<name>.shard-I-of-N, \
+             or an empty --out), and `nonholo merge` gathers the shards",
+            out.path().display()
+        )));
+    }
     if shard.is_none() && is_shard_dir {
         return Err(CliError::Input(format!(
             "--out: {} is a shard directory (it holds shard.json); merge the shards with \
@@ -308,7 +322,20 @@ pub fn experiment(args: &ExperimentArgs) -> Result<(), CliError> {
                 .display()
         )));
     }
+    if o.failed_references > 0 {
+        return Err(CliError::RunsFailed(references_failed(o.failed_references)));
+    }
     Ok(())
+}
+
+/// The exit-3 message of work-precision references that failed.
+fn references_failed(n: usize) -> String {
+    format!(
+        "{n} work-precision reference{} could not be computed, so {} lines have no errors \
+         (reasons in references.csv, column `failure`)",
+        if n == 1 { "" } else { "s" },
+        if n == 1 { "its" } else { "their" }
+    )
 }
 
 /// `nonholo merge FILE SHARD...`: gathers the shards' stored points into
@@ -343,6 +370,9 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
         .iter()
         .map(|d| ResultsDir::open(d, "shard directory", false))
         .collect::<Result<Vec<_>, _>>()?;
+    // A refused merge leaves no trace: an output directory made here is
+    // removed again (with its lock) if the shards do not make the results.
+    let existed = out_path.exists();
     let out = open_dir(&exp, args.out.as_deref(), true)?;
     if shard::shard_of(out.path()).is_some() {
         return Err(CliError::Input(format!(
@@ -350,7 +380,16 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
             out.path().display()
         )));
     }
-    let points = shard::gather(&exp, &shards, out.path())?;
+    let points = match shard::gather(&exp, &shards, out.path()) {
+        Ok(points) => points,
+        Err(e) => {
+            drop(out);
+            if !existed {
+                let _ = std::fs::remove_dir_all(&out_path);
+            }
+            return Err(e);
+        }
+    };
     for s in shards {
         s.finish();
     }

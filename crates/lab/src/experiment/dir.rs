@@ -77,15 +77,7 @@ impl ResultsDir {
     /// (its `summary.json`, or a shard's `shard.json`, names it), so that
     /// `--out` never mixes two.
     pub fn check_experiment(&self, name: &str, what: &str) -> Result<(), CliError> {
-        let summary = fs::read_to_string(self.path.join("summary.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-        let shard = super::shard::shard_of(&self.path);
-        let stored = summary
-            .as_ref()
-            .and_then(|s| s["name"].as_str().or(s["experiment"].as_str()))
-            .or(shard.as_deref());
-        match stored {
+        match stored_experiment(&self.path).as_deref() {
             Some(other) if other != name => Err(CliError::Input(format!(
                 "{what}: {} holds the results of experiment `{other}`, not `{name}`",
                 self.path.display()
@@ -129,6 +121,19 @@ impl Drop for ResultsDir {
 
 /// Whether `dir` holds an experiment's results: a `manifest.json` of
 /// nonholo's schema.
+/// The name of the experiment whose results `dir` holds, as its
+/// `summary.json` (or a shard's `shard.json`) names it.
+pub fn stored_experiment(dir: &Path) -> Option<String> {
+    let summary = fs::read_to_string(dir.join("summary.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+    summary
+        .as_ref()
+        .and_then(|s| s["name"].as_str().or(s["experiment"].as_str()))
+        .map(str::to_string)
+        .or_else(|| super::shard::shard_of(dir))
+}
+
 pub fn written_by_an_experiment(dir: &Path) -> bool {
     fs::read_to_string(dir.join("manifest.json"))
         .ok()

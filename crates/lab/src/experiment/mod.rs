@@ -147,6 +147,9 @@ pub struct Outcome {
     /// a stiff problem, told apart in tables and figures.
     pub budget_runs: usize,
     pub runs: usize,
+    /// Work-precision references that could not be computed: the runs of
+    /// their lines have no error, and the experiment exits as if runs failed.
+    pub failed_references: usize,
     pub plots: Vec<PathBuf>,
 }
 
@@ -269,10 +272,16 @@ pub(crate) fn same_apart_from<T: serde::Serialize>(a: &T, b: &T, wall_key: &str)
     }
 }
 
-/// The stored result of `p`, if it is for the same computation.
+/// The stored result of `p`, if it is for the same computation and holds a
+/// run of every formulation, in the experiment's order (a point file cut
+/// short or edited by hand is computed again, not reused).
 fn stored(dir: &Path, exp: &Experiment, p: &sweep::Point) -> Option<PointResult> {
     let key = key::point_key(exp, p, point::POINT_SCHEMA).ok()?;
-    files::stored(dir, p.index, point::POINT_SCHEMA, &key)
+    let r: PointResult = files::stored(dir, p.index, point::POINT_SCHEMA, &key)?;
+    let labels = r.body.formulations.iter().map(|f| f.label.as_str());
+    labels
+        .eq(exp.formulations.iter().map(|f| f.label.as_str()))
+        .then_some(r)
 }
 
 /// How many runs of `r` failed.
@@ -454,6 +463,7 @@ fn outcome(dir: &Path, results: &[PointResult], reused: usize, plots: Vec<PathBu
             .filter(|f| f.status == "failed" && budget_stop(f.error.as_deref()))
             .count(),
         runs,
+        failed_references: 0,
         plots,
     }
 }

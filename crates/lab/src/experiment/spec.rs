@@ -1227,9 +1227,10 @@ impl Experiment {
                             let log = sw.log.contains(k);
                             if v.len() != 2
                                 || !(v[0].is_finite() && v[1].is_finite() && v[0] < v[1])
+                                || !(v[1] - v[0]).is_finite()
                                 || (log && v[0] <= 0.0)
                             {
-                                return Err(ctx.err(r.span(), &format!("sweep.ranges.{k}"), "must be [lo, hi] with finite lo < hi (and lo > 0 on a log axis)"));
+                                return Err(ctx.err(r.span(), &format!("sweep.ranges.{k}"), "must be [lo, hi] with finite lo < hi, a finite width hi − lo (and lo > 0 on a log axis)"));
                             }
                             axes.push(Axis {
                                 name: k.clone(),
@@ -1547,11 +1548,11 @@ fn stability(ctx: &Ctx, kind: Kind, file: &File) -> Result<Option<StabilitySpec>
         ));
     }
     let [a, b] = *st.range.get_ref();
-    if !(a.is_finite() && b.is_finite() && a < b) {
+    if !(a.is_finite() && b.is_finite() && a < b && (b - a).is_finite()) {
         return Err(ctx.err(
             st.range.span(),
             "stability.range",
-            "must be [from, to] with finite from < to",
+            "must be [from, to] with finite from < to and a finite width to − from",
         ));
     }
     let samples = *st.samples.get_ref() as usize;
@@ -2088,11 +2089,11 @@ fn minimise(ctx: &Ctx, exp: &Experiment, m: &MinimiseFile) -> Result<MinimiseSpe
         ));
     }
     let [lo, hi] = *m.range.get_ref();
-    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+    if !(lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite()) {
         return Err(ctx.err(
             m.range.span(),
             "minimise.range",
-            "must be [low, high], finite, low < high",
+            "must be [low, high], finite, low < high, with a finite width high − low",
         ));
     }
     let samples = match &m.samples {

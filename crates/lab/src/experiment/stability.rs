@@ -418,6 +418,7 @@ pub fn run(
         stopped_runs: 0,
         budget_runs: 0,
         runs: spec.samples * exp.formulations.len(),
+        failed_references: 0,
         plots,
     })
 }

@@ -491,6 +491,11 @@ pub fn run(exp: &Experiment, opts: &RunOptions, out: ResultsDir) -> Result<Outco
             .filter(|r| r.status == "failed" && super::budget_stop(r.error.as_deref()))
             .count(),
         runs: rows.clone().count(),
+        failed_references: points
+            .iter()
+            .flat_map(|p| &p.body.references)
+            .filter(|r| r.failure.is_some())
+            .count(),
         plots,
     })
 }

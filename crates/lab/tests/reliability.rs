@@ -907,4 +907,18 @@ formulation = "chetaev"
     assert_eq!(code(&o), Some(0), "{}", stderr(&o));
     let runs = std::fs::read_to_string(root.join("results/tr/runs.csv")).unwrap();
     assert!(runs.contains("completed"), "{runs}");
+    // A train larger than its set-up can bear before any budget applies is
+    // refused at once, naming the bound.
+    let o = nonholo(&[
+        "simulate",
+        "--scene",
+        "sleigh-train",
+        "--param",
+        "N=10001",
+        "--max-wall-time",
+        "5",
+    ]);
+    assert_no_panic(&o);
+    assert_eq!(code(&o), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("10000"), "{}", stderr(&o));
 }

@@ -314,11 +314,14 @@ fn pivot_columns(
     let scale = w.amax().max(f64::MIN_POSITIVE);
     let mut left: Vec<usize> = (0..w.nrows()).collect();
     let mut chosen = Vec::new();
+    // `is_chosen[c]` for column `cols.start + c`: a lookup, not a search of
+    // `chosen` (that made the pivot search grow like N⁴ on a train).
+    let mut is_chosen = vec![false; w.ncols()];
     while !left.is_empty() {
         let mut best: Option<(usize, usize, f64)> = None;
         for &r in &left {
             for c in 0..w.ncols() {
-                if chosen.contains(&(cols.start + c)) {
+                if is_chosen[c] {
                     continue;
                 }
                 let weight = if preferred[cols.start + c] {
@@ -354,7 +357,9 @@ fn pivot_columns(
         };
         let pivot = w[(r, c)];
         for &o in &left {
-            if o != r {
+            // A row with a zero in the pivot column is left as it is (the
+            // constraint rows of a chain are sparse).
+            if o != r && w[(o, c)] != 0.0 {
                 let factor = w[(o, c)] / pivot;
                 for j in 0..w.ncols() {
                     let v = w[(r, j)];
@@ -363,6 +368,7 @@ fn pivot_columns(
             }
         }
         left.retain(|&o| o != r);
+        is_chosen[c] = true;
         chosen.push(cols.start + c);
     }
     Ok(chosen)

@@ -26,6 +26,29 @@ pub fn info(name: &str) -> Result<&'static FormulationInfo, Error> {
     })
 }
 
+/// Refuses Radau IIA's Hermite dense output where Radau IIA would integrate
+/// the model's implicit form `F(t, y, y') = 0` (the extension interpolates
+/// the derivatives of `y' = f(t, y)`): checked with the input, not at the
+/// first step of the run.
+pub fn check_radau_dense(
+    model: &mut dyn Model,
+    method: nonholo_core::integrate::Method,
+    options: &nonholo_core::integrate::Options,
+) -> Result<(), String> {
+    use nonholo_core::integrate::RadauDense;
+    if method.is_implicit()
+        && options.radau5.dense_output == RadauDense::Hermite
+        && model.implicit().is_some()
+    {
+        return Err(format!(
+            "radau_dense = hermite interpolates the derivatives of y' = f(t, y), and Radau \
+             IIA integrates `{}` in its implicit form F(t, y, y') = 0: use auto or collocation",
+            model.describe().formulation.name
+        ));
+    }
+    Ok(())
+}
+
 /// Binds formulation `name` with `options` (`name=value` pairs) to `scene`.
 pub fn build_model(
     scene: AnyScene,

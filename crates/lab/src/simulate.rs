@@ -232,7 +232,9 @@ pub struct RunSpec {
 /// needed) and runs it.
 pub fn execute(spec: &RunSpec) -> Result<(Run, Option<MatchReport>), CliError> {
     let scene = nonholo_scenes::build(&spec.scene, &spec.params)?;
-    let model = formulations::build_model(scene.clone(), &spec.formulation, &spec.options)?;
+    let mut model = formulations::build_model(scene.clone(), &spec.formulation, &spec.options)?;
+    formulations::check_radau_dense(model.as_mut(), spec.method, &spec.integrator)
+        .map_err(|e| CliError::Input(format!("--radau-dense: {e}")))?;
     let mut initial = scene.clone().visit(ResolveInit {
         given: spec.init.clone(),
         extra: model.extra_init_names(),

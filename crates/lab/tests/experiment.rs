@@ -260,6 +260,22 @@ fn bad_experiment_files_name_key_and_line() {
         &["sweep.ranges.C.init.lambda1", "finite width"],
     );
     refused(
+        "step-beyond-budget",
+        &good.replace(
+            "label = \"B\"\nformulation = \"chetaev\"\nrtol = 1e-12\natol = 1e-12",
+            "label = \"B\"\nformulation = \"chetaev\"\nintegrator = \"rk4\"\nstep = 1e-9",
+        ),
+        &["B: `step` = 1e-9", "more than the step budget"],
+    );
+    refused(
+        "hermite-on-an-implicit-form",
+        &good.replace(
+            "label = \"B\"\nformulation = \"chetaev\"\nrtol = 1e-12\natol = 1e-12",
+            "label = \"B\"\nformulation = \"chetaev\"\nintegrator = \"radau5\"\nradau_dense = \"hermite\"\noptions = { form = \"dae\" }",
+        ),
+        &["B: radau_dense = hermite", "implicit form"],
+    );
+    refused(
         "bad-sweep-name",
         &good.replace("\"C.init.lambda1\"", "\"D.init.lambda1\""),
         &["cannot address `D.init.lambda1`", "labels: B, C"],

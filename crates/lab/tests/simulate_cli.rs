@@ -1070,9 +1070,13 @@ fn radau_dense_refuses_bad_names_and_implicit_forms() {
         "--t-end",
         "0.5",
     ]);
-    assert!(!o.status.success());
+    // Refused with the input (exit 2), before anything runs.
+    assert_eq!(o.status.code(), Some(2));
     let e = stderr(&o) + &String::from_utf8_lossy(&o.stdout);
-    assert!(e.contains("dense_output = hermite"), "{e}");
+    assert!(
+        e.contains("radau_dense = hermite") && e.contains("implicit form"),
+        "{e}"
+    );
 }
 
 /// `NONHOLO_NATIVE=0` (docs/cli.md) runs the programs interpreted, and the

@@ -150,6 +150,19 @@ pub struct Samples {
 /// applicability) without running anything.
 pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
     for r in resolve(exp, point)? {
+        // A fixed step that cannot reach t_end within the step budget is
+        // refused here, as `simulate` refuses it, not as a failed run.
+        let o = &r.spec.integrator;
+        if let Some(h) = o.fixed_step {
+            let steps = r.spec.t_end / h;
+            if steps > o.max_steps as f64 {
+                return Err(format!(
+                    "{}: `step` = {h:e} over [0, {}] takes {steps:.3e} steps, more than the step \
+                     budget max_steps = {} (a larger step, or a larger max_steps)",
+                    r.label, r.spec.t_end, o.max_steps
+                ));
+            }
+        }
         let scene = nonholo_scenes::build(&r.spec.scene, &r.spec.params)
             .map_err(|e| format!("{}: {e}", r.label))?;
         if r.spec.formulation == CLOSED_FORM {
@@ -169,9 +182,11 @@ pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
                 .map_err(|e| format!("{}: {e}", r.label))?;
             continue;
         }
-        let model =
+        let mut model =
             crate::formulations::build_model(scene.clone(), &r.spec.formulation, &r.spec.options)
                 .map_err(|e| format!("{}: {e}", r.label))?;
+        crate::formulations::check_radau_dense(model.as_mut(), r.spec.method, o)
+            .map_err(|e| format!("{}: {e}", r.label))?;
         scene
             .visit(ResolveInit {
                 given: r.spec.init.clone(),

@@ -123,64 +123,101 @@ pub const FORMULATIONS: [&str; 2] = ["vakonomic", "embedding"];
 
 /// The variational formulation of `name` on `scene`, with its end
 /// conditions, map form and dependent coordinates (names); every choice
-/// checked against what the scene has.
+/// checked against what the scene has. An error names the choice it is
+/// about: `formulation`, `dependent`, `ends` or `map_form` (the experiment
+/// keys; `--formulation`, `--dependent`, `--ends`, `--map-form` on the
+/// command line, [`choice_flag`]).
 pub fn formulation(
     scene: &nonholo_core::SceneInfo,
     name: &str,
     dependent: &[String],
     ends: Option<&str>,
     map_form: Option<&str>,
-) -> Result<var::Formulation, String> {
-    let choice = |what: &str, given: Option<&str>, valid: &[&str]| -> Result<(), String> {
-        match given {
-            Some(g) if !valid.contains(&g) => Err(format!(
-                "{what} `{g}` does not apply here; valid: {}",
+) -> Result<var::Formulation, (&'static str, String)> {
+    let choice = |what: &'static str, given: Option<&str>, valid: &[&str]| match given {
+        Some(g) if !valid.contains(&g) => Err((
+            what,
+            format!(
+                "`{g}` does not apply to formulation {name} here; valid: {}",
                 valid.join(", ")
-            )),
-            _ => Ok(()),
-        }
+            ),
+        )),
+        _ => Ok(()),
     };
     match name {
         "vakonomic" => {
             if !dependent.is_empty() {
-                return Err(
+                return Err((
+                    "dependent",
                     "dependent coordinates belong to the embedding's general case (formulation \
                      embedding); the vakonomic problem varies every coordinate"
                         .into(),
-                );
+                ));
             }
             if map_form.is_some() {
-                return Err("a map form belongs to formulation embedding".into());
+                return Err((
+                    "map_form",
+                    "a map form belongs to formulation embedding".into(),
+                ));
             }
-            choice("end condition", ends, &["fixed"])?;
+            choice("ends", ends, &["fixed"])?;
             Ok(var::Formulation::Vakonomic)
         }
         "embedding" if !dependent.is_empty() => {
             if map_form.is_some() {
-                return Err(
+                return Err((
+                    "map_form",
                     "a map form belongs to the embedding with the scene's map, not to the \
-                     general case (--dependent)"
+                     general case (dependent coordinates)"
                         .into(),
-                );
+                ));
             }
             let indices = dependent
                 .iter()
                 .map(|d| {
                     scene.coordinate_index(d).ok_or_else(|| {
-                        format!(
-                            "dependent coordinate `{d}` is not a coordinate of {} ({})",
-                            scene.name,
-                            scene
-                                .coordinates
-                                .iter()
-                                .map(|c| c.name)
-                                .collect::<Vec<_>>()
-                                .join(", ")
+                        (
+                            "dependent",
+                            format!(
+                                "`{d}` is not a coordinate of {} ({})",
+                                scene.name,
+                                scene
+                                    .coordinates
+                                    .iter()
+                                    .map(|c| c.name)
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
                         )
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            choice("end condition", ends, &["free", "fixed"])?;
+            if let Some((i, d)) = dependent
+                .iter()
+                .enumerate()
+                .find(|(i, d)| dependent[..*i].contains(d))
+            {
+                return Err((
+                    "dependent",
+                    format!("`{d}` is named twice (the {} name)", ordinal(i + 1)),
+                ));
+            }
+            if indices.len() != scene.s() {
+                return Err((
+                    "dependent",
+                    format!(
+                        "{} dependent coordinates given ({}), but {} has {} nonholonomic \
+                         constraint{}: the general case (eq. 27–30) solves each constraint for \
+                         one dependent velocity",
+                        indices.len(),
+                        dependent.join(", "),
+                        scene.name,
+                        scene.s(),
+                        if scene.s() == 1 { "" } else { "s" }
+                    ),
+                ));
+            }
+            choice("ends", ends, &["free", "fixed"])?;
             let end = match ends {
                 Some("fixed") => var::DependentEnd::Fixed,
                 _ => var::DependentEnd::Free,
@@ -192,15 +229,18 @@ pub fn formulation(
         }
         "embedding" => {
             if scene.embedding.is_none() {
-                return Err(format!(
-                    "{} has no embedding map (eq. 14): give its dependent coordinates \
-                     (--dependent, one per nonholonomic constraint) for the paper's general \
-                     case (eq. 27–30)",
-                    scene.name
+                return Err((
+                    "dependent",
+                    format!(
+                        "{} has no embedding map (eq. 14): give its dependent coordinates \
+                         (one per nonholonomic constraint) for the paper's general case \
+                         (eq. 27–30)",
+                        scene.name
+                    ),
                 ));
             }
-            choice("end condition", ends, &["configuration", "natural", "full"])?;
-            choice("map form", map_form, &["implicit", "explicit"])?;
+            choice("ends", ends, &["configuration", "natural", "full"])?;
+            choice("map_form", map_form, &["implicit", "explicit"])?;
             let ends = match ends {
                 Some("natural") => var::MapEnds::Natural,
                 Some("full") => var::MapEnds::Full,
@@ -212,11 +252,19 @@ pub fn formulation(
             };
             Ok(var::Formulation::Map { ends, form })
         }
-        other => Err(format!(
-            "`{other}` has no boundary-value form; valid: {}",
-            FORMULATIONS.join(", ")
+        other => Err((
+            "formulation",
+            format!(
+                "`{other}` has no boundary-value form; valid: {}",
+                FORMULATIONS.join(", ")
+            ),
         )),
     }
+}
+
+/// The command-line flag of a choice [`formulation`] refused.
+pub fn choice_flag(field: &str) -> String {
+    format!("--{}", field.replace('_', "-"))
 }
 
 /// Name of a variational formulation in records: `vakonomic`,
@@ -950,16 +998,14 @@ fn job(args: &BvpArgs) -> Result<(Job, String, Option<String>), CliError> {
     // The parameters resolve (ranges, names) before anything else is asked;
     // the built scene's description has its own size (`sleigh-train`).
     let info = nonholo_scenes::build(&scene_name, &params)?.info();
-    let formulation = flag(
-        "--formulation",
-        formulation(
-            info,
-            &args.formulation,
-            &args.dependent,
-            args.ends.as_deref(),
-            args.map_form.as_deref(),
-        ),
-    )?;
+    let formulation = formulation(
+        info,
+        &args.formulation,
+        &args.dependent,
+        args.ends.as_deref(),
+        args.map_form.as_deref(),
+    )
+    .map_err(|(field, m)| CliError::Input(format!("{}: {m}", choice_flag(field))))?;
     if args.nodes < 3 || args.nodes > 100_000_000 {
         return Err(CliError::Input(format!(
             "--nodes: {} (at least 3, at most 1e8)",
@@ -1315,4 +1361,15 @@ pub fn summary(r: &RunRecord) -> String {
         d.constraint_residual_max, d.energy_initial, d.energy_drift_max
     );
     s
+}
+
+/// `1st`, `2nd`, `3rd`, `4th`, …
+fn ordinal(k: usize) -> String {
+    let suffix = match (k % 10, k % 100) {
+        (1, r) if r != 11 => "st",
+        (2, r) if r != 12 => "nd",
+        (3, r) if r != 13 => "rd",
+        _ => "th",
+    };
+    format!("{k}{suffix}")
 }

@@ -186,7 +186,40 @@ fn bvp_refuses_bad_input() {
     );
     refused(
         &["bvp", "--ends-from", "vakonomic.json", "--ends", "natural"],
-        "end condition `natural`",
+        "--ends: `natural` does not apply to formulation vakonomic",
+    );
+    // Dependent coordinates: one per nonholonomic constraint, each once,
+    // the flag that is wrong named.
+    for (dependent, says) in [
+        (
+            &["x", "y"][..],
+            "--dependent: 2 dependent coordinates given (x, y)",
+        ),
+        (&["y", "y"][..], "--dependent: `y` is named twice"),
+    ] {
+        let mut args = vec![
+            "bvp",
+            "--scene",
+            "sleigh-incline",
+            "--formulation",
+            "embedding",
+            "--t-end",
+            "1",
+        ];
+        for d in dependent {
+            args.extend(["--dependent", d]);
+        }
+        refused(&args, says);
+    }
+    refused(
+        &[
+            "bvp",
+            "--ends-from",
+            "vakonomic.json",
+            "--map-form",
+            "explicit",
+        ],
+        "--map-form: a map form belongs to formulation embedding",
     );
     refused(
         &["bvp", "--ends-from", "vakonomic.json", "--t-end", "0.5021"],
@@ -456,6 +489,10 @@ formulation = "vakonomic"
         (
             good.replace("dependent = [\"x\", \"y\"]", "dependent = [\"q\"]"),
             "not a coordinate",
+        ),
+        (
+            good.replace("dependent = [\"x\", \"y\"]", "dependent = [\"x\"]"),
+            "`bvp.line.dependent`: 1 dependent coordinates given (x), but rolling-disk has 2",
         ),
         (
             good.replace("start = \"line\"", "start = \"curve\""),

@@ -1801,7 +1801,18 @@ fn bvp(
             l.ends.as_ref().map(|e| e.get_ref().as_str()),
             l.map_form.as_ref().map(|e| e.get_ref().as_str()),
         )
-        .map_err(|m| ctx.err(l.formulation.span(), "bvp.line", m))?;
+        .map_err(|(field, m)| {
+            let span = match field {
+                "ends" => l.ends.as_ref().map(|e| e.span()),
+                "map_form" => l.map_form.as_ref().map(|e| e.span()),
+                _ => None,
+            };
+            ctx.err(
+                span.unwrap_or_else(|| l.formulation.span()),
+                &format!("bvp.line.{field}"),
+                m,
+            )
+        })?;
         lines.push(BvpLine {
             label,
             formulation: l.formulation.get_ref().clone(),

@@ -659,6 +659,17 @@ impl<S: Scene, E: Equations> Model for Binding<S, E> {
         self.eq.cartesian()
     }
 
+    fn no_state_chart(&self) -> Error {
+        Error::NotApplicable {
+            formulation: self.formulation().name.into(),
+            scene: self.scene_info().name.into(),
+            reason: "linearisation needs a state that begins with (q, q̇), and this form's \
+                     state is the adapted one, (q, c, w): use the Cartesian form (option \
+                     form = cartesian, `--option form=cartesian`)"
+                .into(),
+        }
+    }
+
     fn state_chart(&mut self, t: f64, y: &[f64]) -> Result<StateChart, Error> {
         let info = self.scene.info();
         if !self.eq.cartesian() {

@@ -123,14 +123,16 @@ pub enum Level {
 }
 
 impl Level {
-    fn quantity(self) -> &'static str {
+    /// `positions` or `velocities`.
+    pub fn quantity(self) -> &'static str {
         match self {
             Level::Positions => "positions",
             Level::Velocities => "velocities",
         }
     }
 
-    fn constraints(self) -> &'static str {
+    /// The constraints checked at this level.
+    pub fn constraints(self) -> &'static str {
         match self {
             Level::Positions => "holonomic constraints",
             Level::Velocities => "constraints",

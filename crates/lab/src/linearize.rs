@@ -82,11 +82,31 @@ pub fn linearise_at(
     let built = nonholo_scenes::build(scene, params)?;
     let mut model = formulations::build_model(built.clone(), formulation, options)?;
     let given = steady_pairs(built.info(), steady);
-    let initial: Initial = built.visit(ResolveInit {
-        given,
-        extra: model.extra_init_names(),
-    })?;
-    Ok(linearize(model.as_mut(), &initial, opts)?)
+    // A steady motion off the constraints is the caller's to correct:
+    // linearize does not project (simulate's --project-init does).
+    let off = |e: nonholo_core::Error| match e {
+        nonholo_core::Error::OffConstraints {
+            level, residuals, ..
+        } => CliError::Input(format!(
+            "--steady: the steady motion's {} violate the {} ({}): give a steady motion on \
+             the constraints (linearize does not project it)",
+            level.quantity(),
+            level.constraints(),
+            residuals
+                .iter()
+                .map(|(c, r)| format!("{c}: residual {r:.3e}"))
+                .collect::<Vec<_>>()
+                .join("; ")
+        )),
+        e => e.into(),
+    };
+    let initial: Initial = built
+        .visit(ResolveInit {
+            given,
+            extra: model.extra_init_names(),
+        })
+        .map_err(off)?;
+    linearize(model.as_mut(), &initial, opts).map_err(off)
 }
 
 #[derive(Serialize)]
@@ -205,6 +225,16 @@ fn text(args: &LinearizeArgs, lin: &Linearisation) -> String {
 pub fn command(args: &LinearizeArgs) -> Result<(), CliError> {
     scene_and_formulation(&args.scene, &args.formulation)?;
     let steady_tol = flag("--steady-tol", fields::positive_finite(args.steady_tol))?;
+    let given = &args.independent;
+    if let Some(name) = given
+        .iter()
+        .enumerate()
+        .find_map(|(i, n)| given[..i].contains(n).then_some(n))
+    {
+        return Err(CliError::Input(format!(
+            "--independent: `{name}` is given twice"
+        )));
+    }
     let opts = Options {
         independent: args.independent.clone(),
         steady_tol,

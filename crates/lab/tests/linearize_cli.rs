@@ -141,10 +141,43 @@ fn linearize_refuses_what_it_cannot_do() {
             ],
             "positive definite",
         ),
+        // The adapted form of visc: the message names the form that works.
+        (
+            vec![
+                "linearize",
+                "--scene",
+                "sleigh-incline",
+                "--formulation",
+                "visc",
+                "--steady",
+                "u=1",
+            ],
+            "--option form=cartesian",
+        ),
+        (
+            vec![
+                "linearize",
+                "--scene",
+                "bicycle",
+                "--steady",
+                "v=5",
+                "--independent",
+                "phi_dot",
+                "--independent",
+                "phi_dot",
+            ],
+            "--independent: `phi_dot` is given twice",
+        ),
+        // A steady motion off the constraints: no --project-init to offer.
+        (
+            vec!["linearize", "--scene", "pendulum", "--steady", "x=0.5"],
+            "--steady: the steady motion's positions violate the holonomic constraints",
+        ),
     ] {
         let o = nonholo(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("--project-init"), "{}", stderr(&o));
     }
 }
 

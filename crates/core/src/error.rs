@@ -37,7 +37,7 @@ pub enum Error {
     /// comes from.
     #[error(
         "inconsistent parameters: {} violate {requirement}: {why}",
-        values.iter().map(|(n, v)| format!("{n} = {v}")).collect::<Vec<_>>().join(", ")
+        values.iter().map(|(n, v)| format!("{n} = {}", num(*v))).collect::<Vec<_>>().join(", ")
     )]
     InconsistentParams {
         requirement: String,
@@ -154,5 +154,17 @@ impl Error {
             stage: stage.into(),
             detail: detail.to_string(),
         }
+    }
+}
+
+/// A number as messages print it: plain between 1e-5 and 1e16 (`0.5`,
+/// `300`), in exponent form outside (`1e300`, `2.5e-7`), never hundreds of
+/// digits.
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() || (1e-5..1e16).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
     }
 }

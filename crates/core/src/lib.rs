@@ -46,7 +46,7 @@ pub mod stab;
 
 pub use binding::{Binding, Equations, EvalError};
 pub use complex::C64;
-pub use error::{Error, Level};
+pub use error::{Error, Level, num};
 pub use init::Initial;
 pub use model::{
     CrossingRecord, Description, FormulationInfo, Model, Observation, StateChart, Switch,

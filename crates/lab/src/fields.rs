@@ -38,12 +38,7 @@ pub const MAX_LADDER: usize = 100;
 /// A number for a message: plain digits in the usual range, exponent
 /// notation otherwise (`1e-320`, not three hundred digits).
 pub fn num(v: f64) -> String {
-    let a = v.abs();
-    if v == 0.0 || !v.is_finite() || (1e-5..1e16).contains(&a) {
-        format!("{v}")
-    } else {
-        format!("{v:e}")
-    }
+    nonholo_core::num(v)
 }
 
 pub fn positive_finite(v: f64) -> Result<f64, String> {

@@ -693,6 +693,10 @@ fn messages_name_the_field_and_agree() {
         &["--rtol: 1e300 is not below 1"],
     );
     fails(
+        &with(&["--param", "J=1e300", "--param", "a=1e300"]),
+        &["J = 1e300, a = 1e300 violate J > a² = inf"],
+    );
+    fails(
         &with(&["--step", "0.01", "--rtol", "1e-6"]),
         &["--rtol: has no effect with --step"],
     );

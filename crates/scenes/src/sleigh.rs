@@ -202,7 +202,7 @@ impl Scene for Sleigh {
         let (j, a) = (params.real("J")?, params.real("a")?);
         if j <= a * a {
             return Err(Error::InconsistentParams {
-                requirement: format!("J > a² = {}", a * a),
+                requirement: format!("J > a² = {}", nonholo_core::num(a * a)),
                 values: vec![("J".into(), j), ("a".into(), a)],
                 why: "J is the squared radius of gyration about the blade, ρ² + a², and the mass \
                       matrix has determinant m³(J − a²)"

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use nonholo_core::integrate::{Method, Options, Radau5Options, RadauDense};
+use nonholo_core::integrate::{Method, Options, Radau5Options};
 use nonholo_core::{Run, RunConfig, init, simulate};
 
 use crate::formulations;
@@ -50,22 +50,23 @@ pub struct SimulateArgs {
     /// Fixed step size: required for rk4; turns step-size control off for the others.
     #[arg(long, allow_hyphen_values = true)]
     pub step: Option<f64>,
-    /// Newton iteration of radau5: auto (the formulation's choice), simplified, full.
-    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
-    pub radau_newton: String,
+    /// Newton iteration of radau5: auto (the formulation's choice, the
+    /// default), simplified, full. With --integrator radau5 only.
+    #[arg(long, allow_hyphen_values = true)]
+    pub radau_newton: Option<String>,
     /// Continuous extension of radau5 (output samples, guard location):
     /// auto (hermite for ODE formulations, collocation for implicit ones),
     /// collocation (RADAU5's polynomial), hermite (a quintic through the last
     /// three step points where the Jacobian's row is not stiff; ODE
-    /// formulations only).
-    #[arg(long, default_value = RadauDense::default().name(), allow_hyphen_values = true)]
-    pub radau_dense: String,
+    /// formulations only). Default auto; with --integrator radau5 only.
+    #[arg(long, allow_hyphen_values = true)]
+    pub radau_dense: Option<String>,
     /// radau5 keeps its Jacobian after a step whose Newton iteration
     /// contracted at rate ≤ this (RADAU5's THET; negative: a new Jacobian
     /// every step). Below 1; default RADAU5's 0.001 (its documentation
-    /// advises 0.1 when Jacobians are costly).
-    #[arg(long, default_value_t = Radau5Options::default().jacobian_reuse, allow_hyphen_values = true)]
-    pub radau_jacobian_reuse: f64,
+    /// advises 0.1 when Jacobians are costly). With --integrator radau5 only.
+    #[arg(long, allow_hyphen_values = true)]
+    pub radau_jacobian_reuse: Option<f64>,
     /// radau5's Newton iteration stops when its estimated remaining error,
     /// in units of the error scale, is at most this (RADAU5's FNEWT;
     /// between 0 and 1). Default: RADAU5's, max(10·uround/rtol',
@@ -200,11 +201,36 @@ pub fn integrator(args: &SimulateArgs) -> Result<(Method, Options), CliError> {
         dense: false,
         ..Options::default()
     };
-    options.radau5.newton = flag("--radau-newton", fields::radau_newton(&args.radau_newton))?;
-    options.radau5.dense_output = flag("--radau-dense", fields::radau_dense(&args.radau_dense))?;
+    // Radau IIA's settings, refused with another integrator (where they
+    // would be ignored without a word).
+    let given = [
+        ("--radau-newton", args.radau_newton.is_some()),
+        ("--radau-dense", args.radau_dense.is_some()),
+        (
+            "--radau-jacobian-reuse",
+            args.radau_jacobian_reuse.is_some(),
+        ),
+        ("--radau-newton-tol", args.radau_newton_tol.is_some()),
+    ];
+    if let Some((name, _)) = given.iter().find(|(_, g)| *g)
+        && method != Method::Radau5
+    {
+        return Err(CliError::Input(format!(
+            "{name}: a setting of --integrator radau5, not of {}",
+            method.name()
+        )));
+    }
+    let defaults = Radau5Options::default();
+    if let Some(n) = &args.radau_newton {
+        options.radau5.newton = flag("--radau-newton", fields::radau_newton(n))?;
+    }
+    options.radau5.dense_output = match &args.radau_dense {
+        Some(d) => flag("--radau-dense", fields::radau_dense(d))?,
+        None => defaults.dense_output,
+    };
     options.radau5.jacobian_reuse = flag(
         "--radau-jacobian-reuse",
-        fields::radau_jacobian_reuse(args.radau_jacobian_reuse),
+        fields::radau_jacobian_reuse(args.radau_jacobian_reuse.unwrap_or(defaults.jacobian_reuse)),
     )?;
     options.radau5.newton_tol = args
         .radau_newton_tol

@@ -1077,6 +1077,33 @@ fn radau_dense_refuses_bad_names_and_implicit_forms() {
         e.contains("radau_dense = hermite") && e.contains("implicit form"),
         "{e}"
     );
+    // Radau IIA's settings with another integrator: refused, not ignored.
+    for (flag, value) in [
+        ("--radau-dense", "hermite"),
+        ("--radau-newton", "full"),
+        ("--radau-jacobian-reuse", "0.1"),
+        ("--radau-newton-tol", "1e-3"),
+    ] {
+        let o = nonholo(&[
+            "simulate",
+            "--scene",
+            "sleigh-incline",
+            "--integrator",
+            "dop853",
+            flag,
+            value,
+            "--t-end",
+            "0.5",
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!(
+                "{flag}: a setting of --integrator radau5, not of dop853"
+            )),
+            "{}",
+            stderr(&o)
+        );
+    }
 }
 
 /// `NONHOLO_NATIVE=0` (docs/cli.md) runs the programs interpreted, and the

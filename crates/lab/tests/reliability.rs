@@ -598,6 +598,12 @@ fn plot_refuses_stale_missing_or_corrupt_results() {
 fn reproduce_checks_everything_first_and_links_right() {
     let root = scratch("rel-reproduce");
     std::fs::create_dir_all(root.join("docs")).unwrap();
+    // No figure experiment at all: nothing to reproduce, no table written.
+    std::fs::create_dir_all(root.join("experiments")).unwrap();
+    let o = nonholo_in(&root, &["reproduce", "--threads", "1"]);
+    assert_eq!(code(&o), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("marked as a figure"), "{}", stderr(&o));
+    assert!(!root.join("docs/figures.md").exists());
     let good =
         disk_sweep("a", 2, 1.0).replace("claim = \"none\"", "claim = \"none\"\nfigure = true");
     experiment(&root, "a", &good);

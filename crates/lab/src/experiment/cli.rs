@@ -486,6 +486,14 @@ pub fn reproduce(args: &ReproduceArgs) -> Result<(), CliError> {
             experiments.push((f, exp));
         }
     }
+    if experiments.is_empty() {
+        return Err(CliError::Input(format!(
+            "--experiments {}: no experiment file there is marked as a figure \
+             (`figure = true` in [experiment]); nothing to reproduce, {} left as it is",
+            args.experiments.display(),
+            args.figures.display()
+        )));
+    }
     distinct_names(experiments.iter().map(|(f, e)| (f.as_path(), e)))?;
     let dirs = experiments
         .iter()

@@ -454,8 +454,7 @@ fn wp_sleigh_cost_ratios_as_figures_md_states() {
             }
         }
         let span = |v: &[f64]| {
-            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = v.iter().copied().fold(0.0, f64::max);
+            let (lo, hi) = bounds(v);
             format!("{lo:.0}–{hi:.0}×")
         };
         format!("{} C and {} B", span(&c), span(&b))
@@ -1720,11 +1719,10 @@ fn sleigh_phase_as_figures_md_states() {
         omega_end = omega_end.max(qd[2].abs());
     }
     assert!(omega_end < 2.6e-3 && omega_end > 2.4e-3, "{omega_end}");
-    let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-    let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    assert_eq!((min(&reversals_c), max(&reversals_c)), (4.0, 6.0));
+    assert_eq!(bounds(&reversals_c), (4.0, 6.0));
+    let (near, most) = bounds(&far);
     assert!(
-        (min(&far) - 14.9).abs() < 0.05 && (max(&far) - 21.6).abs() < 0.05,
+        (near - 14.9).abs() < 0.05 && (most - 21.6).abs() < 0.05,
         "{far:?}"
     );
     figures_md_says(&[
@@ -1766,6 +1764,14 @@ fn solves<'a>(
     label: &str,
 ) -> Vec<&'a HashMap<String, String>> {
     rows.iter().filter(|r| r["label"] == label).collect()
+}
+
+/// `(min, max)` of `v` (`(inf, −inf)` if it is empty).
+fn bounds(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        })
 }
 
 /// `(min, max)` of the numbers in `key` of `rows` (empty fields skipped).
@@ -2135,12 +2141,7 @@ fn compiled_kkt_as_performance_md_states() {
     // The prose under it: native over the interpreter on Dual64 (over the
     // table's scenes), and Cranelift's times (B over f64, which makes
     // every function of the line: the Dual64 rows find them made).
-    let range = |v: Vec<f64>| {
-        (
-            v.iter().cloned().fold(f64::INFINITY, f64::min),
-            v.iter().cloned().fold(0.0, f64::max),
-        )
-    };
+    let range = |v: Vec<f64>| bounds(&v);
     let (lo, hi) = range(
         tabled
             .iter()
@@ -2262,10 +2263,7 @@ fn rhs_report_as_performance_md_states() {
         .filter(|l| l.starts_with("| ") && !l.starts_with("| right-hand side"))
         .filter_map(|l| l.split('|').map(str::trim).nth(6)?.parse().ok())
         .collect();
-    let (lo, hi) = (
-        hands.iter().cloned().fold(f64::INFINITY, f64::min),
-        hands.iter().cloned().fold(0.0, f64::max),
-    );
+    let (lo, hi) = bounds(&hands);
     said.push(format!(
         "not clearly within it: {}× and {}× in the run above,",
         cell(b, 0, 7),
@@ -2310,8 +2308,7 @@ fn sleigh_floor_against_scipy_as_performance_md_states() {
         "docs/performance.md does not say `{said}`"
     );
     let speedups: Vec<f64> = ladder.iter().map(|r| num(r, "speedup_b")).collect();
-    let lo = speedups.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = speedups.iter().cloned().fold(0.0, f64::max);
+    let (lo, hi) = bounds(&speedups);
     let said = format!("({lo:.1}–{hi:.1}× rung by rung)");
     assert!(
         flat.contains(&said),
@@ -2324,10 +2321,7 @@ fn sleigh_floor_against_scipy_as_performance_md_states() {
         .iter()
         .map(|r| num(r, "ms") * 1e3 / num(r, "evals"))
         .collect();
-    let (plo, phi) = (
-        per.iter().cloned().fold(f64::INFINITY, f64::min),
-        per.iter().cloned().fold(0.0, f64::max),
-    );
+    let (plo, phi) = bounds(&per);
     let hand = timed_table("sleigh-floor", "matched.csv");
     let over_hand = num(&matched[0], "ms_scipy") / num(&hand[0], "ms_hand");
     performance_md_says(&[
@@ -2401,14 +2395,8 @@ fn sleigh_floor_as_performance_md_states() {
         .iter()
         .map(|r| (num(r, "evals_b") / num(r, "evals_hand") - 1.0) * 100.0)
         .collect();
-    let (lo, hi) = (
-        ratios.iter().cloned().fold(f64::INFINITY, f64::min),
-        ratios.iter().cloned().fold(0.0, f64::max),
-    );
-    let (elo, ehi) = (
-        extra.iter().cloned().fold(f64::INFINITY, f64::min),
-        extra.iter().cloned().fold(0.0, f64::max),
-    );
+    let (lo, hi) = bounds(&ratios);
+    let (elo, ehi) = bounds(&extra);
     let said =
         format!("{lo:.1}–{hi:.1}× rung by rung, with {elo:.1}–{ehi:.0} % more evaluations for B");
     assert!(
@@ -2419,10 +2407,9 @@ fn sleigh_floor_as_performance_md_states() {
         .iter()
         .map(|r| num(r, "ms_b") * 1e3 / num(r, "evals_b"))
         .collect();
+    let (lo, hi) = bounds(&per);
     performance_md_says(&[&format!(
-        "B's time per evaluation moved between {:.2} and {:.2} µs",
-        per.iter().cloned().fold(f64::INFINITY, f64::min),
-        per.iter().cloned().fold(0.0, f64::max)
+        "B's time per evaluation moved between {lo:.2} and {hi:.2} µs"
     )]);
     let said = format!(
         "and the two run again there in {} paired repeats",
@@ -2567,12 +2554,7 @@ fn peers_time_ratios_as_peers_md_states() {
             .unwrap_or_else(|| panic!("peers.csv: no visc k=1e2 {method} {tol}"));
         num(r, "wall_median_s")
     };
-    let range = |v: &[f64]| {
-        (
-            v.iter().copied().fold(f64::INFINITY, f64::min),
-            v.iter().copied().fold(0.0, f64::max),
-        )
-    };
+    let range = bounds;
     let q: Vec<f64> = ["1e-4", "1e-6", "1e-8", "1e-10"]
         .iter()
         .map(|t| wall("Radau IIA (radau5)", t) / wall("BDF (NDF, order 1-5)", t))
@@ -2650,8 +2632,7 @@ fn steps_per_jacobian_as_peers_md_states() {
             .map(|r| num(r, "steps") / num(r, "jac_evals"))
             .collect();
         assert_eq!(v.len(), if stiff { 12 } else { 4 }, "{problem} {method}");
-        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().cloned().fold(0.0, f64::max);
+        let (lo, hi) = bounds(&v);
         (lo, hi)
     };
     let (bdf, ours) = ("BDF (NDF, order 1-5)", "Radau IIA (radau5)");
@@ -2724,8 +2705,7 @@ fn jacobian_reuse_as_peers_md_states() {
             .iter()
             .map(|k| at(k, solver) / at(k, "diffsol BDF (NDF, order 1-5)"))
             .collect();
-        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().cloned().fold(0.0, f64::max);
+        let (lo, hi) = bounds(&v);
         format!("{lo:.2}–{hi:.2}×")
     };
     let solvers = [
@@ -2824,8 +2804,7 @@ fn jacobian_reuse_as_peers_md_states() {
         .collect();
     let (cheaper, dearer): (Vec<f64>, Vec<f64>) = ratios.iter().partition(|&&r| r < 1.0);
     let range = |v: &[f64]| {
-        let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().cloned().fold(0.0, f64::max);
+        let (lo, hi) = bounds(v);
         format!("{lo:.2}–{hi:.2}×")
     };
     assert!(!cheaper.is_empty() && !dearer.is_empty(), "{ratios:?}");
@@ -2878,8 +2857,7 @@ fn jacobian_reuse_as_peers_md_states() {
             at("BDF (NDF, order 1-5)") / at(&hermite)
         })
         .collect();
-    let lo = bdf_over_ours.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = bdf_over_ours.iter().cloned().fold(0.0, f64::max);
+    let (lo, hi) = bounds(&bdf_over_ours);
     assert!(lo > 1.0, "{bdf_over_ours:?}");
     doc_says(
         "peers.md",
@@ -2888,8 +2866,7 @@ fn jacobian_reuse_as_peers_md_states() {
         )],
     );
     let ref_errs: Vec<f64> = runs.iter().map(|r| num(r, "ref_err")).collect();
-    let lo = ref_errs.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = ref_errs.iter().cloned().fold(0.0, f64::max);
+    let (lo, hi) = bounds(&ref_errs);
     said.push(format!(
         "itself within {lo:.1e}–{hi:.1e} of the same at 3e-14 (`ref_err`)"
     ));
@@ -3221,8 +3198,7 @@ fn radau_reuse_as_docs_state() {
             .collect()
     }
     fn span(v: &[f64]) -> String {
-        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().copied().fold(0.0, f64::max);
+        let (lo, hi) = bounds(v);
         format!("{lo:.2}–{hi:.2}×")
     }
     let jacobians = |name: &str, label: &str| {
@@ -3231,8 +3207,7 @@ fn radau_reuse_as_docs_state() {
             .filter(|r| r["label"] == label)
             .map(|r| num(r, "jacobian_evals"))
             .collect();
-        let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = v.iter().copied().fold(0.0, f64::max);
+        let (lo, hi) = bounds(&v);
         format!("{lo:.0}–{hi:.0}")
     };
     let err = |name: &str, label: &str, tol: f64| {

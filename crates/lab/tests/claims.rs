@@ -2278,6 +2278,18 @@ fn rhs_report_as_performance_md_states() {
         cell(&bi, 1, 3),
         cell(&bi, 1, 4),
     ));
+    // The adapted form of visc: its right-hand side both ways, its Jacobian
+    // against B's both ways.
+    let adapted = "visc (k = 1e4), adapted form (q, u, c_ω, w)";
+    let ai = format!("{adapted}, interpreter");
+    let ns = |what: &str| cell(what, 1, 3).parse::<f64>().unwrap();
+    said.push(format!(
+        "in the run above it is {}× interpreted and {}× native, and its Jacobian {:.1} times B's interpreted and {:.1} times native",
+        cell(&ai, 0, 7),
+        cell(adapted, 0, 7),
+        ns(&ai) / ns(&bi),
+        ns(adapted) / ns(b)
+    ));
     performance_md_says(&said.iter().map(String::as_str).collect::<Vec<_>>());
     // docs/peers.md points from its baseline of the passes to these.
     doc_says(
@@ -2938,6 +2950,16 @@ fn scale_as_performance_md_states() {
     assert!(flat.contains(&said), "performance.md lacks `{said}`");
     assert!(fit("dae_jacobian") <= 1.2 && fit("dae_radau_step") <= 1.2);
     let at = |n: &str| rows.iter().find(|r| r["N"] == n).unwrap();
+    // The careful register allocator's share of the train: its programs
+    // over f64 hold about 74 instructions per sleigh, so up to about 40
+    // sleighs fit under `CAREFUL_REAL_UP_TO`.
+    let per_sleigh = num(at("1000"), "instructions") / 1000.0;
+    let careful = nonholo_core::jit::CAREFUL_REAL_UP_TO as f64 / per_sleigh;
+    let said = format!(
+        "about {per_sleigh:.0} instructions per sleigh, take it up to about {:.0} sleighs",
+        (careful / 10.0).round() * 10.0
+    );
+    assert!(flat.contains(&said), "performance.md lacks `{said}`");
     let last = at("1000");
     let said = format!(
         "1000 sleighs ({} KKT rows, {} stored entries) cost {:.0} µs per right-hand side",

@@ -616,9 +616,16 @@ fn reproduce_checks_everything_first_and_links_right() {
         "an experiment ran before the check"
     );
 
-    let o = nonholo_in(&root, &["reproduce", "--threads", "0"]);
-    assert_eq!(code(&o), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+    for bad in ["0", "-1"] {
+        let o = nonholo_in(&root, &["reproduce", "--threads", bad]);
+        assert_eq!(code(&o), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--threads"), "{}", stderr(&o));
+        assert!(
+            !stderr(&o).contains("unexpected argument"),
+            "{}",
+            stderr(&o)
+        );
+    }
 
     // Two files of one name would write one results directory.
     experiment(&root, "b", &good);

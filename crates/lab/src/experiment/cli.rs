@@ -20,7 +20,7 @@ pub struct ExperimentArgs {
     /// depend on it (a run stopped by a wall-time budget is recorded
     /// without its machine-dependent values; step budgets stop the same
     /// everywhere).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
     /// Results directory (default: results/<name> beside experiments/):
     /// created if missing; an existing one must be empty or nonholo's.
@@ -50,7 +50,7 @@ pub struct MergeArgs {
     pub out: Option<PathBuf>,
     /// Worker threads for what the merge computes itself (the `[minimise]`
     /// searches), 1 to 1024 (default: all cores).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
     /// No progress output.
     #[arg(long)]
@@ -78,7 +78,7 @@ pub struct ReproduceArgs {
     #[arg(long)]
     pub force: bool,
     /// Worker threads, 1 to 1024 (default: all cores).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
 }
 

@@ -73,6 +73,7 @@ mod solver;
 mod stop;
 mod system;
 mod validate;
+pub use validate::fixed_step_budget;
 
 pub use dense::Dense;
 pub use error::{Failure, IntegrateError, StiffnessEstimate, SystemError};

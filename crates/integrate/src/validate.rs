@@ -3,6 +3,20 @@
 use crate::Options;
 use crate::explicit::control::all_finite;
 
+/// Refuses a fixed step `h` that needs more than `max_steps` steps over
+/// `[t0, t_end]` (checked before the first step, and by callers that
+/// check their input before building a run).
+pub fn fixed_step_budget(t0: f64, t_end: f64, h: f64, max_steps: usize) -> Result<(), String> {
+    let steps = (t_end - t0) / h;
+    if steps > max_steps as f64 {
+        return Err(format!(
+            "fixed_step = {h:e} over [{t0}, {t_end}] takes {steps:.3e} steps, more than the \
+             step budget max_steps = {max_steps}"
+        ));
+    }
+    Ok(())
+}
+
 /// Checks the initial data and options; the message says what is wrong.
 pub(crate) fn validate(
     needs_fixed_step: bool,
@@ -66,17 +80,8 @@ pub(crate) fn validate(
         Some(h) if !positive(h) => {
             return Err(format!("fixed_step = {h} must be positive and finite"));
         }
-        Some(h) => {
-            // Refused before the first step rather than at the budget.
-            let steps = (t_end - t0) / h;
-            if steps > opts.max_steps as f64 {
-                return Err(format!(
-                    "fixed_step = {h:e} over [{t0}, {t_end}] takes {steps:.3e} steps, more than \
-                     the step budget max_steps = {}",
-                    opts.max_steps
-                ));
-            }
-        }
+        // Refused before the first step rather than at the budget.
+        Some(h) => fixed_step_budget(t0, t_end, h, opts.max_steps)?,
         _ => {}
     }
     for (name, v) in [("h_init", opts.h_init), ("h_max", opts.h_max)] {

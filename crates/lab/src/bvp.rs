@@ -192,15 +192,8 @@ pub fn formulation(
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            if let Some((i, d)) = dependent
-                .iter()
-                .enumerate()
-                .find(|(i, d)| dependent[..*i].contains(d))
-            {
-                return Err((
-                    "dependent",
-                    format!("`{d}` is named twice (the {} name)", ordinal(i + 1)),
-                ));
+            if let Some(d) = crate::fields::repeated(dependent) {
+                return Err(("dependent", format!("`{d}` is named twice")));
             }
             if indices.len() != scene.s() {
                 return Err((
@@ -1361,15 +1354,4 @@ pub fn summary(r: &RunRecord) -> String {
         d.constraint_residual_max, d.energy_initial, d.energy_drift_max
     );
     s
-}
-
-/// `1st`, `2nd`, `3rd`, `4th`, …
-fn ordinal(k: usize) -> String {
-    let suffix = match (k % 10, k % 100) {
-        (1, r) if r != 11 => "st",
-        (2, r) if r != 12 => "nd",
-        (3, r) if r != 13 => "rd",
-        _ => "th",
-    };
-    format!("{k}{suffix}")
 }

@@ -41,6 +41,14 @@ pub fn num(v: f64) -> String {
     nonholo_core::num(v)
 }
 
+/// The first name of `names` that repeats an earlier one.
+pub fn repeated(names: &[String]) -> Option<&String> {
+    names
+        .iter()
+        .enumerate()
+        .find_map(|(i, n)| names[..i].contains(n).then_some(n))
+}
+
 pub fn positive_finite(v: f64) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)

@@ -225,12 +225,7 @@ fn text(args: &LinearizeArgs, lin: &Linearisation) -> String {
 pub fn command(args: &LinearizeArgs) -> Result<(), CliError> {
     scene_and_formulation(&args.scene, &args.formulation)?;
     let steady_tol = flag("--steady-tol", fields::positive_finite(args.steady_tol))?;
-    let given = &args.independent;
-    if let Some(name) = given
-        .iter()
-        .enumerate()
-        .find_map(|(i, n)| given[..i].contains(n).then_some(n))
-    {
+    if let Some(name) = fields::repeated(&args.independent) {
         return Err(CliError::Input(format!(
             "--independent: `{name}` is given twice"
         )));

@@ -265,7 +265,7 @@ fn bad_experiment_files_name_key_and_line() {
             "label = \"B\"\nformulation = \"chetaev\"\nrtol = 1e-12\natol = 1e-12",
             "label = \"B\"\nformulation = \"chetaev\"\nintegrator = \"rk4\"\nstep = 1e-9",
         ),
-        &["B: `step` = 1e-9", "more than the step budget"],
+        &["B: fixed_step = 1e-9", "more than the step budget"],
     );
     refused(
         "hermite-on-an-implicit-form",

@@ -119,8 +119,6 @@ impl Drop for ResultsDir {
     }
 }
 
-/// Whether `dir` holds an experiment's results: a `manifest.json` of
-/// nonholo's schema.
 /// The name of the experiment whose results `dir` holds, as its
 /// `summary.json` (or a shard's `shard.json`) names it.
 pub fn stored_experiment(dir: &Path) -> Option<String> {
@@ -134,6 +132,8 @@ pub fn stored_experiment(dir: &Path) -> Option<String> {
         .or_else(|| super::shard::shard_of(dir))
 }
 
+/// Whether `dir` holds an experiment's results: a `manifest.json` of
+/// nonholo's schema.
 pub fn written_by_an_experiment(dir: &Path) -> bool {
     fs::read_to_string(dir.join("manifest.json"))
         .ok()

@@ -151,17 +151,11 @@ pub struct Samples {
 pub fn check_point(exp: &Experiment, point: &Point) -> Result<(), String> {
     for r in resolve(exp, point)? {
         // A fixed step that cannot reach t_end within the step budget is
-        // refused here, as `simulate` refuses it, not as a failed run.
+        // refused here, by the integrator's own test, not as a failed run.
         let o = &r.spec.integrator;
         if let Some(h) = o.fixed_step {
-            let steps = r.spec.t_end / h;
-            if steps > o.max_steps as f64 {
-                return Err(format!(
-                    "{}: `step` = {h:e} over [0, {}] takes {steps:.3e} steps, more than the step \
-                     budget max_steps = {} (a larger step, or a larger max_steps)",
-                    r.label, r.spec.t_end, o.max_steps
-                ));
-            }
+            nonholo_core::integrate::fixed_step_budget(0.0, r.spec.t_end, h, o.max_steps)
+                .map_err(|e| format!("{}: {e}", r.label))?;
         }
         let scene = nonholo_scenes::build(&r.spec.scene, &r.spec.params)
             .map_err(|e| format!("{}: {e}", r.label))?;
